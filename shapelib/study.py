@@ -1,0 +1,112 @@
+"""Helpers the study notebooks share: recording numbers and saving figures reproducibly.
+
+A notebook records every number the report needs with :func:`record_values`, which
+writes ``<output_dir>/values.json``; figures go through :func:`save_figure`, which
+produces the same PNG bytes for the same inputs (no timestamps or version strings in the
+metadata, fixed DPI).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["record_values", "load_values", "save_figure", "pair_key", "VALUES_FILE"]
+
+VALUES_FILE = "values.json"
+
+
+def pair_key(item: str, column: str, i: int, j: int) -> str:
+    """Canonical key of a pairwise value, e.g. ``table1/procrustes/1-2`` (ids sorted)."""
+    a, b = sorted((int(i), int(j)))
+    return f"{item}/{column}/{a}-{b}"
+
+
+def _to_jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _to_jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_to_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _to_jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        x = float(x)
+        if not math.isfinite(x):
+            raise ValueError(f"non-finite value {x!r} cannot be recorded")
+        return x
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (np.bool_,)):
+        return bool(x)
+    return x
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def record_values(output_dir, values: dict, *, notes: dict | None = None, meta: dict | None = None) -> Path:
+    """Merge ``values`` (``{key: number}``) into ``<output_dir>/values.json``.
+
+    Parameters
+    ----------
+    output_dir : path-like
+        The notebook's output folder.
+    values : dict
+        Numbers keyed as in ``data/reference/*.csv`` (e.g. ``table1/procrustes/1-2``), in the
+        quantity's natural units (not the table's printed scale). Must be finite.
+    notes : dict, optional
+        Free text per item or column (conventions used, caveats), shown in ``REPORT.md``.
+    meta : dict, optional
+        Anything else worth keeping (timings, solver logs, parameters).
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
+    path = Path(output_dir) / VALUES_FILE
+    current = load_values(output_dir) if path.exists() else {"values": {}, "notes": {}, "meta": {}}
+    for k, v in values.items():
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+            raise ValueError(f"value for {k!r} must be a real number; got {v!r}")
+    current["values"].update(_to_jsonable(values))
+    current["notes"].update(_to_jsonable(notes or {}))
+    current["meta"].update(_to_jsonable(meta or {}))
+    _atomic_write_text(path, json.dumps(current, indent=1, sort_keys=True) + "\n")
+    return path
+
+
+def load_values(output_dir) -> dict:
+    """Read ``<output_dir>/values.json`` (``{"values": ..., "notes": ..., "meta": ...}``)."""
+    with open(Path(output_dir) / VALUES_FILE) as fh:
+        data = json.load(fh)
+    for key in ("values", "notes", "meta"):
+        data.setdefault(key, {})
+    return data
+
+
+def save_figure(fig, output_dir, name: str, *, dpi: int = 120) -> Path:
+    """Save ``fig`` as ``<output_dir>/<name>.png`` deterministically and return the path.
+
+    PNG metadata (software version, creation time) is stripped, so identical figures give
+    identical bytes.
+    """
+    path = Path(output_dir) / f"{name}.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi, metadata={"Software": None}, bbox_inches=None)
+    return path

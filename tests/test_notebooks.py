@@ -1,0 +1,26 @@
+"""Every study notebook runs with its quick parameters and records what the report needs."""
+import json
+
+import pandas as pd
+import pytest
+
+import run_all
+from tests.conftest import ROOT, requires_data
+
+REFERENCE_KEYS = set(pd.read_csv(ROOT / "data" / "reference" / "table1.csv", comment="#")["key"])
+
+
+@requires_data
+@pytest.mark.notebooks
+@pytest.mark.parametrize("name", list(run_all.NOTEBOOKS))
+def test_notebook_runs_quick_and_records_expected_values(name, tmp_path):
+    _, status, _, msg = run_all.run_one(name, quick=True, force=True, results_dir=tmp_path)
+    assert status == "ok", msg
+    data = json.loads((tmp_path / name / "values.json").read_text())
+    keys = set(data["values"])
+    for prefix, count in run_all.NOTEBOOKS[name]["expects"].items():
+        got = {k for k in keys if k.startswith(prefix)}
+        assert len(got) == count, (prefix, sorted(got))
+        if prefix.startswith("table1/"):
+            assert got <= REFERENCE_KEYS
+    assert list(tmp_path.glob(f"{name}/*.png")) or name.startswith("table")
