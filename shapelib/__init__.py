@@ -1,8 +1,21 @@
 """shapelib: information geometry for landmark shape analysis (Peter & Rangarajan).
 
 Shapes are ``(K, d)`` float arrays of landmarks in correspondence; collections are ``(N, K, d)``.
+
+Where each equation lives:
+
+* eq. (5), the GMM shape density, and closed-form L² quantities: :mod:`shapelib.gmm`
+* eq. (6) Fisher–Rao and eq. (22) α-order metrics: :mod:`shapelib.metrics`
+  (quadrature rules: :mod:`shapelib.quadrature`)
+* eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.geodesic`
+* comparison distances: :mod:`shapelib.procrustes`, :mod:`shapelib.splines`
+* one entry point for all distances: :mod:`shapelib.distances`
 """
 
+from .distances import distance, pairwise_distances
+from .geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+from .gmm import gmm_density, l2_distance
+from .metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
 from .procrustes import (
     centroid_size,
     generalized_procrustes,
@@ -10,13 +23,30 @@ from .procrustes import (
     procrustes_align,
     procrustes_distance,
 )
+from .splines import hausdorff_distance, tps_bending_energy, wendland_bending_energy
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "alpha_metric",
+    "alpha_quadratic_form",
     "centroid_size",
+    "distance",
+    "fisher_rao_lower_bound",
+    "fisher_rao_metric",
+    "fisher_rao_quadratic_form",
     "generalized_procrustes",
+    "geodesic",
+    "GeodesicResult",
+    "GeodesicWarning",
+    "gmm_density",
+    "hausdorff_distance",
+    "l2_distance",
+    "pairwise_distances",
+    "path_length",
     "preshape",
     "procrustes_align",
     "procrustes_distance",
+    "tps_bending_energy",
+    "wendland_bending_energy",
 ]

@@ -1,0 +1,38 @@
+import numpy as np
+import pytest
+
+from shapelib import distance, pairwise_distances
+from shapelib.procrustes import procrustes_distance
+from shapelib.splines import tps_bending_energy
+
+
+@pytest.fixture
+def shapes(rng):
+    base = np.array([[0.0, 0.0], [1.0, 0.1], [2.0, 0.0], [1.0, -0.9], [0.5, 0.6]])
+    return np.stack([base + 0.15 * rng.normal(size=base.shape) for _ in range(4)])
+
+
+def test_distance_dispatch(shapes):
+    u, v = shapes[:2]
+    assert distance(u, v, metric="procrustes") == procrustes_distance(u, v)
+    assert distance(u, v, metric="tps") == tps_bending_energy(u, v)
+    assert distance(u, v, metric="alpha", sigma2=0.5, n_steps=4) > 0
+    with pytest.raises(ValueError, match="unknown metric"):
+        distance(u, v, metric="cosine")
+    with pytest.raises(ValueError, match="needs sigma2"):
+        distance(u, v, metric="fisher_rao")
+
+
+def test_pairwise_symmetric_and_directional(shapes):
+    d = pairwise_distances(shapes, metric="procrustes")
+    assert np.allclose(d, d.T) and np.all(np.diag(d) == 0)
+    assert d[0, 1] == pytest.approx(procrustes_distance(shapes[0], shapes[1]))
+    t = pairwise_distances(shapes, metric="tps")
+    assert t[0, 1] == pytest.approx(tps_bending_energy(shapes[0], shapes[1]))
+    assert t[1, 0] == pytest.approx(tps_bending_energy(shapes[1], shapes[0]))
+
+
+def test_pairwise_parallel_equals_serial(shapes):
+    serial = pairwise_distances(shapes, metric="alpha", sigma2=0.5, n_steps=4)
+    parallel = pairwise_distances(shapes, metric="alpha", sigma2=0.5, n_steps=4, n_jobs=2)
+    assert np.allclose(serial, parallel)

@@ -1,0 +1,125 @@
+import warnings
+
+import numpy as np
+import pytest
+
+from shapelib.geodesic import GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+
+METRICS = ["alpha", "fisher_rao"]
+
+
+def rot(theta):
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+@pytest.fixture
+def pair(rng):
+    u = np.array([[0.0, 0.0], [1.0, 0.2], [2.0, 0.0], [1.0, -0.8]])
+    v = u @ rot(0.6).T + [0.3, 0.1] + 0.2 * rng.normal(size=u.shape)
+    return u, v
+
+
+@pytest.mark.parametrize("s2", [0.3, 1.0])
+def test_single_landmark_closed_forms(s2):
+    """K = 1: g_FR = I/σ² and g_α = I/(8πσ⁴) are flat, geodesics are straight lines."""
+    u, v = np.array([[0.0, 0.0]]), np.array([[1.5, -0.5]])
+    dist = np.linalg.norm(v - u)
+    fr = geodesic(u, v, metric="fisher_rao", sigma2=s2, n_steps=4)
+    al = geodesic(u, v, metric="alpha", sigma2=s2, n_steps=4)
+    assert fr.length == pytest.approx(dist / np.sqrt(s2), rel=1e-6)
+    assert al.length == pytest.approx(dist / (s2 * np.sqrt(8 * np.pi)), rel=1e-10)
+    assert np.allclose(fr.path[:, 0], np.linspace(u[0], v[0], 5), atol=1e-6)
+
+
+@pytest.mark.parametrize("metric", METRICS)
+def test_certificate_bounds(pair, metric):
+    u, v = pair
+    s2 = 0.5
+    r = geodesic(u, v, metric=metric, sigma2=s2, n_steps=8)
+    assert r.converged
+    straight = path_length(np.linspace(u, v, 9), metric=metric, sigma2=s2)
+    assert r.lower_bound <= r.length * (1 + 1e-9)
+    assert r.length <= straight * (1 + 1e-9)
+    assert r.length**2 <= r.energy * (1 + 1e-9)  # Cauchy–Schwarz
+    assert np.allclose(r.path[0], u) and np.allclose(r.path[-1], v)
+    if metric == "fisher_rao":  # g_FR ≼ I/(Kσ²)
+        assert r.energy <= np.sum((v - u) ** 2) / (len(u) * s2)
+
+
+@pytest.mark.parametrize("metric", METRICS)
+def test_zero_symmetry_and_rigid_invariance(pair, metric):
+    u, v = pair
+    s2 = 0.5
+    assert geodesic(u, u, metric=metric, sigma2=s2).length == 0.0
+    d = geodesic(u, v, metric=metric, sigma2=s2, n_steps=8).length
+    assert geodesic(v, u, metric=metric, sigma2=s2, n_steps=8).length == pytest.approx(d, rel=1e-4)
+    r = rot(2.0)
+    moved = geodesic(u @ r.T + [5, -3], v @ r.T + [5, -3], metric=metric, sigma2=s2, n_steps=8).length
+    assert moved == pytest.approx(d, rel=1e-4)
+
+
+def test_crossing_landmarks_cannot_undercut_the_bound():
+    """Two landmarks swapping places: a midpoint rule would let them meet at no cost."""
+    u = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    v = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0]])
+    for metric in METRICS:
+        r = geodesic(u, v, metric=metric, sigma2=0.1, n_steps=4, warn=False)
+        assert r.length >= r.lower_bound and r.energy >= r.lower_bound**2
+
+
+def test_length_decreases_with_n_steps_towards_the_bound(pair):
+    u, v = pair
+    lengths = [geodesic(u, v, metric="alpha", sigma2=0.3, n_steps=n, tol=1e-9).length for n in (2, 4, 8, 16)]
+    lb = geodesic(u, v, metric="alpha", sigma2=0.3, n_steps=1).lower_bound
+    assert all(a >= b - 1e-12 for a, b in zip(lengths, lengths[1:]))
+    gaps = np.diff(lengths)
+    assert abs(gaps[-1]) < abs(gaps[0])  # converging
+    assert lengths[-1] >= lb
+
+
+def test_fisher_rao_lower_bound_matches_bhattacharyya_quadrature(pair):
+    from shapelib.gmm import gmm_density
+    from shapelib.quadrature import make_grid
+
+    u, v = pair
+    grid = make_grid(np.stack([u, v]), 0.5, spacing=0.1, margin=10)
+    bc = grid.integrate(np.sqrt(gmm_density(grid.nodes, u, 0.5) * gmm_density(grid.nodes, v, 0.5)))
+    assert fisher_rao_lower_bound(u, v, sigma2=0.5) == pytest.approx(2 * np.arccos(bc), rel=1e-6)
+
+
+def test_non_convergence_warns(pair):
+    u, v = pair
+    with pytest.warns(GeodesicWarning, match="did not converge"):
+        r = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=8, max_iter=1)
+    assert not r.converged and r.n_iter == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=8, max_iter=1, warn=False)
+
+
+def test_result_helpers(pair):
+    u, v = pair
+    r = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=4)
+    assert np.allclose(r.shape_at(0.0), u) and np.allclose(r.shape_at(1.0), v)
+    assert np.allclose(r.shape_at(0.5), r.path[2])
+    assert r.velocities.shape == (4, 4, 2) and len(r.times) == 5
+    assert r.max_step_over_sigma > 0 and r.log["energy"][0] >= r.energy
+    with pytest.raises(ValueError, match="t must lie"):
+        r.shape_at(1.5)
+
+
+def test_errors(pair):
+    u, v = pair
+    with pytest.raises(ValueError, match="metric must be"):
+        geodesic(u, v, metric="euclid", sigma2=1.0)
+    with pytest.raises(ValueError, match="n_steps"):
+        geodesic(u, v, sigma2=1.0, n_steps=0)
+    with pytest.raises(ValueError, match="sigma2"):
+        geodesic(u, v, sigma2=-1.0)
+    with pytest.raises(ValueError, match="same number of landmarks"):
+        geodesic(u, v[:3], sigma2=1.0)
+    with pytest.raises(ValueError, match="init must have shape"):
+        geodesic(u, v, sigma2=1.0, n_steps=4, init=np.zeros((3, 4, 2)))
+    with pytest.raises(ValueError, match="non-finite"):
+        geodesic(u, np.full_like(v, np.nan), sigma2=1.0)
