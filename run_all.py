@@ -41,7 +41,14 @@ CC_FILES = ["cdfhc/cdfhc_data2D_CC.mat"]
 #: (checked by tests/test_notebooks.py, so that the report never silently loses a column).
 NOTEBOOKS: dict[str, dict] = {
     "fig10_corpus_callosum": {"params": {}, "quick": {}, "data": CC_FILES, "expects": {"fig10/": 2}},
-    "table1_pairwise": {"params": {}, "quick": {}, "data": CC_FILES, "expects": {"table1/procrustes/": 21}},
+    "table1_pairwise": {
+        "params": {"n_steps": 8, "max_iter": 200, "tol": 1e-6},
+        "quick": {"n_steps": 2, "max_iter": 3},
+        "data": CC_FILES,
+        "expects": {f"table1/{c}/": 21 for c in (
+            "procrustes", "hausdorff", "tps", "wendland", "alpha_s2_0.1", "alpha_s2_0.5", "alpha_s2_1.5",
+            "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")},
+    },
 }
 
 

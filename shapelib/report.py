@@ -92,6 +92,7 @@ class _ColumnSummary:
     counts: dict
     median_ratio: float
     ratio_spread: float
+    ratio_cv: float
     spearman: float
     kendall: float
 
@@ -103,15 +104,16 @@ def _summaries(table: pd.DataFrame) -> list[_ColumnSummary]:
     for (item, column), g in table.groupby(["item", "column"], sort=False):
         got = g[g["status"] != "not computed"]
         counts = {s: int((got["status"] == s).sum()) for s in STATUSES}
-        med = spread = rho = tau = np.nan
+        med = spread = cv = rho = tau = np.nan
         if len(got):
             r = got["ratio"].to_numpy()
             med = float(np.median(r))
             spread = float(r.max() / r.min() - 1) if r.min() > 0 else np.nan
+            cv = float(r.std() / r.mean()) if len(r) > 1 and r.mean() != 0 else np.nan
         if len(got) >= 3:
             rho = float(spearmanr(got["ours"], got["paper"]).statistic)
             tau = float(kendalltau(got["ours"], got["paper"]).statistic)
-        out.append(_ColumnSummary(item, column, len(g), len(got), counts, med, spread, rho, tau))
+        out.append(_ColumnSummary(item, column, len(g), len(got), counts, med, spread, cv, rho, tau))
     return out
 
 
@@ -126,7 +128,9 @@ def render_report(table: pd.DataFrame, notes: dict, runs: dict, *, rel_tol: floa
         "Every stored reference value of the paper compared with ours. Status: **match** = within print "
         "precision (half a unit of the last printed digit); **close** = relative error ≤ "
         f"{rel_tol:.0%}; **differs** = otherwise; **not computed** = we have no value (e.g. Table I rows "
-        "with shapes 4 and 5, whose landmarks are not public). Ours are shown in the paper's printed units."
+        "with shapes 4 and 5, whose landmarks are not public). Ours are shown in the paper's printed units. "
+        "The ratio CV (std/mean of ours/paper over the pairs) measures proportionality: a column with an "
+        "unexplained constant factor has a median ratio ≠ 1 but a small CV."
     )
     lines.append("")
     if runs:
@@ -137,12 +141,12 @@ def render_report(table: pd.DataFrame, notes: dict, runs: dict, *, rel_tol: floa
             lines += ["", "**Some notebooks ran with quick (CI) parameters: their numbers are not the full study's.**"]
         lines.append("")
     summaries = _summaries(table)
-    lines += ["## Summary", "", "| item | column | compared | match | close | differs | not computed | median ratio | ratio spread | Spearman | Kendall |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines += ["## Summary", "", "| item | column | compared | match | close | differs | not computed | median ratio | ratio CV | ratio max/min − 1 | Spearman | Kendall |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in summaries:
         lines.append(
             f"| {s.item} | {s.column} | {s.n} | {s.counts['match']} | {s.counts['close']} | {s.counts['differs']} | "
-            f"{s.n_ref - s.n} | {_fmt(s.median_ratio)} | {_fmt(s.ratio_spread, '.2%')} | {_fmt(s.spearman, '.3f')} | {_fmt(s.kendall, '.3f')} |"
+            f"{s.n_ref - s.n} | {_fmt(s.median_ratio)} | {_fmt(s.ratio_cv, '.2%')} | {_fmt(s.ratio_spread, '.2%')} | {_fmt(s.spearman, '.3f')} | {_fmt(s.kendall, '.3f')} |"
         )
     lines.append("")
     for s in summaries:

@@ -110,3 +110,40 @@ def save_figure(fig, output_dir, name: str, *, dpi: int = 120) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi, metadata={"Software": None}, bbox_inches=None)
     return path
+
+
+#: Centroid size at which Table I's distances appear to have been computed (see table1_pairwise).
+PAPER_CENTROID_SIZE = 20.0
+
+
+def paper_scale(shapes, *, size: float = PAPER_CENTROID_SIZE) -> np.ndarray:
+    """Shapes as the study compares them: generalised-Procrustes aligned (rotations only),
+    centred, each scaled to centroid size ``size``."""
+    from .procrustes import generalized_procrustes
+
+    aligned, _ = generalized_procrustes(shapes, scaling=False)
+    return aligned * size
+
+
+def _geodesic_task(args):
+    key, u, v, kwargs = args
+    import warnings
+
+    from .geodesic import geodesic
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # convergence is recorded in the summary instead
+        r = geodesic(u, v, **kwargs)
+    return key, {"energy": r.energy, "length": r.length, "lower_bound": r.lower_bound,
+                 "converged": r.converged, "n_iter": r.n_iter, "seconds": r.log["seconds"],
+                 "max_step_over_sigma": r.max_step_over_sigma}
+
+
+def run_geodesics(tasks, *, n_jobs: int = 1) -> dict:
+    """Solve many geodesics ``[(key, u, v, kwargs), ...]`` in parallel; ``{key: summary dict}``."""
+    import concurrent.futures as cf
+
+    if n_jobs <= 1:
+        return dict(map(_geodesic_task, tasks))
+    with cf.ProcessPoolExecutor(max_workers=n_jobs) as pool:
+        return dict(pool.map(_geodesic_task, tasks, chunksize=1))

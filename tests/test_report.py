@@ -44,7 +44,7 @@ def test_report_written_from_results(tmp_path, reference):
     record_values(results / "nb1", {"t/c/1-2": 0.1173, "t/c/1-3": 0.08}, notes={"t/c": "convention X"})
     path = write_report(results, reference)
     text = path.read_text()
-    assert "| t | c | 2 | 1 | 0 | 1 | 2 |" in text
+    assert "| t | c | 2 | 1 | 0 | 1 | 2 |" in text and "ratio CV" in text
     assert "convention X" in text and "1 vs. 3" in text
     assert (results / "comparison.csv").exists()
 
