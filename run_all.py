@@ -41,6 +41,10 @@ CC_FILES = ["cdfhc/cdfhc_data2D_CC.mat"]
 #: (checked by tests/test_notebooks.py, so that the report never silently loses a column).
 NOTEBOOKS: dict[str, dict] = {
     "fig10_corpus_callosum": {"params": {}, "quick": {}, "data": CC_FILES, "expects": {"fig10/": 2}},
+    "fig04_line_bending": {"params": {}, "quick": {"n_steps": 6, "max_iter": 20}, "data": [],
+                           "expects": {"fig04/": 6, "fig05/": 1}},
+    "fig06_square_rotation": {"params": {}, "quick": {"n_steps": 8, "max_iter": 20}, "data": [],
+                              "expects": {"fig06/": 8}},
     "table1_pairwise": {
         "params": {"n_steps": 8, "max_iter": 200, "tol": 1e-6},
         "quick": {"n_steps": 2, "max_iter": 3},
