@@ -41,6 +41,9 @@ CC_FILES = ["cdfhc/cdfhc_data2D_CC.mat"]
 #: (checked by tests/test_notebooks.py, so that the report never silently loses a column).
 NOTEBOOKS: dict[str, dict] = {
     "fig10_corpus_callosum": {"params": {}, "quick": {}, "data": CC_FILES, "expects": {"fig10/": 2}},
+    "fig01_gmm_representation": {"params": {}, "quick": {"resolution": 80}, "data": ["mpeg7/fish-1.gif"] + CC_FILES,
+                                 "expects": {"fig01/": 6}},
+    "fig02_intrinsic_extrinsic": {"params": {}, "quick": {}, "data": ["mpeg7/fish-1.gif"], "expects": {"fig02/": 3}},
     "fig04_line_bending": {"params": {}, "quick": {"n_steps": 6, "max_iter": 20}, "data": [],
                            "expects": {"fig04/": 6, "fig05/": 1}},
     "fig06_square_rotation": {"params": {}, "quick": {"n_steps": 8, "max_iter": 20}, "data": [],
@@ -51,7 +54,7 @@ NOTEBOOKS: dict[str, dict] = {
         "data": CC_FILES,
         "expects": {f"table1/{c}/": 21 for c in (
             "procrustes", "hausdorff", "tps", "wendland", "alpha_s2_0.1", "alpha_s2_0.5", "alpha_s2_1.5",
-            "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")},
+            "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")} | {"fig11/": 20},
     },
 }
 

@@ -1,0 +1,38 @@
+# %% [markdown]
+# # Figure 2 — intrinsic versus extrinsic points
+#
+# The dense shape points (light grey) are every boundary pixel of an MPEG-7 fish silhouette
+# (all parts and holes); the 233 landmarks (black) are evenly spaced along its outer outline and
+# are the means of the 233-component GMM. The paper's fish had 49K points from a higher
+# resolution image; the MPEG-7 silhouettes are smaller, so there are fewer dense points.
+
+# %% tags=["parameters"]
+output_dir = "results/fig02_intrinsic_extrinsic"
+fish_name = "fish-1"
+n_landmarks = 233
+
+# %%
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from shapelib.datasets import mpeg7_boundary, mpeg7_landmarks
+from shapelib.study import record_values, save_figure
+
+dense = mpeg7_boundary(fish_name)
+landmarks = mpeg7_landmarks(fish_name, n_landmarks)
+fig, ax = plt.subplots(figsize=(7, 4))
+ax.plot(dense[:, 0], dense[:, 1], "s", color="0.75", ms=3, mew=0, label=f"{len(dense)} boundary points (extrinsic)")
+ax.plot(landmarks[:, 0], landmarks[:, 1], "k.", ms=2.5, label=f"{n_landmarks} landmarks (intrinsic)")
+ax.set_aspect("equal")
+ax.legend(loc="lower right", fontsize=8)
+ax.set_xticks([])
+ax.set_yticks([])
+fig.tight_layout()
+save_figure(fig, output_dir, "fig02_intrinsic_extrinsic")
+# every landmark lies on the silhouette outline: within ~1 pixel of a boundary pixel
+gap = np.min(np.linalg.norm(landmarks[:, None] - dense[None], axis=2), axis=1).max()
+record_values(output_dir, {"fig02/n_dense_points": len(dense), "fig02/n_landmarks": len(landmarks),
+                           "fig02/max_landmark_to_boundary_pixels": float(gap)})
