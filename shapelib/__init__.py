@@ -8,10 +8,12 @@ Where each equation lives:
 * eq. (6) Fisher–Rao and eq. (22) α-order metrics: :mod:`shapelib.metrics`
   (quadrature rules: :mod:`shapelib.quadrature`)
 * eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.geodesic`
-* comparison distances: :mod:`shapelib.procrustes`, :mod:`shapelib.splines`
+* comparison distances: :mod:`shapelib.procrustes`, :mod:`shapelib.splines`,
+  :mod:`shapelib.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
 * one entry point for all distances: :mod:`shapelib.distances`
 """
 
+from .diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
 from .distances import distance, pairwise_distances
 from .geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
 from .gmm import gmm_density, l2_distance
@@ -31,6 +33,7 @@ __all__ = [
     "alpha_metric",
     "alpha_quadratic_form",
     "centroid_size",
+    "diffeomorphism_warp",
     "distance",
     "fisher_rao_lower_bound",
     "fisher_rao_metric",
@@ -42,6 +45,7 @@ __all__ = [
     "gmm_density",
     "hausdorff_distance",
     "l2_distance",
+    "landmark_diffeomorphism",
     "pairwise_distances",
     "path_length",
     "preshape",

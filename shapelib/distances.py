@@ -5,6 +5,9 @@
 ``"alpha"``, ``"fisher_rao"``
     Geodesic length under the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
     :func:`shapelib.geodesic` [``sigma2`` (required), ``n_steps``, ``tol``, ``max_iter``, ...].
+``"diffeomorphism"``
+    Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.diffeomorphism`
+    [``lam`` (default 10), ``kernel_width``, ``n_steps``, ...].
 ``"procrustes"``
     Procrustes distance [``kind`` = "angle" (default), "full", "partial"].
 ``"hausdorff"``
@@ -41,6 +44,12 @@ def _geodesic_length(metric):
     return f
 
 
+def _diffeomorphism(u, v, **kw):
+    from .diffeomorphism import landmark_diffeomorphism
+
+    return landmark_diffeomorphism(u, v, **kw).length
+
+
 def _procrustes(u, v, **kw):
     from .procrustes import procrustes_distance
 
@@ -68,13 +77,14 @@ def _wendland(u, v, **kw):
 METRICS = {
     "alpha": _geodesic_length("alpha"),
     "fisher_rao": _geodesic_length("fisher_rao"),
+    "diffeomorphism": _diffeomorphism,
     "procrustes": _procrustes,
     "hausdorff": _hausdorff,
     "tps": _tps,
     "wendland": _wendland,
 }
 #: metrics with d(u, v) = d(v, u); the others are computed for both orders in pairwise_distances
-SYMMETRIC = {"alpha", "fisher_rao", "procrustes", "hausdorff"}
+SYMMETRIC = {"alpha", "fisher_rao", "diffeomorphism", "procrustes", "hausdorff"}
 
 
 def distance(u, v, *, metric: str, **params) -> float:

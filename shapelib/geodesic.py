@@ -51,7 +51,7 @@ from .metrics import (
 )
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
 
-__all__ = ["geodesic", "GeodesicResult", "GeodesicWarning", "fisher_rao_lower_bound", "path_length"]
+__all__ = ["geodesic", "minimise_path", "GeodesicResult", "GeodesicWarning", "fisher_rao_lower_bound", "path_length"]
 
 METRICS = ("alpha", "fisher_rao")
 
@@ -94,7 +94,8 @@ class GeodesicResult:
     rel_energy_change : float
         Relative energy decrease of the last accepted step.
     max_step_over_sigma : float
-        Largest landmark displacement between consecutive path points, in units of σ.
+        Largest landmark displacement between consecutive path points, in units of σ (of the
+        kernel width for landmark diffeomorphisms).
     log : dict
         Energy per iteration, damping, timings, the metric's settings.
     """
@@ -109,7 +110,7 @@ class GeodesicResult:
     rel_energy_change: float
     max_step_over_sigma: float
     metric: str
-    sigma2: float
+    sigma2: float | None
     log: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -359,6 +360,20 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
     """
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
+    model = _model(metric, s2, grid_spacing, grid_margin)
+    return minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
+                         warn=warn, length_scale=np.sqrt(s2), sigma2=s2, stacklevel=3)
+
+
+def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, length_scale, sigma2=None,
+                  stacklevel=2) -> GeodesicResult:
+    """Minimise the piecewise-linear path energy of any metric ``model`` between ``u`` and ``v``.
+
+    ``model`` provides ``prepare(points)``, ``qform``/``qform_grad`` (``vᵀ g(θ) v`` and its
+    gradients, batched), ``tensors`` (metric tensors for the model Hessian), ``lower_bound`` and
+    ``settings`` — see :class:`_AlphaModel`. The α-order, Fisher–Rao and landmark-diffeomorphism
+    (:mod:`shapelib.diffeomorphism`) metrics all go through here.
+    """
     if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 1:
         raise ValueError(f"n_steps must be a positive integer; got {n_steps!r}")
     n = int(n_steps)
@@ -368,7 +383,6 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
     if int(max_iter) != max_iter or max_iter < 0:
         raise ValueError(f"max_iter must be a non-negative integer; got {max_iter!r}")
     tol = check_positive(tol, name="tol")
-    model = _model(metric, s2, grid_spacing, grid_margin)
     k, d = u.shape
     if init is None:
         t = np.linspace(0.0, 1.0, n + 1)[:, None, None]
@@ -428,14 +442,14 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
         warnings.warn(
             f"{model.name} geodesic did not converge in {it} iterations (relative energy change "
             f"over the last {window} iterations {window_change:.2e} > tol {tol:.1e}; gradient norm {grad_norm:.2e})",
-            GeodesicWarning, stacklevel=2,
+            GeodesicWarning, stacklevel=stacklevel,
         )
     length = _length(model, path)
     steps = np.linalg.norm(np.diff(path, axis=0), axis=2)
     return GeodesicResult(
         path=path, length=length, energy=energy, lower_bound=model.lower_bound(u, v), converged=bool(converged),
         n_iter=it, grad_norm=grad_norm, rel_energy_change=float(rel_change),
-        max_step_over_sigma=float(steps.max() / np.sqrt(s2)), metric=model.name, sigma2=s2,
+        max_step_over_sigma=float(steps.max() / length_scale), metric=model.name, sigma2=sigma2,
         log={"energy": energies, "damping": dampings, "seconds": time.perf_counter() - t0,
              "n_steps": n, "tol": tol, **model.settings()},
     )
