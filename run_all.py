@@ -50,11 +50,11 @@ NOTEBOOKS: dict[str, dict] = {
                               "expects": {"fig06/": 8}},
     "table1_pairwise": {
         "params": {"n_steps": 8, "max_iter": 200, "tol": 1e-6},
-        "quick": {"n_steps": 2, "max_iter": 3},
+        "quick": {"n_steps": 2, "max_iter": 3, "fisher_rao_max_iter": 3, "diffeomorphism_max_iter": 3},
         "data": CC_FILES,
         "expects": {f"table1/{c}/": 21 for c in (
-            "procrustes", "hausdorff", "tps", "wendland", "alpha_s2_0.1", "alpha_s2_0.5", "alpha_s2_1.5",
-            "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")} | {"fig11/": 20},
+            "procrustes", "hausdorff", "tps", "wendland", "diffeomorphism", "alpha_s2_0.1", "alpha_s2_0.5", "alpha_s2_1.5",
+            "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")} | {"fig11/": 22},
     },
 }
 
