@@ -29,6 +29,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from shapelib import geodesic
+from shapelib.plotting import plot_trajectories
 from shapelib.study import record_values, save_figure
 
 k = 21
@@ -44,14 +45,8 @@ for m, r in results.items():
 # %%
 fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
 for ax, (m, title) in zip(axes, [("fisher_rao", "(a) Fisher–Rao"), ("alpha", "(b) α-order entropy")]):
-    path = results[m].path
-    for j in range(k):
-        ax.plot(straight[:, j, 0], straight[:, j, 1], "--", color="0.6", lw=0.8)
-        ax.plot(path[:, j, 0], path[:, j, 1], "-", color="k", lw=1.0)
-    ax.plot(u[:, 0], u[:, 1], "o", mfc="white", mec="k", ms=4, label="start")
-    ax.plot(v[:, 0], v[:, 1], "s", color="k", ms=4, label="end")
+    plot_trajectories(ax, results[m].path, init=straight)
     ax.set_title(f"{title}, σ² = {sigma2}")
-    ax.set_aspect("equal")
     ax.legend(loc="lower right", fontsize=8)
 fig.tight_layout()
 save_figure(fig, output_dir, "fig04_line_bending")

@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from shapelib import geodesic
+from shapelib.plotting import plot_trajectories
 from shapelib.study import record_values, save_figure
 
 u = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
@@ -34,14 +35,8 @@ for m, res in results.items():
 # %%
 fig, axes = plt.subplots(1, 2, figsize=(10, 4.8))
 for ax, (m, title) in zip(axes, [("fisher_rao", "(a) Fisher–Rao"), ("alpha", "(b) α-order entropy")]):
-    path = results[m].path
-    for j in range(len(u)):
-        ax.plot(straight[:, j, 0], straight[:, j, 1], "--", color="0.6", lw=0.8)
-        ax.plot(path[:, j, 0], path[:, j, 1], "-", color="k", lw=1.2)
-    ax.plot(u[:, 0], u[:, 1], "o", mfc="white", mec="k", ms=7)
-    ax.plot(v[:, 0], v[:, 1], "s", color="k", ms=6)
+    plot_trajectories(ax, results[m].path, init=straight, lw=1.2)
     ax.set_title(f"{title}, σ² = {sigma2}")
-    ax.set_aspect("equal")
 fig.tight_layout()
 save_figure(fig, output_dir, "fig06_square_rotation")
 

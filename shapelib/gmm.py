@@ -37,12 +37,17 @@ def _sqdist(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.einsum("mkd,mkd->mk", d, d)
 
 
+def _point_sets(a, b, names):
+    """Two point sets of the same dimension (any numbers of points)."""
+    a, b = as_shape(a, name=names[0]), as_shape(b, name=names[1])
+    if a.shape[1] != b.shape[1]:
+        raise ValueError(f"{names[0]} and {names[1]} must have the same dimension; got {a.shape} and {b.shape}")
+    return a, b
+
+
 def gmm_log_density(x, theta, sigma2) -> np.ndarray:
     """``log p(x | θ)`` of eq. (5) at the points ``x`` (M, d), computed stably (log-sum-exp)."""
-    theta = as_shape(theta, name="theta")
-    x = as_shape(x, name="x")
-    if x.shape[1] != theta.shape[1]:
-        raise ValueError(f"x has dimension {x.shape[1]} but theta has dimension {theta.shape[1]}")
+    x, theta = _point_sets(x, theta, ("x", "theta"))
     s2 = check_sigma2(sigma2)
     k, d = theta.shape
     log_n = -_sqdist(x, theta) / (2 * s2) - 0.5 * d * np.log(2 * np.pi * s2)
@@ -71,10 +76,7 @@ def gmm_density(x, theta, sigma2) -> np.ndarray:
 
 def gaussian_overlap(a, b, sigma2) -> np.ndarray:
     """Matrix of overlaps ``G_ij = ∫ N(x; a_i, σ²I) N(x; b_j, σ²I) dx = (4πσ²)^{-d/2} e^{−|a_i − b_j|²/(4σ²)}``."""
-    a = as_shape(a, name="a")
-    b = as_shape(b, name="b")
-    if a.shape[1] != b.shape[1]:
-        raise ValueError(f"a and b must have the same dimension; got {a.shape} and {b.shape}")
+    a, b = _point_sets(a, b, ("a", "b"))
     s2 = check_sigma2(sigma2)
     d = a.shape[1]
     return np.exp(-_sqdist(a, b) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2)
