@@ -40,6 +40,11 @@ CC_FILES = ["cdfhc/cdfhc_data2D_CC.mat"]
 #: ``expects`` maps a value-key prefix to how many values the notebook must record under it
 #: (checked by tests/test_notebooks.py, so that the report never silently loses a column).
 NOTEBOOKS: dict[str, dict] = {
+    "fig07_fish_deformations": {
+        "params": {}, "quick": {"max_iter": 3},
+        "data": ["cdfhc/cdfhc_data2D_fish.mat", "cdfhc/cdfhc_data2D_beijing.mat", "tps-rpm/save_fish_def_2_1.mat"],
+        "expects": {"fig08/": 6, "fig09/": 3},
+    },
     "fig10_corpus_callosum": {"params": {}, "quick": {}, "data": CC_FILES, "expects": {"fig10/": 2}},
     "fig01_gmm_representation": {"params": {}, "quick": {"resolution": 80}, "data": ["mpeg7/fish-1.gif"] + CC_FILES,
                                  "expects": {"fig01/": 6}},
