@@ -51,7 +51,7 @@ from .metrics import (
 )
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
 
-__all__ = ["geodesic", "minimise_path", "GeodesicResult", "GeodesicWarning", "fisher_rao_lower_bound", "path_length"]
+__all__ = ["geodesic", "minimise_path", "shoot", "geodesic_acceleration", "GeodesicResult", "GeodesicWarning", "fisher_rao_lower_bound", "path_length"]
 
 METRICS = ("alpha", "fisher_rao")
 
@@ -453,3 +453,56 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
         log={"energy": energies, "damping": dampings, "seconds": time.perf_counter() - t0,
              "n_steps": n, "tol": tol, **model.settings()},
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# Independent check: integrate the geodesic equation (eq. 11) from an initial velocity
+# ---------------------------------------------------------------------------------------------
+
+
+def geodesic_acceleration(theta, velocity, *, metric: str = "alpha", sigma2, grid=None, eps: float = 1e-6,
+                          grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN):
+    """``θ̈`` from the geodesic equation ``g θ̈ + Γ(θ̇, θ̇) = 0`` (eqs. 10–11).
+
+    With ``Q(θ, v) = vᵀ g(θ) v``, the Christoffel term is
+    ``Γ_k(v, v) = [∂_θ (g v) · v]_k − ½ ∂Q/∂θ_k`` (the first-kind symbols contracted twice). The
+    gradient ``∂Q/∂θ`` is analytic; the directional derivative of ``g v = ½ ∂Q/∂v`` along ``v`` is
+    a central difference of that analytic gradient with step ``eps``.
+    """
+    model = _model(metric, check_sigma2(sigma2), grid_spacing, grid_margin)
+    th = np.asarray(theta, dtype=np.float64)
+    v = np.asarray(velocity, dtype=np.float64)
+    ctx = model.prepare(th) if grid is None else grid
+    _, dq_t, _ = model.qform_grad(th[None], v[None], ctx)
+    _, _, dv_p = model.qform_grad((th + eps * v)[None], v[None], ctx)
+    _, _, dv_m = model.qform_grad((th - eps * v)[None], v[None], ctx)
+    d_gv = 0.25 * (dv_p[0] - dv_m[0]) / eps  # ∂_θ(g v)·v, since g v = ½ ∂Q/∂v
+    gamma = d_gv - 0.5 * dq_t[0]
+    g = model.tensors(th[None], ctx)[0]
+    return -np.linalg.solve(g, gamma.ravel()).reshape(th.shape)
+
+
+def shoot(u, velocity, *, metric: str = "alpha", sigma2, n_steps: int = 200,
+          grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN) -> np.ndarray:
+    """Integrate the geodesic ODE (eq. 11) from ``u`` with initial velocity ``velocity`` over
+    ``t ∈ [0, 1]`` with classical RK4; returns the trajectory ``(n_steps + 1, K, d)``.
+
+    Only meaningful where the metric is well conditioned (few, well separated landmarks): the
+    ODE needs ``g⁻¹``, which for dense contours has a condition number ~1e16.
+    """
+    u = as_shape_pair(u, velocity, names=("u", "velocity"))[0]
+    s2 = check_sigma2(sigma2)
+    acc = lambda th, v: geodesic_acceleration(th, v, metric=metric, sigma2=s2, grid_spacing=grid_spacing,
+                                              grid_margin=grid_margin)
+    th, v = u.copy(), np.asarray(velocity, dtype=np.float64).copy()
+    h = 1.0 / n_steps
+    out = [th.copy()]
+    for _ in range(n_steps):
+        k1x, k1v = v, acc(th, v)
+        k2x, k2v = v + 0.5 * h * k1v, acc(th + 0.5 * h * k1x, v + 0.5 * h * k1v)
+        k3x, k3v = v + 0.5 * h * k2v, acc(th + 0.5 * h * k2x, v + 0.5 * h * k2v)
+        k4x, k4v = v + h * k3v, acc(th + h * k3x, v + h * k3v)
+        th = th + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+        v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+        out.append(th.copy())
+    return np.stack(out)
