@@ -53,6 +53,8 @@ NOTEBOOKS: dict[str, dict] = {
                            "expects": {"fig04/": 6, "fig05/": 1}},
     "fig06_square_rotation": {"params": {}, "quick": {"n_steps": 8, "max_iter": 20}, "data": [],
                               "expects": {"fig06/": 8}},
+    "sec3e_extrinsic_warp": {"params": {}, "quick": {"n_steps": 4, "max_iter": 5, "grid_size": 48},
+                             "data": ["mpeg7/fish-1.gif"], "expects": {"sec3e/": 3}},
     "table1_pairwise": {
         "params": {"n_steps": 8, "max_iter": 200, "tol": 1e-6},
         "quick": {"n_steps": 2, "max_iter": 3, "fisher_rao_max_iter": 3, "diffeomorphism_max_iter": 3},

@@ -10,6 +10,7 @@ Where each equation lives:
 * eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.geodesic`
 * comparison distances: :mod:`shapelib.procrustes`, :mod:`shapelib.splines`,
   :mod:`shapelib.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
+* §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
 """
 
@@ -26,6 +27,7 @@ from .procrustes import (
     procrustes_distance,
 )
 from .splines import hausdorff_distance, tps_bending_energy, wendland_bending_energy
+from .warp import extrinsic_warp
 
 __version__ = "0.1.0"
 
@@ -35,6 +37,7 @@ __all__ = [
     "centroid_size",
     "diffeomorphism_warp",
     "distance",
+    "extrinsic_warp",
     "fisher_rao_lower_bound",
     "fisher_rao_metric",
     "fisher_rao_quadratic_form",

@@ -1,0 +1,42 @@
+import numpy as np
+import pytest
+
+from shapelib import geodesic
+from shapelib.warp import extrinsic_warp, likelihood_flow
+
+
+def test_translation_gives_a_constant_flow(rng):
+    """A pure translation keeps every likelihood constant with a constant flow (zero Laplacian)."""
+    theta = rng.normal(size=(5, 2))
+    c = np.array([0.7, -0.3])
+    axes = [np.linspace(-4, 4, 30), np.linspace(-4, 4, 30)]
+    flow = likelihood_flow(theta, np.tile(c, (5, 1)), 0.5, axes, lam=1e-2)
+    assert np.allclose(flow[..., 0], c[0], atol=1e-6) and np.allclose(flow[..., 1], c[1], atol=1e-6)
+
+
+def test_warp_translates_points_with_translated_landmarks(rng):
+    u = rng.normal(size=(4, 2))
+    # the straight-line path (max_iter=0): every landmark translates, so must every point
+    r = geodesic(u, u + [1.0, 0.5], metric="alpha", sigma2=0.5, n_steps=4, max_iter=0, warn=False)
+    pts = u + 0.1 * rng.normal(size=u.shape)
+    warped = extrinsic_warp(pts, r, grid_size=40)
+    assert warped.shape == (5, 4, 2)
+    assert np.allclose(warped[-1], pts + [1.0, 0.5], atol=1e-4)
+
+
+def test_points_near_landmarks_follow_them():
+    u = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0]])
+    v = u + np.array([[0.5, 0.0], [0.0, 0.5], [-0.5, 0.0]])
+    r = geodesic(u, v, metric="alpha", sigma2=0.1, n_steps=8)
+    warped = extrinsic_warp(u + 0.01, r, lam=1e-4, grid_size=64)
+    assert np.abs(warped[-1] - (v + 0.01)).max() < 0.15
+    assert np.abs(warped[-1] - (v + 0.01)).max() < np.abs(v - u).max() / 2
+
+
+def test_errors(rng):
+    u = rng.normal(size=(3, 2))
+    r = geodesic(u, u + 1, sigma2=0.5, n_steps=2)
+    with pytest.raises(ValueError, match="lam"):
+        extrinsic_warp(u, r, lam=0)
+    with pytest.raises(ValueError, match="2-D"):
+        extrinsic_warp(np.zeros((2, 3)), r)
