@@ -29,7 +29,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from shapelib import geodesic
-from shapelib.plotting import plot_trajectories
+from shapelib.plotting import plot_metric_panels
 from shapelib.study import record_values, save_figure
 
 k = 21
@@ -39,16 +39,12 @@ a = np.deg2rad(hinge_degrees)
 v = np.column_stack([np.abs(x) * np.cos(a) * np.sign(x), np.abs(x) * np.sin(a)])  # a "V": both halves raised
 results = {m: geodesic(u, v, metric=m, sigma2=sigma2, n_steps=n_steps, max_iter=max_iter) for m in ("fisher_rao", "alpha")}
 straight = np.linspace(u, v, n_steps + 1)
-for m, r in results.items():
-    print(f"{m}: length {r.length:.6g} (bound {r.lower_bound:.6g}), converged {r.converged} in {r.n_iter} it")
+for r in results.values():
+    print(r.summary())
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-for ax, (m, title) in zip(axes, [("fisher_rao", "(a) Fisher–Rao"), ("alpha", "(b) α-order entropy")]):
-    plot_trajectories(ax, results[m].path, init=straight)
-    ax.set_title(f"{title}, σ² = {sigma2}")
-    ax.legend(loc="lower right", fontsize=8)
-fig.tight_layout()
+fig, axes = plot_metric_panels(results, figsize=(11, 4.2))
+axes[1].legend(loc="lower right", fontsize=8)
 save_figure(fig, output_dir, "fig04_line_bending")
 
 # %%

@@ -16,11 +16,10 @@ max_iter = 300
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from shapelib import geodesic
-from shapelib.plotting import plot_trajectories
+from shapelib.plotting import plot_metric_panels
 from shapelib.study import record_values, save_figure
 
 u = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
@@ -28,16 +27,11 @@ a = -np.deg2rad(210.0)  # clockwise
 r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
 v = u @ r.T
 results = {m: geodesic(u, v, metric=m, sigma2=sigma2, n_steps=n_steps, max_iter=max_iter) for m in ("fisher_rao", "alpha")}
-straight = np.linspace(u, v, n_steps + 1)
-for m, res in results.items():
-    print(f"{m}: length {res.length:.6g} (bound {res.lower_bound:.6g}), converged {res.converged} in {res.n_iter} it")
+for res in results.values():
+    print(res.summary())
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(10, 4.8))
-for ax, (m, title) in zip(axes, [("fisher_rao", "(a) Fisher–Rao"), ("alpha", "(b) α-order entropy")]):
-    plot_trajectories(ax, results[m].path, init=straight, lw=1.2)
-    ax.set_title(f"{title}, σ² = {sigma2}")
-fig.tight_layout()
+fig, axes = plot_metric_panels(results, figsize=(10, 4.8), lw=1.2)
 save_figure(fig, output_dir, "fig06_square_rotation")
 
 

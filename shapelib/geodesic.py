@@ -126,6 +126,11 @@ class GeodesicResult:
         """Landmark velocities on each segment, shape (n_steps, K, d)."""
         return self.n_steps * np.diff(self.path, axis=0)
 
+    def summary(self) -> str:
+        """One line: metric, length with its certified lower bound, convergence."""
+        return (f"{self.metric}: length {self.length:.6g} (lower bound {self.lower_bound:.6g}), "
+                f"converged {self.converged} in {self.n_iter} iterations")
+
     def shape_at(self, t: float) -> np.ndarray:
         """Landmarks at time ``t ∈ [0, 1]`` (linear between path points)."""
         if not 0.0 <= t <= 1.0:

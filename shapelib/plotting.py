@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_trajectories"]
+__all__ = ["plot_trajectories", "plot_metric_panels"]
 
 
 def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
@@ -19,3 +19,16 @@ def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
     ax.plot(path[0, :, 0], path[0, :, 1], "o", mfc="white", mec="k", ms=5, label="start")
     ax.plot(path[-1, :, 0], path[-1, :, 1], "s", color="k", ms=4, label="end")
     ax.set_aspect("equal")
+
+
+def plot_metric_panels(results: dict, *, figsize=(10, 4.5), lw: float = 1.0):
+    """Figs. 4 and 6 layout: (a) Fisher–Rao and (b) α-order trajectories side by side, each over
+    the dashed straight-line initialisation. ``results`` maps metric name to GeodesicResult."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=figsize)
+    for ax, (m, title) in zip(axes, [("fisher_rao", "(a) Fisher–Rao"), ("alpha", "(b) α-order entropy")]):
+        plot_trajectories(ax, results[m].path, lw=lw)
+        ax.set_title(f"{title}, σ² = {results[m].sigma2}")
+    fig.tight_layout()
+    return fig, axes
