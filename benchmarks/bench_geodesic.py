@@ -58,12 +58,13 @@ def main(argv=None):
     ap.add_argument("--sigma2", type=float, default=0.5)
     ap.add_argument("--n-steps", type=int, default=16)
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--skip-geodesics", action="store_true", help="only time the Fisher–Rao metric tensor")
     args = ap.parse_args(argv)
     shapes, ids = load_corpus_callosum()
     x = paper_scale(shapes)
     u, v = x[list(ids).index(1)], x[list(ids).index(2)]
     report = {"sigma2": args.sigma2, "n_steps": args.n_steps, "K": len(u)}
-    for metric in ("alpha", "fisher_rao"):
+    for metric in () if args.skip_geodesics else ("alpha", "fisher_rao"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             r, sec = timed(lambda: geodesic(u, v, metric=metric, sigma2=args.sigma2, n_steps=args.n_steps))
@@ -72,8 +73,9 @@ def main(argv=None):
                           "length_over_bound_minus_1": r.length / r.lower_bound - 1}
         print(f"{metric:>10}: {sec:8.2f} s  {r.n_iter:4d} it  converged={r.converged}  energy={r.energy:.8e}  "
               f"length={r.length:.8e}  bound={r.lower_bound:.8e}  (length/bound − 1 = {r.length / r.lower_bound - 1:.2e})")
-    report["fisher_rao_over_alpha_time"] = report["fisher_rao"]["seconds"] / report["alpha"]["seconds"]
-    print(f"Fisher–Rao / α time: {report['fisher_rao_over_alpha_time']:.1f}×")
+    if not args.skip_geodesics:
+        report["fisher_rao_over_alpha_time"] = report["fisher_rao"]["seconds"] / report["alpha"]["seconds"]
+        print(f"Fisher–Rao / α time: {report['fisher_rao_over_alpha_time']:.1f}×")
 
     # Fisher–Rao metric tensor: ours vs a plain N×N grid, both against a very fine reference
     s2 = args.sigma2
@@ -82,12 +84,13 @@ def main(argv=None):
     scale = np.abs(ref).max()
     ours, t_ours = timed(lambda: fisher_rao_metric(theta, s2), repeat=3)
     err_ours = np.abs(ours - ref).max() / scale
-    half = np.abs(theta).max() + 6 * np.sqrt(s2)
+    half = np.abs(theta).max() + 8 * np.sqrt(s2)  # a square box with a generous margin
     rows = []
-    for n in (100, 200, 300, 400, 600, 800):
+    for n in (50, 75, 100, 150, 200, 300, 400, 600):
         g, t = timed(lambda: naive_fisher_rao(theta, s2, n, half))
         rows.append((n, t, np.abs(g - ref).max() / scale))
-    match = next(((n, t, e) for n, t, e in rows if e <= err_ours), rows[-1])
+    # the cheapest naive grid at least as accurate as ours (or the most accurate one tried)
+    match = next(((n, t, e) for n, t, e in rows if e <= err_ours), min(rows, key=lambda r: r[2]))
     report["fisher_rao_metric"] = {"ours_seconds": t_ours, "ours_rel_error": err_ours,
                                    "naive": [{"N": n, "seconds": t, "rel_error": e} for n, t, e in rows],
                                    "naive_at_equal_accuracy": {"N": match[0], "seconds": match[1], "rel_error": match[2]},
@@ -95,7 +98,9 @@ def main(argv=None):
     print(f"FR metric, ours: {t_ours * 1e3:.1f} ms, rel. error {err_ours:.1e}")
     for n, t, e in rows:
         print(f"  naive {n}×{n} grid: {t * 1e3:8.1f} ms, rel. error {e:.1e}")
-    print(f"speed-up at equal accuracy (naive N = {match[0]}): {match[1] / t_ours:.1f}×")
+    reached = match[2] <= err_ours
+    print(f"speed-up {'at equal accuracy' if reached else 'against the most accurate naive grid (less accurate than ours)'}"
+          f" (naive N = {match[0]}): {match[1] / t_ours:.1f}×")
     if args.json:
         args.json.write_text(json.dumps(report, indent=1) + "\n")
 
