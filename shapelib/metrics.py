@@ -24,7 +24,6 @@ Fisher–Rao metric (eq. 6)
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
 
 from ._validate import as_shape, check_sigma2
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, Grid, make_grid
@@ -134,20 +133,12 @@ def _r_weighted(w: np.ndarray, nodes: np.ndarray, theta: np.ndarray) -> np.ndarr
     return w.T @ nodes - w.sum(axis=0)[:, None] * theta
 
 
-def _psi_parts(theta: np.ndarray, s2: float, nodes: np.ndarray):
-    """``ψ``, ``coef`` (see :func:`_psi_coef`) and ``r_ma = x_m − φ_a`` (M, K, d)."""
-    psi, coef = _psi_coef(theta, s2, nodes)
-    return psi, coef, nodes[:, None, :] - theta[None, :, :]
-
-
 def _psi_and_jacobian(theta: np.ndarray, s2: float, nodes: np.ndarray, *, jacobian: bool = True):
     """``ψ = 2√p`` at the grid nodes (M,) and, if requested, ``∂ψ/∂φ_a = N_a r_a / (K σ² √p)`` (M, K, d)."""
-    psi, coef, r = _psi_parts(theta, s2, nodes)
-    return psi, (coef[..., None] * r if jacobian else None)
-
-
-def _grid_for(theta_points, s2, spacing, margin) -> Grid:
-    return make_grid(theta_points, s2, spacing=spacing, margin=margin)
+    psi, coef = _psi_coef(theta, s2, nodes)
+    if not jacobian:
+        return psi, None
+    return psi, coef[..., None] * (nodes[:, None, :] - theta[None, :, :])
 
 
 def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin: float = DEFAULT_MARGIN) -> np.ndarray:
@@ -171,7 +162,7 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
     """
     theta = as_shape(theta, name="theta")
     s2 = check_sigma2(sigma2)
-    grid = _grid_for(theta, s2, spacing, margin)
+    grid = make_grid(theta, s2, spacing=spacing, margin=margin)
     _, jac = _psi_and_jacobian(theta, s2, grid.nodes)
     a = jac.reshape(len(grid.nodes), -1)
     g = grid.weight * (a.T @ a)
@@ -197,7 +188,7 @@ def fisher_rao_quadratic_form(theta, velocity, sigma2, *, spacing: float = DEFAU
     if vel.shape != theta.shape:
         raise ValueError(f"velocity must have the shape of theta {theta.shape}; got {vel.shape}")
     s2 = check_sigma2(sigma2)
-    grid = _grid_for(theta, s2, spacing, margin)
+    grid = make_grid(theta, s2, spacing=spacing, margin=margin)
     return float(_fr_qform(theta[None], vel[None], s2, grid)[0])
 
 
