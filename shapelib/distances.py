@@ -30,24 +30,31 @@ import numpy as np
 
 from ._validate import as_shape_pair, as_shapes
 
-__all__ = ["distance", "pairwise_distances", "METRICS", "SYMMETRIC"]
+__all__ = ["distance", "pairwise_distances", "path_result", "METRICS", "SYMMETRIC", "PATH_METRICS"]
 
 
-def _geodesic_length(metric):
-    def f(u, v, **kw):
-        from .geodesic import geodesic
-
-        if "sigma2" not in kw:
-            raise ValueError(f"metric {metric!r} needs sigma2=...")
-        return geodesic(u, v, metric=metric, **kw).length
-
-    return f
+PATH_METRICS = ("alpha", "fisher_rao", "diffeomorphism")
 
 
-def _diffeomorphism(u, v, **kw):
-    from .diffeomorphism import landmark_diffeomorphism
+def path_result(u, v, *, metric: str, **params):
+    """The full :class:`~shapelib.geodesic.GeodesicResult` of a path metric (``"alpha"``,
+    ``"fisher_rao"``: :func:`shapelib.geodesic`; ``"diffeomorphism"``:
+    :func:`shapelib.landmark_diffeomorphism`) — what :func:`distance` reduces to its length."""
+    if metric == "diffeomorphism":
+        from .diffeomorphism import landmark_diffeomorphism
 
-    return landmark_diffeomorphism(u, v, **kw).length
+        return landmark_diffeomorphism(u, v, **params)
+    if metric not in PATH_METRICS:
+        raise ValueError(f"{metric!r} is not a path metric; choose one of {PATH_METRICS}")
+    from .geodesic import geodesic
+
+    if "sigma2" not in params:
+        raise ValueError(f"metric {metric!r} needs sigma2=...")
+    return geodesic(u, v, metric=metric, **params)
+
+
+def _path_length(metric):
+    return lambda u, v, **kw: path_result(u, v, metric=metric, **kw).length
 
 
 def _procrustes(u, v, **kw):
@@ -75,9 +82,9 @@ def _wendland(u, v, **kw):
 
 
 METRICS = {
-    "alpha": _geodesic_length("alpha"),
-    "fisher_rao": _geodesic_length("fisher_rao"),
-    "diffeomorphism": _diffeomorphism,
+    "alpha": _path_length("alpha"),
+    "fisher_rao": _path_length("fisher_rao"),
+    "diffeomorphism": _path_length("diffeomorphism"),
     "procrustes": _procrustes,
     "hausdorff": _hausdorff,
     "tps": _tps,

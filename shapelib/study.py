@@ -129,16 +129,11 @@ def _geodesic_task(args):
     key, u, v, kwargs = args
     import warnings
 
-    from .diffeomorphism import landmark_diffeomorphism
-    from .geodesic import geodesic
+    from .distances import path_result
 
-    kwargs = dict(kwargs)
-    solve = landmark_diffeomorphism if kwargs.get("metric") == "diffeomorphism" else geodesic
-    if solve is landmark_diffeomorphism:
-        kwargs.pop("metric")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # convergence is recorded in the summary instead
-        r = solve(u, v, **kwargs)
+        r = path_result(u, v, **kwargs)
     return key, {"energy": r.energy, "length": r.length, "lower_bound": r.lower_bound,
                  "converged": r.converged, "n_iter": r.n_iter, "seconds": r.log["seconds"],
                  "max_step_over_sigma": r.max_step_over_sigma}
@@ -147,8 +142,8 @@ def _geodesic_task(args):
 def run_geodesics(tasks, *, n_jobs: int = 1) -> dict:
     """Solve many geodesics ``[(key, u, v, kwargs), ...]`` in parallel; ``{key: summary dict}``.
 
-    ``kwargs["metric"]`` is ``"alpha"``, ``"fisher_rao"`` (:func:`shapelib.geodesic`) or
-    ``"diffeomorphism"`` (:func:`shapelib.landmark_diffeomorphism`).
+    ``kwargs`` go to :func:`shapelib.distances.path_result` (``metric`` one of ``"alpha"``,
+    ``"fisher_rao"``, ``"diffeomorphism"``).
     """
     import concurrent.futures as cf
 

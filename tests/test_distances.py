@@ -36,3 +36,14 @@ def test_pairwise_parallel_equals_serial(shapes):
     serial = pairwise_distances(shapes, metric="alpha", sigma2=0.5, n_steps=4)
     parallel = pairwise_distances(shapes, metric="alpha", sigma2=0.5, n_steps=4, n_jobs=2)
     assert np.allclose(serial, parallel)
+
+
+def test_path_result_gives_the_full_geodesic(shapes):
+    from shapelib.distances import path_result
+
+    u, v = shapes[:2]
+    r = path_result(u, v, metric="diffeomorphism", n_steps=4)
+    assert r.length == pytest.approx(distance(u, v, metric="diffeomorphism", n_steps=4))
+    assert r.path.shape == (5, 5, 2)
+    with pytest.raises(ValueError, match="not a path metric"):
+        path_result(u, v, metric="procrustes")
