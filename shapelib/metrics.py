@@ -222,6 +222,63 @@ def _alpha_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float):
     return q, d_theta, 2 * gv
 
 
+def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
+    """Second derivatives of ``Q = vᵀ g_α(θ) v``: ``(Q_θθ, Q_θv, Q_vv)``, each (m, K d, K d).
+
+    ``Q = Σ_ab f(Δ_ab, V_a, V_b)`` with ``f = c(Δ) h``, ``c = exp(−|Δ|²/4σ²)/((4πσ²)^{d/2} K²)``,
+    ``h = V_a·V_b/(2σ²) − (Δ·V_a)(Δ·V_b)/(4σ⁴)`` and ``Δ = φ_a − φ_b``. Each term depends on
+    the positions only through Δ, so its Hessian in ``(Δ, V_a, V_b)`` is scattered with signs
+    ±1; the terms (a, b) and (b, a) are the same function, hence the factors 2. ``Q_θv`` has rows
+    indexed by θ and columns by v; ``Q_vv = 2 g_α``. Used for exact Newton steps on the α path
+    energy; checked against finite differences of :func:`_alpha_qform_grad` in the tests.
+    """
+    m, k, d = theta.shape
+    eye = np.eye(d)
+    iu, ju = np.triu_indices(k, 1)  # the terms (a, b) and (b, a) are equal: work on a < b
+    delta = theta[:, iu] - theta[:, ju]  # (m, P, d)
+    va, vb = vel[:, iu], vel[:, ju]
+    dot = lambda x, y: np.einsum("mpi,mpi->mp", x, y)  # noqa: E731
+    outer = lambda x, y: x[..., :, None] * y[..., None, :]  # noqa: E731
+    s4 = 4 * s2 * s2
+    c = 2 * np.exp(-dot(delta, delta) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k)  # 2×: both orders
+    dva, dvb = dot(delta, va), dot(delta, vb)
+    h = dot(va, vb) / (2 * s2) - dva * dvb / s4
+    gh = -(dvb[..., None] * va + dva[..., None] * vb) / s4  # ∇_Δ h;  ∇_Δ c = −c Δ / (2σ²)
+    sym = lambda x: x + np.swapaxes(x, -1, -2)  # noqa: E731
+    h_dd = c[..., None, None] * (
+        -sym(outer(va, vb)) / s4 + (h / s4)[..., None, None] * outer(delta, delta)
+        - (h / (2 * s2))[..., None, None] * eye - sym(outer(delta, gh)) / (2 * s2))
+    # ∂²/∂Δ∂V_a and ∂²/∂Δ∂V_b (rows Δ, columns V)
+    h_dva = -c[..., None, None] * ((dvb / s4)[..., None, None] * eye + outer(vb, delta) / s4
+                                   + outer(delta, vb / (2 * s2) - (dvb / s4)[..., None] * delta) / (2 * s2))
+    h_dvb = -c[..., None, None] * ((dva / s4)[..., None, None] * eye + outer(va, delta) / s4
+                                   + outer(delta, va / (2 * s2) - (dva / s4)[..., None] * delta) / (2 * s2))
+    idx = np.arange(k)
+
+    def full(upper_blocks, lower_blocks):
+        out = np.zeros((m, k, k, d, d))
+        out[:, iu, ju] = upper_blocks
+        out[:, ju, iu] = lower_blocks
+        return out
+
+    # Δ = φ_a − φ_b: ∂²/∂φ_a² = ∂²/∂φ_b² = H_ΔΔ, ∂²/∂φ_a∂φ_b = −H_ΔΔ (summed over the pairs)
+    q_tt = -full(h_dd, h_dd)
+    q_tt[:, idx, idx] = -q_tt.sum(axis=2)
+    # block (θ_x, V_y): (θ_a, V_a) +H_ΔVa, (θ_b, V_a) −H_ΔVa, (θ_a, V_b) +H_ΔVb, (θ_b, V_b) −H_ΔVb
+    q_tv = full(h_dvb, -h_dva)
+    q_tv[:, idx, idx] = (np.zeros((m, k, d, d)) + _pair_sum(h_dva, iu, k) - _pair_sum(h_dvb, ju, k))
+    q_vv = _alpha_tensor_batch(theta, s2).reshape(m, k, d, k, d).transpose(0, 1, 3, 2, 4) * 2
+    shape = (m, k * d, k * d)
+    return tuple(x.transpose(0, 1, 3, 2, 4).reshape(shape) for x in (q_tt, q_tv, q_vv))
+
+
+def _pair_sum(values, owner, k):
+    """Sum (m, P, …) pair values into (m, K, …) by the landmark ``owner[p]`` of each pair."""
+    out = np.zeros((values.shape[0], k) + values.shape[2:])
+    np.add.at(out, (slice(None), owner), values)
+    return out
+
+
 def _alpha_tensor_batch(theta: np.ndarray, s2: float) -> np.ndarray:
     """α metric tensors for a batch of shapes (m, K, d) -> (m, K d, K d)."""
     return np.stack([_alpha_gram(t, t, s2) for t in theta])

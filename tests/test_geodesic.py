@@ -3,7 +3,17 @@ import warnings
 import numpy as np
 import pytest
 
-from shapelib.geodesic import GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+from shapelib.geodesic import (
+    GeodesicWarning,
+    _block_cholesky,
+    _block_solve,
+    _energy,
+    _hess_vec,
+    _model,
+    fisher_rao_lower_bound,
+    geodesic,
+    path_length,
+)
 
 METRICS = ["alpha", "fisher_rao"]
 
@@ -140,3 +150,68 @@ def test_shooting_the_geodesic_ode_lands_on_the_target(metric):
         misses.append(np.abs(shoot(u, v0, metric=metric, sigma2=0.5, n_steps=100)[-1] - v).max() / np.abs(v - u).max())
     assert misses[1] < 5e-3
     assert misses[1] < misses[0] / 2.5
+
+
+def _dense(diag, upper):
+    m, q, _ = diag.shape
+    h = np.zeros((m * q, m * q))
+    for t in range(m):
+        h[t * q:(t + 1) * q, t * q:(t + 1) * q] = diag[t]
+        if t < m - 1:
+            h[t * q:(t + 1) * q, (t + 1) * q:(t + 2) * q] = upper[t]
+            h[(t + 1) * q:(t + 2) * q, t * q:(t + 1) * q] = upper[t].T
+    return h
+
+
+def test_exact_path_hessian_against_finite_differences(pair, rng):
+    """The α path energy's exact Hessian (block tridiagonal in time) is the FD of its gradient."""
+    u, v = pair
+    n = 4
+    path = np.linspace(u, v, n + 1) + 0.1 * rng.normal(size=(n + 1,) + u.shape)
+    path[0], path[-1] = u, v
+    model = _model("alpha", 0.5, 0.35, 6.0)
+    _, grad, (diag, upper) = _energy(model, path, hessian="exact")
+    h = _dense(diag, upper)
+    eps = 1e-6
+    fd = np.zeros_like(h)
+    for j in range(h.shape[0]):
+        e = np.zeros(h.shape[0])
+        e[j] = eps
+        plus, minus = path.copy(), path.copy()
+        plus[1:-1] += e.reshape(path[1:-1].shape)
+        minus[1:-1] -= e.reshape(path[1:-1].shape)
+        fd[:, j] = (_energy(model, plus)[1] - _energy(model, minus)[1]).ravel() / (2 * eps)
+    assert np.allclose(h, fd, atol=1e-7 * np.abs(h).max())
+    assert np.allclose(_hess_vec(diag, upper, grad.reshape(n - 1, -1)).ravel(), h @ grad.ravel())
+
+
+def test_block_cholesky_solves_and_rejects_indefinite(rng):
+    m, q = 4, 3
+    a = rng.normal(size=(m * q, m * q))
+    band = np.abs(np.subtract.outer(np.arange(m * q) // q, np.arange(m * q) // q)) <= 1
+    h = (a @ a.T) * band + 0.1 * np.eye(m * q)  # block tridiagonal, positive definite
+    diag = np.stack([h[t * q:(t + 1) * q, t * q:(t + 1) * q] for t in range(m)])
+    upper = np.stack([h[t * q:(t + 1) * q, (t + 1) * q:(t + 2) * q] for t in range(m - 1)])
+    rhs = rng.normal(size=(m, q))
+    x = _block_solve(_block_cholesky(diag, upper, 0.5), rhs)
+    assert np.allclose((h + 0.5 * np.eye(m * q)) @ x.ravel(), rhs.ravel())
+    lowest = np.linalg.eigvalsh(h)[0]
+    with pytest.raises(np.linalg.LinAlgError):
+        _block_cholesky(diag, upper, -lowest - 1e-3)
+
+
+def test_alpha_solution_is_a_certified_local_minimum(pair):
+    """Stopped by the Newton decrement: exact Hessian positive definite, gradient ~ 0, and no
+    random perturbation of the interior points lowers the energy."""
+    u, v = pair
+    r = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=6, tol=1e-12, max_iter=500)
+    assert r.converged and r.log["stopped_by"] == "newton_decrement"
+    assert r.log["newton_decrement"] < 1e-12 * r.energy
+    model = _model("alpha", 0.5, 0.35, 6.0)
+    energy, grad, blocks = _energy(model, r.path, hessian="exact")
+    assert np.linalg.eigvalsh(_dense(*blocks))[0] > 0
+    gen = np.random.default_rng(1)
+    for _ in range(20):
+        trial = r.path.copy()
+        trial[1:-1] += 1e-3 * gen.normal(size=trial[1:-1].shape)
+        assert _energy(model, trial, gradient=False)[0] > energy

@@ -4,6 +4,7 @@ import pytest
 from shapelib.gmm import gmm_density
 from shapelib.metrics import (
     _alpha_qform_grad,
+    _alpha_qform_hessian,
     _fr_qform_grad,
     alpha_metric,
     alpha_quadratic_form,
@@ -111,6 +112,31 @@ def test_quadratic_form_gradients_against_finite_differences(rng, which):
             else:
                 fd[idx] = (f(theta, v + e)[0][0] - f(theta, v - e)[0][0]) / (2 * eps)
         assert np.allclose(grad, fd, rtol=1e-6, atol=1e-8 * np.abs(fd).max())
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_alpha_quadratic_form_hessian_against_finite_differences(rng, d):
+    """The exact second derivatives used for Newton steps: FD of the analytic gradient."""
+    theta, v = rng.normal(size=(2, 2, 5, d))
+    s2 = 0.4
+    q_tt, q_tv, q_vv = _alpha_qform_hessian(theta, v, s2)
+    eps = 1e-6
+    size = theta[0].size
+    fd_t, fd_v = np.zeros((2, 2, size, 2 * size))
+    for j in range(size):
+        e = np.zeros(size)
+        e[j] = eps
+        e = e.reshape(theta.shape[1:])
+        for out, (tp, vp, tm, vm) in ((fd_t, (theta + e, v, theta - e, v)), (fd_v, (theta, v + e, theta, v - e))):
+            _, gtp, gvp = _alpha_qform_grad(tp, vp, s2)
+            _, gtm, gvm = _alpha_qform_grad(tm, vm, s2)
+            out[:, j] = np.concatenate([(gtp - gtm).reshape(2, -1), (gvp - gvm).reshape(2, -1)], axis=1) / (2 * eps)
+    scale = max(np.abs(q_tt).max(), np.abs(q_tv).max(), np.abs(q_vv).max())
+    assert np.allclose(fd_t[:, :, :size], q_tt, atol=1e-7 * scale)
+    assert np.allclose(fd_t[:, :, size:], q_tv, atol=1e-7 * scale)
+    assert np.allclose(fd_v[:, :, :size], np.swapaxes(q_tv, 1, 2), atol=1e-7 * scale)
+    assert np.allclose(q_vv, 2 * np.stack([alpha_metric(t, s2) for t in theta]), rtol=1e-12)
+    assert np.allclose(q_tt, np.swapaxes(q_tt, 1, 2))
 
 
 def test_metric_errors():
