@@ -248,11 +248,13 @@ def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
     h_dd = c[..., None, None] * (
         -sym(outer(va, vb)) / s4 + (h / s4)[..., None, None] * outer(delta, delta)
         - (h / (2 * s2))[..., None, None] * eye - sym(outer(delta, gh)) / (2 * s2))
-    # ∂²/∂Δ∂V_a and ∂²/∂Δ∂V_b (rows Δ, columns V)
-    h_dva = -c[..., None, None] * ((dvb / s4)[..., None, None] * eye + outer(vb, delta) / s4
-                                   + outer(delta, vb / (2 * s2) - (dvb / s4)[..., None] * delta) / (2 * s2))
-    h_dvb = -c[..., None, None] * ((dva / s4)[..., None, None] * eye + outer(va, delta) / s4
-                                   + outer(delta, va / (2 * s2) - (dva / s4)[..., None] * delta) / (2 * s2))
+
+    def h_dv(other, d_other):
+        """∂²f/∂Δ∂V_a with ``other = V_b`` (or ∂²f/∂Δ∂V_b with ``other = V_a``): rows Δ, columns V."""
+        return -c[..., None, None] * ((d_other / s4)[..., None, None] * eye + outer(other, delta) / s4
+                                      + outer(delta, other / (2 * s2) - (d_other / s4)[..., None] * delta) / (2 * s2))
+
+    h_dva, h_dvb = h_dv(vb, dvb), h_dv(va, dva)
     idx = np.arange(k)
 
     def full(upper_blocks, lower_blocks):
@@ -266,10 +268,10 @@ def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
     q_tt[:, idx, idx] = -q_tt.sum(axis=2)
     # block (θ_x, V_y): (θ_a, V_a) +H_ΔVa, (θ_b, V_a) −H_ΔVa, (θ_a, V_b) +H_ΔVb, (θ_b, V_b) −H_ΔVb
     q_tv = full(h_dvb, -h_dva)
-    q_tv[:, idx, idx] = (np.zeros((m, k, d, d)) + _pair_sum(h_dva, iu, k) - _pair_sum(h_dvb, ju, k))
-    q_vv = _alpha_tensor_batch(theta, s2).reshape(m, k, d, k, d).transpose(0, 1, 3, 2, 4) * 2
+    q_tv[:, idx, idx] = _pair_sum(h_dva, iu, k) - _pair_sum(h_dvb, ju, k)
     shape = (m, k * d, k * d)
-    return tuple(x.transpose(0, 1, 3, 2, 4).reshape(shape) for x in (q_tt, q_tv, q_vv))
+    q_tt, q_tv = (x.transpose(0, 1, 3, 2, 4).reshape(shape) for x in (q_tt, q_tv))
+    return q_tt, q_tv, 2 * _alpha_tensor_batch(theta, s2)
 
 
 def _pair_sum(values, owner, k):
