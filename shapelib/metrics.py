@@ -76,16 +76,30 @@ def alpha_metric(theta, sigma2) -> np.ndarray:
     return _alpha_gram(theta, theta, check_sigma2(sigma2))
 
 
-def _alpha_qform(theta: np.ndarray, vel: np.ndarray, s2: float) -> np.ndarray:
-    """Batched ``vᵀ g_α(θ) v`` for ``theta, vel`` of shape (m, K, d); O(m K² d) memory-light."""
+def _alpha_pairs(theta: np.ndarray, vel: np.ndarray, s2: float):
+    """Pair quantities of the α quadratic form, each (m, K, K): ``c_ab = G(Δ_ab)/K²`` (the
+    Gaussian overlap of :mod:`shapelib.gmm` over K²), ``V_a·V_b``, ``Δ_ab·V_a`` and ``Δ_ab·V_b``
+    with ``Δ_ab = φ_a − φ_b``; built one coordinate at a time (no (m, K, K, d) temporaries)."""
     m, k, d = theta.shape
-    delta = theta[:, :, None, :] - theta[:, None, :, :]  # (m, K, K, d)
-    sq = np.einsum("mabi,mabi->mab", delta, delta)
-    g = np.exp(-sq / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k * s2 * s2)
-    vv = np.einsum("mai,mbi->mab", vel, vel)
-    dv_a = np.einsum("mabi,mai->mab", delta, vel)
-    dv_b = np.einsum("mabi,mbi->mab", delta, vel)
-    return np.einsum("mab,mab->m", g, (s2 / 2) * vv - 0.25 * dv_a * dv_b)
+    sq = np.zeros((m, k, k))
+    dva = np.zeros((m, k, k))
+    dvb = np.zeros((m, k, k))
+    for i in range(d):
+        di = theta[:, :, None, i] - theta[:, None, :, i]
+        sq += di * di
+        dva += di * vel[:, :, None, i]
+        dvb += di * vel[:, None, :, i]
+    c = np.exp(-sq / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k)
+    return c, vel @ vel.transpose(0, 2, 1), dva, dvb
+
+
+def _alpha_qform(theta: np.ndarray, vel: np.ndarray, s2: float) -> np.ndarray:
+    """Batched ``vᵀ g_α(θ) v`` for ``theta, vel`` of shape (m, K, d); O(m K²) memory.
+
+    ``Q = Σ_ab c_ab [V_a·V_b/(2σ²) − (Δ_ab·V_a)(Δ_ab·V_b)/(4σ⁴)]`` (the block formula above).
+    """
+    c, vv, dva, dvb = _alpha_pairs(theta, vel, s2)
+    return np.einsum("mab,mab->m", c, vv / (2 * s2) - dva * dvb / (4 * s2 * s2))
 
 
 def alpha_quadratic_form(theta, velocity, sigma2) -> float:
@@ -205,80 +219,77 @@ def _alpha_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float):
     ``∂Q/∂φ_a = 2 Σ_b (G_ab/K²) [−Δ B_ab/(2σ²) − (V_a (Δ·V_b) + V_b (Δ·V_a))/(4σ⁴)]`` and
     ``∂Q/∂V_a = 2 (g_α v)_a``.
     """
-    m, k, d = theta.shape
-    delta = theta[:, :, None, :] - theta[:, None, :, :]  # (m, K, K, d)
-    g = np.exp(-np.einsum("mabi,mabi->mab", delta, delta) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k)
-    vv = np.einsum("mai,mbi->mab", vel, vel)
-    dva = np.einsum("mabi,mai->mab", delta, vel)  # Δ_ab · V_a
-    dvb = np.einsum("mabi,mbi->mab", delta, vel)  # Δ_ab · V_b
-    b = vv / (2 * s2) - dva * dvb / (4 * s2 * s2)
-    q = np.einsum("mab,mab->m", g, b)
-    d_theta = 2 * (
-        -np.einsum("mab,mabi->mai", g * b, delta) / (2 * s2)
-        - (np.einsum("mab,mai->mai", g * dvb, vel) + np.einsum("mab,mbi->mai", g * dva, vel)) / (4 * s2 * s2)
-    )
-    # (g v)_a = Σ_b (G/K²)[V_b/(2σ²) − Δ (Δ·V_b)/(4σ⁴)]
-    gv = np.einsum("mab,mbi->mai", g, vel) / (2 * s2) - np.einsum("mab,mabi->mai", g * dvb, delta) / (4 * s2 * s2)
+    c, vv, dva, dvb = _alpha_pairs(theta, vel, s2)
+    s4 = 4 * s2 * s2
+    cb = c * (vv / (2 * s2) - dva * dvb / s4)
+    q = cb.sum(axis=(1, 2))
+    cdva, cdvb = c * dva, c * dvb
+    # Σ_b w_ab Δ_ab = φ_a Σ_b w_ab − (w φ)_a for any pair weights w
+    rsum = lambda w: theta * w.sum(axis=2)[..., None] - w @ theta  # noqa: E731
+    d_theta = 2 * (-rsum(cb) / (2 * s2) - (cdvb.sum(axis=2)[..., None] * vel + cdva @ vel) / s4)
+    # (g v)_a = Σ_b c_ab [V_b/(2σ²) − Δ_ab (Δ_ab·V_b)/(4σ⁴)]
+    gv = (c @ vel) / (2 * s2) - rsum(cdvb) / s4
     return q, d_theta, 2 * gv
 
 
 def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
     """Second derivatives of ``Q = vᵀ g_α(θ) v``: ``(Q_θθ, Q_θv, Q_vv)``, each (m, K d, K d).
 
-    ``Q = Σ_ab f(Δ_ab, V_a, V_b)`` with ``f = c(Δ) h``, ``c = exp(−|Δ|²/4σ²)/((4πσ²)^{d/2} K²)``,
-    ``h = V_a·V_b/(2σ²) − (Δ·V_a)(Δ·V_b)/(4σ⁴)`` and ``Δ = φ_a − φ_b``. Each term depends on
-    the positions only through Δ, so its Hessian in ``(Δ, V_a, V_b)`` is scattered with signs
-    ±1; the terms (a, b) and (b, a) are the same function, hence the factors 2. ``Q_θv`` has rows
-    indexed by θ and columns by v; ``Q_vv = 2 g_α``. Used for exact Newton steps on the α path
-    energy; checked against finite differences of :func:`_alpha_qform_grad` in the tests.
+    ``Q = Σ_ab f(Δ_ab, V_a, V_b)`` over ordered pairs, with ``f = c(Δ) h``,
+    ``c = exp(−|Δ|²/4σ²)/((4πσ²)^{d/2} K²)``, ``h = V_a·V_b/(2σ²) − (Δ·V_a)(Δ·V_b)/(4σ⁴)`` and
+    ``Δ = φ_a − φ_b``. Each term depends on the positions only through Δ, and the terms (a, b)
+    and (b, a) are the same function, so with ``H_ab = ∂²f/∂Δ²``, ``M_ab = ∂²f/∂Δ∂V_b`` and
+    ``N_ab = ∂²f/∂Δ∂V_a`` (rows Δ, columns V) evaluated at the ordered pair (a, b):
+
+        Q_θθ[a, b] = −2 H_ab,  Q_θθ[a, a] = 2 Σ_{b≠a} H_ab,
+        Q_θv[a, b] = 2 M_ab,   Q_θv[a, a] = 2 Σ_{b≠a} N_ab,   Q_vv = 2 g_α,
+
+    with ``∇_Δ c = −c Δ/(2σ²)`` and ``∇_Δ h = −((Δ·V_b) V_a + (Δ·V_a) V_b)/(4σ⁴)``. Computed one
+    coordinate pair (i, j) at a time on contiguous (m, K, K) arrays. Used for exact Newton steps
+    on the α path energy; checked against finite differences of :func:`_alpha_qform_grad`.
+    ``Q_θv`` has rows indexed by θ and columns by v.
     """
     m, k, d = theta.shape
-    eye = np.eye(d)
-    iu, ju = np.triu_indices(k, 1)  # the terms (a, b) and (b, a) are equal: work on a < b
-    delta = theta[:, iu] - theta[:, ju]  # (m, P, d)
-    va, vb = vel[:, iu], vel[:, ju]
-    dot = lambda x, y: np.einsum("mpi,mpi->mp", x, y)  # noqa: E731
-    outer = lambda x, y: x[..., :, None] * y[..., None, :]  # noqa: E731
     s4 = 4 * s2 * s2
-    c = 2 * np.exp(-dot(delta, delta) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k)  # 2×: both orders
-    dva, dvb = dot(delta, va), dot(delta, vb)
-    h = dot(va, vb) / (2 * s2) - dva * dvb / s4
-    gh = -(dvb[..., None] * va + dva[..., None] * vb) / s4  # ∇_Δ h;  ∇_Δ c = −c Δ / (2σ²)
-    sym = lambda x: x + np.swapaxes(x, -1, -2)  # noqa: E731
-    h_dd = c[..., None, None] * (
-        -sym(outer(va, vb)) / s4 + (h / s4)[..., None, None] * outer(delta, delta)
-        - (h / (2 * s2))[..., None, None] * eye - sym(outer(delta, gh)) / (2 * s2))
-
-    def h_dv(other, d_other):
-        """∂²f/∂Δ∂V_a with ``other = V_b`` (or ∂²f/∂Δ∂V_b with ``other = V_a``): rows Δ, columns V."""
-        return -c[..., None, None] * ((d_other / s4)[..., None, None] * eye + outer(other, delta) / s4
-                                      + outer(delta, other / (2 * s2) - (d_other / s4)[..., None] * delta) / (2 * s2))
-
-    h_dva, h_dvb = h_dv(vb, dvb), h_dv(va, dva)
+    delta = [theta[:, :, None, i] - theta[:, None, :, i] for i in range(d)]  # Δ_i, (m, K, K) each
+    va = [vel[:, :, None, i] for i in range(d)]  # V_a,i broadcast over b
+    vb = [vel[:, None, :, i] for i in range(d)]  # V_b,i broadcast over a
+    c = np.exp(-sum(x * x for x in delta) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k)
     idx = np.arange(k)
+    c_off = c.copy()
+    c_off[:, idx, idx] = 0.0  # the terms f_aa do not depend on the positions
+    dva = sum(x * y for x, y in zip(delta, va))
+    dvb = sum(x * y for x, y in zip(delta, vb))
+    h = np.einsum("mai,mbi->mab", vel, vel) / (2 * s2) - dva * dvb / s4
+    grad_h = [-(dvb * va[i] + dva * vb[i]) / s4 for i in range(d)]
+    q_tt, q_tv, q_vv = (np.empty((m, k, d, k, d)) for _ in range(3))
 
-    def full(upper_blocks, lower_blocks):
-        out = np.zeros((m, k, k, d, d))
-        out[:, iu, ju] = upper_blocks
-        out[:, ju, iu] = lower_blocks
-        return out
+    def put(out, i, j, offdiag, diag):
+        out[:, :, i, :, j] = offdiag
+        out[:, idx, i, idx, j] = diag
 
-    # Δ = φ_a − φ_b: ∂²/∂φ_a² = ∂²/∂φ_b² = H_ΔΔ, ∂²/∂φ_a∂φ_b = −H_ΔΔ (summed over the pairs)
-    q_tt = -full(h_dd, h_dd)
-    q_tt[:, idx, idx] = -q_tt.sum(axis=2)
-    # block (θ_x, V_y): (θ_a, V_a) +H_ΔVa, (θ_b, V_a) −H_ΔVa, (θ_a, V_b) +H_ΔVb, (θ_b, V_b) −H_ΔVb
-    q_tv = full(h_dvb, -h_dva)
-    q_tv[:, idx, idx] = _pair_sum(h_dva, iu, k) - _pair_sum(h_dvb, ju, k)
+    for i in range(d):
+        for j in range(d):
+            eye = float(i == j)
+            # H_ij and its diagonal sum (symmetric in i, j)
+            if j >= i:
+                hess = c_off * (-(va[i] * vb[j] + vb[i] * va[j]) / s4 + (h / s4) * delta[i] * delta[j]
+                                - eye * h / (2 * s2) - (delta[i] * grad_h[j] + grad_h[i] * delta[j]) / (2 * s2))
+                put(q_tt, i, j, -2 * hess, 2 * hess.sum(axis=2))
+                if j > i:
+                    q_tt[:, :, j, :, i] = q_tt[:, :, i, :, j]
+                vv = 2 * c * (eye / (2 * s2) - delta[i] * delta[j] / s4)
+                q_vv[:, :, i, :, j] = vv
+                if j > i:
+                    q_vv[:, :, j, :, i] = vv
+            # mixed: ∂²f/∂Δ_i∂V_j with the other velocity V_a (for M) or V_b (for N)
+            m_ij = -c_off * (eye * dva / s4 + va[i] * delta[j] / s4
+                             + delta[i] * (va[j] / (2 * s2) - dva * delta[j] / s4) / (2 * s2))
+            n_ij = -c_off * (eye * dvb / s4 + vb[i] * delta[j] / s4
+                             + delta[i] * (vb[j] / (2 * s2) - dvb * delta[j] / s4) / (2 * s2))
+            put(q_tv, i, j, 2 * m_ij, 2 * n_ij.sum(axis=2))
     shape = (m, k * d, k * d)
-    q_tt, q_tv = (x.transpose(0, 1, 3, 2, 4).reshape(shape) for x in (q_tt, q_tv))
-    return q_tt, q_tv, 2 * _alpha_tensor_batch(theta, s2)
-
-
-def _pair_sum(values, owner, k):
-    """Sum (m, P, …) pair values into (m, K, …) by the landmark ``owner[p]`` of each pair."""
-    out = np.zeros((values.shape[0], k) + values.shape[2:])
-    np.add.at(out, (slice(None), owner), values)
-    return out
+    return q_tt.reshape(shape), q_tv.reshape(shape), q_vv.reshape(shape)
 
 
 def _alpha_tensor_batch(theta: np.ndarray, s2: float) -> np.ndarray:
