@@ -69,7 +69,7 @@ from .metrics import (
     _fr_qform,
     _fr_qform_grad,
     _fr_tensor_batch,
-    _psi_and_jacobian,
+    _psi_coef,
 )
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
 
@@ -219,8 +219,8 @@ class _FisherRaoModel:
 
     def lower_bound(self, u, v):
         grid = self.prepare(np.stack([u, v]))
-        pu, _ = _psi_and_jacobian(u, self.s2, grid.nodes, jacobian=False)
-        pv, _ = _psi_and_jacobian(v, self.s2, grid.nodes, jacobian=False)
+        pu, _ = _psi_coef(u, self.s2, grid.nodes)
+        pv, _ = _psi_coef(v, self.s2, grid.nodes)
         c = np.sqrt(grid.integrate((pu - pv) ** 2))
         # great circle on the sphere of radius 2: 4 arcsin(c/4) = 2 arccos ∫√(p_u p_v)
         return float(4.0 * np.arcsin(min(c / 4.0, 1.0)))

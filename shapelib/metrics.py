@@ -147,12 +147,23 @@ def _r_weighted(w: np.ndarray, nodes: np.ndarray, theta: np.ndarray) -> np.ndarr
     return w.T @ nodes - w.sum(axis=0)[:, None] * theta
 
 
-def _psi_and_jacobian(theta: np.ndarray, s2: float, nodes: np.ndarray, *, jacobian: bool = True):
-    """``ψ = 2√p`` at the grid nodes (M,) and, if requested, ``∂ψ/∂φ_a = N_a r_a / (K σ² √p)`` (M, K, d)."""
-    psi, coef = _psi_coef(theta, s2, nodes)
-    if not jacobian:
-        return psi, None
-    return psi, coef[..., None] * (nodes[:, None, :] - theta[None, :, :])
+def _fr_gram(theta: np.ndarray, s2: float, nodes: np.ndarray) -> np.ndarray:
+    """``Σ_m ∂ψ/∂θ_i ∂ψ/∂θ_j`` over the nodes, (K d, K d), with ``∂ψ/∂φ_a = coef_a r_a``.
+
+    Built one coordinate pair at a time from contiguous (M, K) factors (d² products of
+    (K, M)·(M, K)) rather than from an (M, K, d) Jacobian.
+    """
+    k, d = theta.shape
+    _, coef = _psi_coef(theta, s2, nodes)
+    jac = [coef * (nodes[:, i, None] - theta[None, :, i]) for i in range(d)]  # ∂ψ/∂φ_{a,i}
+    out = np.empty((k, d, k, d))
+    for i in range(d):
+        for j in range(i, d):
+            block = jac[i].T @ jac[j]
+            out[:, i, :, j] = block
+            if j > i:
+                out[:, j, :, i] = block.T
+    return out.reshape(k * d, k * d)
 
 
 def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin: float = DEFAULT_MARGIN) -> np.ndarray:
@@ -177,9 +188,7 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
     theta = as_shape(theta, name="theta")
     s2 = check_sigma2(sigma2)
     grid = make_grid(theta, s2, spacing=spacing, margin=margin)
-    _, jac = _psi_and_jacobian(theta, s2, grid.nodes)
-    a = jac.reshape(len(grid.nodes), -1)
-    g = grid.weight * (a.T @ a)
+    g = grid.weight * _fr_gram(theta, s2, grid.nodes)
     return 0.5 * (g + g.T)
 
 
@@ -327,9 +336,4 @@ def _fr_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
 
 def _fr_tensor_batch(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     """Fisher–Rao metric tensors for a batch of shapes (m, K, d) on a common grid -> (m, K d, K d)."""
-    out = []
-    for t in theta:
-        _, jac = _psi_and_jacobian(t, s2, grid.nodes)
-        a = jac.reshape(len(grid.nodes), -1)
-        out.append(grid.weight * (a.T @ a))
-    return np.stack(out)
+    return np.stack([grid.weight * _fr_gram(t, s2, grid.nodes) for t in theta])
