@@ -219,8 +219,8 @@ class _FisherRaoModel:
 
     def lower_bound(self, u, v):
         grid = self.prepare(np.stack([u, v]))
-        pu, _ = _psi_coef(u, self.s2, grid.nodes)
-        pv, _ = _psi_coef(v, self.s2, grid.nodes)
+        pu, _ = _psi_coef(u, self.s2, grid)
+        pv, _ = _psi_coef(v, self.s2, grid)
         c = np.sqrt(grid.integrate((pu - pv) ** 2))
         # great circle on the sphere of radius 2: 4 arcsin(c/4) = 2 arccos ∫√(p_u p_v)
         return float(4.0 * np.arcsin(min(c / 4.0, 1.0)))

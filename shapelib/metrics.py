@@ -116,7 +116,42 @@ def alpha_quadratic_form(theta, velocity, sigma2) -> float:
 # ---------------------------------------------------------------------------------------------
 
 
-def _psi_coef(theta: np.ndarray, s2: float, nodes: np.ndarray):
+def _psi_coef(theta: np.ndarray, s2: float, grid: Grid):
+    """``ψ = 2√p`` at the grid nodes (M,) and ``coef_ma = N_a(x_m) / (K σ² √p(x_m))`` (M, K).
+
+    ``∂ψ/∂φ_a (x_m) = coef_ma r_ma`` with ``r_ma = x_m − φ_a``. On a tensor grid the Gaussians
+    factorise over coordinates, ``exp(−|x − φ_a|²/2σ²) = Π_i exp(−(x_i − φ_ai)²/2σ²)``, so only
+    ``Σ_i n_i K`` exponentials are needed instead of ``M K`` (each factor scaled by its largest
+    value per node coordinate, so it lies in (0, 1]). Nodes where the product underflows (far
+    from every landmark) are recomputed in log space by :func:`_psi_coef_nodes`.
+    """
+    k, d = theta.shape
+    if len(grid.axes) != d:
+        return _psi_coef_nodes(theta, s2, grid.nodes)
+    e = np.ones((1,) * d + (k,))
+    top = np.zeros((1,) * d)
+    for i, ax in enumerate(grid.axes):
+        expo = -((ax[:, None] - theta[None, :, i]) ** 2) / (2 * s2)  # (n_i, K)
+        shift = expo.max(axis=1)
+        shape = [1] * d
+        shape[i] = len(ax)
+        e = e * np.exp(expo - shift[:, None]).reshape(shape + [k])
+        top = top + shift.reshape(shape)
+    e = e.reshape(-1, k)
+    top = top.reshape(-1)
+    total = e.sum(axis=1)
+    far = total < 1e-200  # every component is below 1e-200 of its per-axis peaks: redo in log space
+    total[far] = 1.0
+    log_norm = -0.5 * d * np.log(2 * np.pi * s2)
+    log_p = np.log(total) + top + log_norm - np.log(k)
+    psi = 2.0 * np.exp(0.5 * log_p)
+    coef = e * (np.exp(top + log_norm - 0.5 * log_p) / (k * s2))[:, None]
+    if np.any(far):
+        psi[far], coef[far] = _psi_coef_nodes(theta, s2, grid.nodes[far])
+    return psi, coef
+
+
+def _psi_coef_nodes(theta: np.ndarray, s2: float, nodes: np.ndarray):
     """``ψ = 2√p`` at the nodes (M,) and ``coef_ma = N_a(x_m) / (K σ² √p(x_m))`` (M, K), log-space stable.
 
     ``∂ψ/∂φ_a (x_m) = coef_ma r_ma`` with ``r_ma = x_m − φ_a``.
@@ -147,14 +182,15 @@ def _r_weighted(w: np.ndarray, nodes: np.ndarray, theta: np.ndarray) -> np.ndarr
     return w.T @ nodes - w.sum(axis=0)[:, None] * theta
 
 
-def _fr_gram(theta: np.ndarray, s2: float, nodes: np.ndarray) -> np.ndarray:
+def _fr_gram(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     """``Σ_m ∂ψ/∂θ_i ∂ψ/∂θ_j`` over the nodes, (K d, K d), with ``∂ψ/∂φ_a = coef_a r_a``.
 
     Built one coordinate pair at a time from contiguous (M, K) factors (d² products of
     (K, M)·(M, K)) rather than from an (M, K, d) Jacobian.
     """
     k, d = theta.shape
-    _, coef = _psi_coef(theta, s2, nodes)
+    nodes = grid.nodes
+    _, coef = _psi_coef(theta, s2, grid)
     jac = [coef * (nodes[:, i, None] - theta[None, :, i]) for i in range(d)]  # ∂ψ/∂φ_{a,i}
     out = np.empty((k, d, k, d))
     for i in range(d):
@@ -188,7 +224,7 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
     theta = as_shape(theta, name="theta")
     s2 = check_sigma2(sigma2)
     grid = make_grid(theta, s2, spacing=spacing, margin=margin)
-    g = grid.weight * _fr_gram(theta, s2, grid.nodes)
+    g = grid.weight * _fr_gram(theta, s2, grid)
     return 0.5 * (g + g.T)
 
 
@@ -197,7 +233,7 @@ def _fr_qform(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.n
     out = np.empty(len(theta))
     x = grid.nodes
     for i in range(len(theta)):
-        _, coef = _psi_coef(theta[i], s2, x)
+        _, coef = _psi_coef(theta[i], s2, grid)
         rv = x @ vel[i].T - np.einsum("ki,ki->k", theta[i], vel[i])[None, :]  # r_ma · V_a
         out[i] = grid.integrate(np.einsum("mk,mk->m", coef, rv) ** 2)
     return out
@@ -320,7 +356,7 @@ def _fr_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
     x = grid.nodes
     for i in range(m):
         th, v = theta[i], vel[i]
-        psi, coef = _psi_coef(th, s2, x)
+        psi, coef = _psi_coef(th, s2, grid)
         rv = x @ v.T - np.einsum("ki,ki->k", th, v)[None, :]
         psidot = np.einsum("mk,mk->m", coef, rv)
         q[i] = grid.integrate(psidot**2)
@@ -336,4 +372,4 @@ def _fr_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
 
 def _fr_tensor_batch(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     """Fisher–Rao metric tensors for a batch of shapes (m, K, d) on a common grid -> (m, K d, K d)."""
-    return np.stack([grid.weight * _fr_gram(t, s2, grid.nodes) for t in theta])
+    return np.stack([grid.weight * _fr_gram(t, s2, grid) for t in theta])

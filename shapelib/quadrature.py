@@ -40,9 +40,10 @@ DEFAULT_MARGIN = 6.0
 class Grid:
     """A tensor-product trapezoid rule: ``∫ f ≈ weight · Σ f(nodes)``."""
 
-    nodes: np.ndarray  # (M, d)
+    nodes: np.ndarray  # (M, d), the tensor product of ``axes`` in C order
     weight: float
     shape: tuple  # grid points per axis
+    axes: tuple = ()  # the 1-D node coordinates per axis (empty: nodes are not a tensor grid)
 
     def integrate(self, values: np.ndarray, axis: int = 0) -> np.ndarray:
         return self.weight * np.sum(values, axis=axis)
@@ -75,4 +76,4 @@ def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin
     n = [len(a) for a in axes]
     mesh = np.meshgrid(*axes, indexing="ij")
     nodes = np.stack([m.ravel() for m in mesh], axis=1)
-    return Grid(nodes=nodes, weight=float(h ** pts.shape[1]), shape=tuple(int(k) for k in n))
+    return Grid(nodes=nodes, weight=float(h ** pts.shape[1]), shape=tuple(int(k) for k in n), axes=tuple(axes))

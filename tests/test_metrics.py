@@ -6,6 +6,7 @@ from shapelib.metrics import (
     _alpha_qform_grad,
     _alpha_qform_hessian,
     _fr_qform_grad,
+    _psi_coef,
     alpha_metric,
     alpha_quadratic_form,
     fisher_rao_metric,
@@ -148,3 +149,24 @@ def test_metric_errors():
         alpha_quadratic_form(np.zeros((2, 2)), np.zeros((3, 2)), 1.0)
     with pytest.raises(ValueError, match="spacing"):
         fisher_rao_metric(np.zeros((2, 2)), 1.0, spacing=0)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_psi_on_tensor_grid_matches_direct_log_space_evaluation(rng, d):
+    """The separable evaluation of ψ = 2√p on a tensor grid (Σ n_i K exponentials) equals a
+    direct evaluation of the density at every node, including nodes so far from every landmark
+    that the separable product underflows (clusters at 80σ·e_0 and 80σ·e_1: near the origin the
+    component nearest in x is far in y and vice versa, which is the log-space fallback)."""
+    s2 = 0.05 if d == 2 else 0.5
+    far = 80 * np.sqrt(s2) * np.eye(d)
+    theta = np.concatenate([rng.normal(size=(4, d)) * 0.3 + far[0], rng.normal(size=(4, d)) * 0.3 + far[1]])
+    grid = make_grid(theta, s2, spacing=0.5, margin=4)
+    psi, coef = _psi_coef(theta, s2, grid)
+    p = gmm_density(grid.nodes, theta, s2)
+    nk = np.exp(-((grid.nodes[:, None, :] - theta[None]) ** 2).sum(-1) / (2 * s2)) / (2 * np.pi * s2) ** (d / 2)
+    near = p > 1e-250  # where the direct evaluation itself is meaningful
+    assert np.sum(~near) > 0 and np.sum(near) > 0  # both regimes are exercised
+    np.testing.assert_allclose(psi[near], 2 * np.sqrt(p[near]), rtol=1e-12)
+    ref = nk[near] / (len(theta) * s2 * np.sqrt(p[near]))[:, None]
+    np.testing.assert_allclose(coef[near], ref, rtol=1e-10, atol=1e-14 * ref.max())
+    assert np.all(np.isfinite(psi)) and np.all(np.isfinite(coef)) and np.all(psi[~near] < 1e-120)
