@@ -56,7 +56,7 @@ NOTEBOOKS: dict[str, dict] = {
     "sec3e_extrinsic_warp": {"params": {}, "quick": {"n_steps": 4, "max_iter": 5, "grid_size": 48},
                              "data": ["mpeg7/fish-1.gif"], "expects": {"sec3e/": 3}},
     "table1_pairwise": {
-        "params": {"n_steps": 8, "max_iter": 200, "tol": 1e-6},
+        "params": {"n_steps": 8, "max_iter": 200, "fisher_rao_max_iter": 200, "tol": 1e-6},
         "quick": {"n_steps": 2, "max_iter": 3, "fisher_rao_max_iter": 3, "diffeomorphism_max_iter": 3},
         "data": CC_FILES,
         "expects": {f"table1/{c}/": 21 for c in (
