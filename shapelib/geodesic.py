@@ -299,9 +299,9 @@ def _exact_path_hessian(model, theta, vel, ctx, n):
     bt = b.transpose(0, 1, 3, 2)
     comb = lambda ka, kb, kbt, kc: (np.einsum("k,tkij->tij", w * ka, a) + np.einsum("k,tkij->tij", w * kb, b)  # noqa: E731
                                     + np.einsum("k,tkij->tij", w * kbt, bt) + np.einsum("k,tkij->tij", w * kc, c))
-    h00 = comb((1 - tau) ** 2, -(1 - tau) * n, -(1 - tau) * n, n * n + 0 * tau)
-    h01 = comb((1 - tau) * tau, (1 - tau) * n, -tau * n, -n * n + 0 * tau)
-    h11 = comb(tau**2, tau * n, tau * n, n * n + 0 * tau)
+    h00 = comb((1 - tau) ** 2, -(1 - tau) * n, -(1 - tau) * n, n * n)
+    h01 = comb((1 - tau) * tau, (1 - tau) * n, -tau * n, -n * n)
+    h11 = comb(tau**2, tau * n, tau * n, n * n)
     return h11[:-1] + h00[1:], h01[1:-1]
 
 

@@ -41,19 +41,28 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 
 
-def _alpha_gram(x: np.ndarray, y: np.ndarray, s2: float) -> np.ndarray:
-    """``∫ ∂p_x/∂x_a^i ∂p_y/∂y_b^j dx`` for two shapes with the same K, as a ``(K d, K d)`` matrix.
+def _alpha_overlaps(theta: np.ndarray, s2: float):
+    """``c_ab = G(Δ_ab)/K²`` (the Gaussian overlap of :mod:`shapelib.gmm` over K²), (m, K, K),
+    and the coordinate differences ``Δ_ab,i = φ_a,i − φ_b,i`` as a list of d (m, K, K) arrays,
+    for a batch of shapes (m, K, d); one coordinate at a time (no (m, K, K, d) temporaries)."""
+    m, k, d = theta.shape
+    delta = [theta[:, :, None, i] - theta[:, None, :, i] for i in range(d)]
+    c = np.exp(-sum(x * x for x in delta) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k)
+    return c, delta
 
-    With ``x = y`` this is the α-order metric; with consecutive shapes of a path it is the
-    cross term of the Gauss–Newton Hessian of the discrete path energy.
-    """
-    k, d = x.shape
-    delta = x[:, None, :] - y[None, :, :]  # (K, K, d)
-    sq = np.einsum("abi,abi->ab", delta, delta)
-    g = np.exp(-sq / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k * s2 * s2)
-    blocks = (s2 / 2) * np.eye(d)[None, None] - 0.25 * delta[..., :, None] * delta[..., None, :]
-    blocks *= g[..., None, None]  # (K, K, d, d)
-    return blocks.transpose(0, 2, 1, 3).reshape(k * d, k * d)
+
+def _alpha_metric_blocks(c, delta, s2: float) -> np.ndarray:
+    """The α metric (eq. 22) from :func:`_alpha_overlaps`, in the (m, K, d, K, d) layout:
+    ``g_ab = c_ab [I/(2σ²) − Δ_ab Δ_abᵀ/(4σ⁴)]``."""
+    d = len(delta)
+    m, k, _ = c.shape
+    out = np.empty((m, k, d, k, d))
+    for i in range(d):
+        for j in range(i, d):
+            out[:, :, i, :, j] = c * (float(i == j) / (2 * s2) - delta[i] * delta[j] / (4 * s2 * s2))
+            if j > i:
+                out[:, :, j, :, i] = out[:, :, i, :, j]
+    return out
 
 
 def alpha_metric(theta, sigma2) -> np.ndarray:
@@ -73,24 +82,16 @@ def alpha_metric(theta, sigma2) -> np.ndarray:
         semi-definite.
     """
     theta = as_shape(theta, name="theta")
-    return _alpha_gram(theta, theta, check_sigma2(sigma2))
+    return _alpha_tensor_batch(theta[None], check_sigma2(sigma2))[0]
 
 
 def _alpha_pairs(theta: np.ndarray, vel: np.ndarray, s2: float):
-    """Pair quantities of the α quadratic form, each (m, K, K): ``c_ab = G(Δ_ab)/K²`` (the
-    Gaussian overlap of :mod:`shapelib.gmm` over K²), ``V_a·V_b``, ``Δ_ab·V_a`` and ``Δ_ab·V_b``
-    with ``Δ_ab = φ_a − φ_b``; built one coordinate at a time (no (m, K, K, d) temporaries)."""
-    m, k, d = theta.shape
-    sq = np.zeros((m, k, k))
-    dva = np.zeros((m, k, k))
-    dvb = np.zeros((m, k, k))
-    for i in range(d):
-        di = theta[:, :, None, i] - theta[:, None, :, i]
-        sq += di * di
-        dva += di * vel[:, :, None, i]
-        dvb += di * vel[:, None, :, i]
-    c = np.exp(-sq / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k)
-    return c, vel @ vel.transpose(0, 2, 1), dva, dvb
+    """Pair quantities of the α quadratic form, each (m, K, K): ``c_ab`` and ``Δ_ab`` of
+    :func:`_alpha_overlaps`, ``V_a·V_b``, ``Δ_ab·V_a`` and ``Δ_ab·V_b``."""
+    c, delta = _alpha_overlaps(theta, s2)
+    dva = sum(x * vel[:, :, None, i] for i, x in enumerate(delta))
+    dvb = sum(x * vel[:, None, :, i] for i, x in enumerate(delta))
+    return c, delta, vel @ vel.transpose(0, 2, 1), dva, dvb
 
 
 def _alpha_qform(theta: np.ndarray, vel: np.ndarray, s2: float) -> np.ndarray:
@@ -98,7 +99,7 @@ def _alpha_qform(theta: np.ndarray, vel: np.ndarray, s2: float) -> np.ndarray:
 
     ``Q = Σ_ab c_ab [V_a·V_b/(2σ²) − (Δ_ab·V_a)(Δ_ab·V_b)/(4σ⁴)]`` (the block formula above).
     """
-    c, vv, dva, dvb = _alpha_pairs(theta, vel, s2)
+    c, _, vv, dva, dvb = _alpha_pairs(theta, vel, s2)
     return np.einsum("mab,mab->m", c, vv / (2 * s2) - dva * dvb / (4 * s2 * s2))
 
 
@@ -264,7 +265,7 @@ def _alpha_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float):
     ``∂Q/∂φ_a = 2 Σ_b (G_ab/K²) [−Δ B_ab/(2σ²) − (V_a (Δ·V_b) + V_b (Δ·V_a))/(4σ⁴)]`` and
     ``∂Q/∂V_a = 2 (g_α v)_a``.
     """
-    c, vv, dva, dvb = _alpha_pairs(theta, vel, s2)
+    c, _, vv, dva, dvb = _alpha_pairs(theta, vel, s2)
     s4 = 4 * s2 * s2
     cb = c * (vv / (2 * s2) - dva * dvb / s4)
     q = cb.sum(axis=(1, 2))
@@ -296,18 +297,15 @@ def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
     """
     m, k, d = theta.shape
     s4 = 4 * s2 * s2
-    delta = [theta[:, :, None, i] - theta[:, None, :, i] for i in range(d)]  # Δ_i, (m, K, K) each
+    c, delta, vv, dva, dvb = _alpha_pairs(theta, vel, s2)
     va = [vel[:, :, None, i] for i in range(d)]  # V_a,i broadcast over b
     vb = [vel[:, None, :, i] for i in range(d)]  # V_b,i broadcast over a
-    c = np.exp(-sum(x * x for x in delta) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2) / (k * k)
     idx = np.arange(k)
     c_off = c.copy()
     c_off[:, idx, idx] = 0.0  # the terms f_aa do not depend on the positions
-    dva = sum(x * y for x, y in zip(delta, va))
-    dvb = sum(x * y for x, y in zip(delta, vb))
-    h = np.einsum("mai,mbi->mab", vel, vel) / (2 * s2) - dva * dvb / s4
+    h = vv / (2 * s2) - dva * dvb / s4
     grad_h = [-(dvb * va[i] + dva * vb[i]) / s4 for i in range(d)]
-    q_tt, q_tv, q_vv = (np.empty((m, k, d, k, d)) for _ in range(3))
+    q_tt, q_tv = np.empty((m, k, d, k, d)), np.empty((m, k, d, k, d))
 
     def put(out, i, j, offdiag, diag):
         out[:, :, i, :, j] = offdiag
@@ -323,10 +321,6 @@ def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
                 put(q_tt, i, j, -2 * hess, 2 * hess.sum(axis=2))
                 if j > i:
                     q_tt[:, :, j, :, i] = q_tt[:, :, i, :, j]
-                vv = 2 * c * (eye / (2 * s2) - delta[i] * delta[j] / s4)
-                q_vv[:, :, i, :, j] = vv
-                if j > i:
-                    q_vv[:, :, j, :, i] = vv
             # mixed: ∂²f/∂Δ_i∂V_j with the other velocity V_a (for M) or V_b (for N)
             m_ij = -c_off * (eye * dva / s4 + va[i] * delta[j] / s4
                              + delta[i] * (va[j] / (2 * s2) - dva * delta[j] / s4) / (2 * s2))
@@ -334,12 +328,13 @@ def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
                              + delta[i] * (vb[j] / (2 * s2) - dvb * delta[j] / s4) / (2 * s2))
             put(q_tv, i, j, 2 * m_ij, 2 * n_ij.sum(axis=2))
     shape = (m, k * d, k * d)
-    return q_tt.reshape(shape), q_tv.reshape(shape), q_vv.reshape(shape)
+    return q_tt.reshape(shape), q_tv.reshape(shape), 2 * _alpha_metric_blocks(c, delta, s2).reshape(shape)
 
 
 def _alpha_tensor_batch(theta: np.ndarray, s2: float) -> np.ndarray:
     """α metric tensors for a batch of shapes (m, K, d) -> (m, K d, K d)."""
-    return np.stack([_alpha_gram(t, t, s2) for t in theta])
+    m, k, d = theta.shape
+    return _alpha_metric_blocks(*_alpha_overlaps(theta, s2), s2).reshape(m, k * d, k * d)
 
 
 def _fr_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
