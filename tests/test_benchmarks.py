@@ -1,0 +1,66 @@
+"""The solver comparison in benchmarks/ keeps running and its methods do what they claim.
+
+Quick mode only (n_steps = 4, 3 iterations each); the measurements themselves are in the
+README and come from the full run, which takes minutes.
+"""
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from tests.conftest import ROOT, requires_data
+
+
+def _load_bench_solvers():
+    spec = importlib.util.spec_from_file_location("bench_solvers", ROOT / "benchmarks" / "bench_solvers.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@requires_data
+def test_bench_solvers_quick_run_decreases_the_energy_and_respects_the_bound(tmp_path):
+    bench = _load_bench_solvers()
+    report = bench.main(["--quick", "--json", str(tmp_path / "out.json")])
+    assert (tmp_path / "out.json").is_file()
+    assert set(report["methods"]) == set(bench.METHODS)
+    geo = importlib.import_module("shapelib.geodesic")
+    from shapelib.datasets import load_corpus_callosum
+    from shapelib.study import paper_scale
+
+    shapes, ids = load_corpus_callosum()
+    x = paper_scale(shapes)
+    u, v = x[list(ids).index(1)], x[list(ids).index(2)]
+    start = geo._energy(geo._AlphaModel(0.5), bench.straight_line(u, v, report["n_steps"]), gradient=False)[0]
+    for name, out in report["methods"].items():
+        assert out["iterations"] >= 1, name
+        # every method decreased the straight-line energy and stayed above the squared lower bound
+        assert report["lower_bound_squared"] < out["energy"] < start, name
+    poly = report["methods"]["polynomial"]
+    assert poly["energy_with_4x_time_nodes"] == pytest.approx(poly["energy"], rel=1e-5)
+
+
+def test_polynomial_basis_is_a_lagrange_basis_with_exact_derivative():
+    bench = _load_bench_solvers()
+    s, phi, dphi, w = bench.polynomial_basis(4, 12)
+    # nodal basis: reproduces any polynomial of degree <= 4 from its values at the nodes
+    coef = np.array([0.3, -1.0, 2.0, 0.5, -0.7])
+    f = np.polynomial.polynomial.Polynomial(coef)
+    x, _ = np.polynomial.legendre.leggauss(12)
+    t = 0.5 * (x + 1)
+    np.testing.assert_allclose(phi @ f(s), f(t), atol=1e-12)
+    np.testing.assert_allclose(dphi @ f(s), f.deriv()(t), atol=1e-10)
+    assert w.sum() == pytest.approx(1.0)
+    assert s[0] == 0.0 and s[-1] == pytest.approx(1.0)
+
+
+def test_dense_hessian_matches_the_block_product(rng):
+    bench = _load_bench_solvers()
+    geo = importlib.import_module("shapelib.geodesic")
+    diag = rng.normal(size=(3, 4, 4))
+    diag = diag + diag.transpose(0, 2, 1)
+    upper = rng.normal(size=(2, 4, 4))
+    xv = rng.normal(size=(3, 4))
+    np.testing.assert_allclose(bench.dense_hessian(diag, upper) @ xv.ravel(), geo._hess_vec(diag, upper, xv).ravel(),
+                               atol=1e-12)
