@@ -163,13 +163,14 @@ def _dense(diag, upper):
     return h
 
 
-def test_exact_path_hessian_against_finite_differences(pair, rng):
-    """The α path energy's exact Hessian (block tridiagonal in time) is the FD of its gradient."""
+@pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
+def test_exact_path_hessian_against_finite_differences(pair, rng, metric):
+    """The path energy's exact Hessian (block tridiagonal in time) is the FD of its gradient."""
     u, v = pair
     n = 4
     path = np.linspace(u, v, n + 1) + 0.1 * rng.normal(size=(n + 1,) + u.shape)
     path[0], path[-1] = u, v
-    model = _model("alpha", 0.5, 0.35, 6.0)
+    model = _model(metric, 0.5, 0.35, 6.0)
     _, grad, (diag, upper) = _energy(model, path, hessian="exact")
     h = _dense(diag, upper)
     eps = 1e-6
@@ -200,14 +201,15 @@ def test_block_cholesky_solves_and_rejects_indefinite(rng):
         _block_cholesky(diag, upper, -lowest - 1e-3)
 
 
-def test_alpha_solution_is_a_certified_local_minimum(pair):
+@pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
+def test_solution_is_a_certified_local_minimum(pair, metric):
     """Stopped by the Newton decrement: exact Hessian positive definite, gradient ~ 0, and no
     random perturbation of the interior points lowers the energy."""
     u, v = pair
-    r = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=6, tol=1e-12, max_iter=500)
-    assert r.converged and r.log["stopped_by"] == "newton_decrement"
+    r = geodesic(u, v, metric=metric, sigma2=0.5, n_steps=6, tol=1e-12, max_iter=500)
+    assert r.converged and r.log["stopped_by"] == "newton_decrement" and r.log["hessian"] == "exact"
     assert r.log["newton_decrement"] < 1e-12 * r.energy
-    model = _model("alpha", 0.5, 0.35, 6.0)
+    model = _model(metric, 0.5, 0.35, 6.0)
     energy, grad, blocks = _energy(model, r.path, hessian="exact")
     assert np.linalg.eigvalsh(_dense(*blocks))[0] > 0
     gen = np.random.default_rng(1)
@@ -215,3 +217,19 @@ def test_alpha_solution_is_a_certified_local_minimum(pair):
         trial = r.path.copy()
         trial[1:-1] += 1e-3 * gen.normal(size=trial[1:-1].shape)
         assert _energy(model, trial, gradient=False)[0] > energy
+
+
+def test_model_hessian_reaches_the_exact_hessian_minimum(pair):
+    """``hessian="model"`` (metric frozen at segment midpoints) is a slower route to the same
+    Fisher–Rao path: same energy to the tolerance, more iterations, no Newton certificate."""
+    u, v = pair
+    exact = geodesic(u, v, metric="fisher_rao", sigma2=0.5, n_steps=6, tol=1e-10, max_iter=500)
+    model = geodesic(u, v, metric="fisher_rao", sigma2=0.5, n_steps=6, tol=1e-10, max_iter=2000, hessian="model",
+                     warn=False)
+    assert exact.log["hessian"] == "exact" and model.log["hessian"] == "model"
+    assert model.log["stopped_by"] != "newton_decrement"
+    assert model.n_iter > exact.n_iter
+    assert model.energy >= exact.energy * (1 - 1e-10)
+    assert model.energy == pytest.approx(exact.energy, rel=1e-6)
+    with pytest.raises(ValueError, match="hessian must be"):
+        geodesic(u, v, metric="fisher_rao", sigma2=0.5, hessian="bfgs")

@@ -6,6 +6,8 @@ from shapelib.metrics import (
     _alpha_qform_grad,
     _alpha_qform_hessian,
     _fr_qform_grad,
+    _fr_qform_hessian,
+    _fr_tensor_batch,
     _psi_coef,
     alpha_metric,
     alpha_quadratic_form,
@@ -115,12 +117,21 @@ def test_quadratic_form_gradients_against_finite_differences(rng, which):
         assert np.allclose(grad, fd, rtol=1e-6, atol=1e-8 * np.abs(fd).max())
 
 
+@pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
 @pytest.mark.parametrize("d", [2, 3])
-def test_alpha_quadratic_form_hessian_against_finite_differences(rng, d):
-    """The exact second derivatives used for Newton steps: FD of the analytic gradient."""
+def test_quadratic_form_hessian_against_finite_differences(rng, d, metric):
+    """The exact second derivatives used for Newton steps: FD of the analytic gradient, and
+    ``Q_vv = 2 g`` against the metric tensor itself."""
     theta, v = rng.normal(size=(2, 2, 5, d))
     s2 = 0.4
-    q_tt, q_tv, q_vv = _alpha_qform_hessian(theta, v, s2)
+    if metric == "alpha":
+        hess, grad = (lambda t, w: _alpha_qform_hessian(t, w, s2)), (lambda t, w: _alpha_qform_grad(t, w, s2))
+        tensors = np.stack([alpha_metric(t, s2) for t in theta])
+    else:
+        grid = make_grid(theta, s2, margin=6)  # fixed grid: the FD is of the same function
+        hess, grad = (lambda t, w: _fr_qform_hessian(t, w, s2, grid)), (lambda t, w: _fr_qform_grad(t, w, s2, grid))
+        tensors = _fr_tensor_batch(theta, s2, grid)
+    q_tt, q_tv, q_vv = hess(theta, v)
     eps = 1e-6
     size = theta[0].size
     fd_t, fd_v = np.zeros((2, 2, size, 2 * size))
@@ -129,14 +140,15 @@ def test_alpha_quadratic_form_hessian_against_finite_differences(rng, d):
         e[j] = eps
         e = e.reshape(theta.shape[1:])
         for out, (tp, vp, tm, vm) in ((fd_t, (theta + e, v, theta - e, v)), (fd_v, (theta, v + e, theta, v - e))):
-            _, gtp, gvp = _alpha_qform_grad(tp, vp, s2)
-            _, gtm, gvm = _alpha_qform_grad(tm, vm, s2)
+            _, gtp, gvp = grad(tp, vp)
+            _, gtm, gvm = grad(tm, vm)
             out[:, j] = np.concatenate([(gtp - gtm).reshape(2, -1), (gvp - gvm).reshape(2, -1)], axis=1) / (2 * eps)
     scale = max(np.abs(q_tt).max(), np.abs(q_tv).max(), np.abs(q_vv).max())
-    assert np.allclose(fd_t[:, :, :size], q_tt, atol=1e-7 * scale)
-    assert np.allclose(fd_t[:, :, size:], q_tv, atol=1e-7 * scale)
-    assert np.allclose(fd_v[:, :, :size], np.swapaxes(q_tv, 1, 2), atol=1e-7 * scale)
-    assert np.allclose(q_vv, 2 * np.stack([alpha_metric(t, s2) for t in theta]), rtol=1e-12)
+    atol = (1e-7 if metric == "alpha" else 5e-7) * scale  # FD error of the quadrature gradient: ~1e-7 in 3-D
+    assert np.allclose(fd_t[:, :, :size], q_tt, atol=atol)
+    assert np.allclose(fd_t[:, :, size:], q_tv, atol=atol)
+    assert np.allclose(fd_v[:, :, :size], np.swapaxes(q_tv, 1, 2), atol=atol)
+    assert np.allclose(q_vv, 2 * tensors, rtol=1e-12, atol=1e-14 * scale)
     assert np.allclose(q_tt, np.swapaxes(q_tt, 1, 2))
 
 
