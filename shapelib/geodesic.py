@@ -465,8 +465,6 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
     model = _model(metric, s2, grid_spacing, grid_margin)
-    if hessian not in ("exact", "model"):
-        raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")
     return minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
                          warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
 
@@ -490,6 +488,8 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
     if int(max_iter) != max_iter or max_iter < 0:
         raise ValueError(f"max_iter must be a non-negative integer; got {max_iter!r}")
     tol = check_positive(tol, name="tol")
+    if hessian not in (None, "exact", "model"):
+        raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")
     k, d = u.shape
     if init is None:
         t = np.linspace(0.0, 1.0, n + 1)[:, None, None]

@@ -229,15 +229,17 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
     return 0.5 * (g + g.T)
 
 
+def _fr_psidot(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
+    """``ψ`` and ``coef`` of :func:`_psi_coef`, ``rv_ma = r_ma·V_a`` (M, K) and
+    ``ψ̇ = Σ_a coef_a (r_a·V_a)`` (M,) for one shape ``theta`` (K, d) moving with ``vel``."""
+    psi, coef = _psi_coef(theta, s2, grid)
+    rv = grid.nodes @ vel.T - np.einsum("ki,ki->k", theta, vel)[None, :]
+    return psi, coef, rv, np.einsum("mk,mk->m", coef, rv)
+
+
 def _fr_qform(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     """Batched ``vᵀ g_FR(θ) v = ∫ ṗ²/p`` for ``theta, vel`` of shape (m, K, d) on a common grid."""
-    out = np.empty(len(theta))
-    x = grid.nodes
-    for i in range(len(theta)):
-        _, coef = _psi_coef(theta[i], s2, grid)
-        rv = x @ vel[i].T - np.einsum("ki,ki->k", theta[i], vel[i])[None, :]  # r_ma · V_a
-        out[i] = grid.integrate(np.einsum("mk,mk->m", coef, rv) ** 2)
-    return out
+    return np.array([grid.integrate(_fr_psidot(t, w, s2, grid)[3] ** 2) for t, w in zip(theta, vel)])
 
 
 def fisher_rao_quadratic_form(theta, velocity, sigma2, *, spacing: float = DEFAULT_SPACING,
@@ -351,9 +353,7 @@ def _fr_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
     x = grid.nodes
     for i in range(m):
         th, v = theta[i], vel[i]
-        psi, coef = _psi_coef(th, s2, grid)
-        rv = x @ v.T - np.einsum("ki,ki->k", th, v)[None, :]
-        psidot = np.einsum("mk,mk->m", coef, rv)
+        psi, coef, rv, psidot = _fr_psidot(th, v, s2, grid)
         q[i] = grid.integrate(psidot**2)
         pc = psidot[:, None] * coef  # (M, K)
         d_vel[i] = 2 * grid.weight * _r_weighted(pc, x, th)
@@ -396,10 +396,8 @@ def _fr_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
     e = np.empty((len(x), 2, d, k))
     for n in range(m):
         th, v = theta[n], vel[n]
-        psi, coef = _psi_coef(th, s2, grid)
+        psi, coef, rv, psidot = _fr_psidot(th, v, s2, grid)
         r = [x[:, i, None] - th[None, :, i] for i in range(d)]  # r_a (M, K) per coordinate
-        rv = sum(r[i] * v[None, :, i] for i in range(d))  # r_a·V_a
-        psidot = np.einsum("mk,mk->m", coef, rv)
         u = 2 * psidot / psi
         for i in range(d):
             np.multiply(coef, r[i], out=e[:, 1, i])  # √p β
