@@ -21,5 +21,5 @@ def test_environment_yml_in_sync_with_pyproject():
         m = re.match(r"^\s{2}- ([A-Za-z0-9_.-]+)", line)
         if in_deps and m:
             conda_names.add(_name(m.group(1)))
-    conda_names -= {"python", "pip", "jupyter"}  # conda-only conveniences
+    conda_names -= {"python", "pip"}  # conda-only conveniences
     assert pip_names == conda_names
