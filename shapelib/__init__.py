@@ -15,7 +15,7 @@ Where each equation lives:
 """
 
 from .diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
-from .distances import distance, pairwise_distances
+from .distances import distance, pair_record, pairwise_distances
 from .geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
 from .gmm import gmm_density, l2_distance
 from .metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
@@ -49,6 +49,7 @@ __all__ = [
     "hausdorff_distance",
     "l2_distance",
     "landmark_diffeomorphism",
+    "pair_record",
     "pairwise_distances",
     "path_length",
     "preshape",

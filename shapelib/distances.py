@@ -1,10 +1,19 @@
-"""One entry point for every shape distance in the study: :func:`distance` and :func:`pairwise_distances`.
+"""One entry point for every shape distance in the study: :func:`distance`, :func:`pair_record`
+and :func:`pairwise_distances`.
 
 ``metric`` names and what they compute (keyword options in brackets):
 
 ``"alpha"``, ``"fisher_rao"``
     Geodesic length under the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
-    :func:`shapelib.geodesic` [``sigma2`` (required), ``n_steps``, ``tol``, ``max_iter``, ...].
+    :func:`shapelib.geodesic` [``sigma2`` (required), ``n_steps``, ``tol``, ``max_iter``, ...];
+    with ``rtol=x``, the upper end of the certified bracket of
+    :func:`shapelib.bracket.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
+``"alpha_bound"``
+    Closed-form lower bound ``‖p_u − p_v‖`` on the α geodesic distance (the L² distance of the
+    eq. 5 densities, :func:`shapelib.gmm.l2_distance`) [``sigma2``].
+``"fisher_rao_bound"``
+    Great-circle lower bound ``2 arccos ∫√(p_u p_v)`` on the Fisher–Rao geodesic distance
+    (:func:`shapelib.geodesic.fisher_rao_lower_bound`) [``sigma2``, ``grid_spacing``, ``grid_margin``].
 ``"diffeomorphism"``
     Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.diffeomorphism`
     [``lam`` (default 10), ``kernel_width``, ``n_steps``, ...].
@@ -13,27 +22,37 @@
 ``"hausdorff"``
     Symmetrised Hausdorff distance of the landmark sets.
 ``"tps"``
-    Thin-plate spline bending energy of the map taking ``u`` onto ``v`` (not symmetric).
+    Thin-plate spline bending energy of the map taking ``u`` onto ``v`` (not symmetric) [``kernel``].
 ``"wendland"``
     Wendland ψ₃,₁ spline bending energy [``support``, ``affine``] (not symmetric).
 
-Paper-specific conventions (alignment, scale, squared values) belong to the study notebooks.
+Every per-pair computation of the library (the pairwise engine :mod:`shapelib.pairwise`, the CLI,
+the notebooks) goes through :func:`pair_record`. Paper-specific conventions (alignment, scale,
+squared values) belong to the study notebooks.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import inspect
 import itertools
+import math
 import os
+import time
 
 import numpy as np
 
 from ._validate import as_shape_pair, as_shapes
 
-__all__ = ["distance", "pairwise_distances", "path_result", "METRICS", "SYMMETRIC", "PATH_METRICS"]
+__all__ = ["distance", "pair_record", "pairwise_distances", "path_result", "check_metric_params",
+           "METRICS", "SYMMETRIC", "PATH_METRICS", "RECORD_FIELDS"]
 
 
 PATH_METRICS = ("alpha", "fisher_rao", "diffeomorphism")
+#: path metrics whose distance can be certified to a relative tolerance (``rtol=``)
+BRACKET_METRICS = ("alpha", "fisher_rao")
+#: keys of :func:`pair_record`'s dict, in order
+RECORD_FIELDS = ("value", "lower", "upper", "energy", "converged", "n_iter", "seconds")
 
 
 def path_result(u, v, *, metric: str, **params):
@@ -81,20 +100,90 @@ def _wendland(u, v, **kw):
     return wendland_bending_energy(u, v, **kw)
 
 
+def _alpha_bound(u, v, *, sigma2):
+    from .gmm import l2_distance
+
+    return l2_distance(u, v, sigma2)
+
+
+def _fisher_rao_bound(u, v, **kw):
+    from .geodesic import fisher_rao_lower_bound
+
+    return fisher_rao_lower_bound(u, v, **kw)
+
+
 METRICS = {
     "alpha": _path_length("alpha"),
     "fisher_rao": _path_length("fisher_rao"),
     "diffeomorphism": _path_length("diffeomorphism"),
+    "alpha_bound": _alpha_bound,
+    "fisher_rao_bound": _fisher_rao_bound,
     "procrustes": _procrustes,
     "hausdorff": _hausdorff,
     "tps": _tps,
     "wendland": _wendland,
 }
 #: metrics with d(u, v) = d(v, u); the others are computed for both orders in pairwise_distances
-SYMMETRIC = {"alpha", "fisher_rao", "diffeomorphism", "procrustes", "hausdorff"}
+SYMMETRIC = {"alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound", "procrustes",
+             "hausdorff"}
 
 
-def distance(u, v, *, metric: str, **params) -> float:
+def _target(metric: str, rtol):
+    """The library function whose keyword options ``metric`` (with ``rtol``) accepts."""
+    if rtol is not None:
+        from .bracket import distance_bracket
+
+        return distance_bracket
+    if metric in ("alpha", "fisher_rao"):
+        from .geodesic import geodesic
+
+        return geodesic
+    if metric == "diffeomorphism":
+        from .diffeomorphism import landmark_diffeomorphism
+
+        return landmark_diffeomorphism
+    if metric == "alpha_bound":
+        return _alpha_bound
+    if metric == "fisher_rao_bound":
+        from .geodesic import fisher_rao_lower_bound
+
+        return fisher_rao_lower_bound
+    from .procrustes import procrustes_distance
+    from .splines import hausdorff_distance, tps_bending_energy, wendland_bending_energy
+
+    return {"procrustes": procrustes_distance, "hausdorff": hausdorff_distance,
+            "tps": tps_bending_energy, "wendland": wendland_bending_energy}[metric]
+
+
+def check_metric_params(metric: str, params: dict, *, rtol=None) -> None:
+    """Raise ``ValueError`` naming an unknown ``metric``, an option it does not take, a missing
+    required option (``sigma2``) or an ``rtol`` it cannot honour.
+
+    The options allowed are the keyword options of the function that computes the metric (see the
+    module docstring), so this check can never drift from the functions themselves.
+    """
+    if metric not in METRICS:
+        raise ValueError(f"unknown metric {metric!r}; choose one of {sorted(METRICS)}")
+    if rtol is not None:
+        if metric not in BRACKET_METRICS:
+            raise ValueError(f"rtol applies to the certified metrics {BRACKET_METRICS}, not {metric!r}")
+        if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not (math.isfinite(rtol) and rtol > 0):
+            raise ValueError(f"rtol must be a finite number > 0; got {rtol!r}")
+    sig = inspect.signature(_target(metric, rtol))
+    fixed = {"u", "v", "metric", "rtol"}
+    if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+        return
+    allowed = [name for name in sig.parameters if name not in fixed]
+    unknown = sorted(set(params) - set(allowed))
+    if unknown:
+        raise ValueError(f"metric {metric!r} has no parameter(s) {unknown}; it takes {allowed}")
+    missing = [name for name, p in sig.parameters.items()
+               if name not in fixed and p.default is p.empty and name not in params]
+    if missing:
+        raise ValueError(f"metric {metric!r} needs {', '.join(f'{m}=...' for m in missing)}")
+
+
+def distance(u, v, *, metric: str, rtol: float | None = None, **params) -> float:
     """Distance between two landmark shapes under ``metric`` (see the module docstring).
 
     Parameters
@@ -103,13 +192,61 @@ def distance(u, v, *, metric: str, **params) -> float:
         Shapes with landmarks in correspondence.
     metric : str
         One of :data:`METRICS`.
+    rtol : float, optional
+        ``"alpha"``, ``"fisher_rao"`` only. ``None``: the length of the geodesic computed by
+        :func:`shapelib.geodesic` (eqs. 8–12). A number: the upper end of the certified bracket
+        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.bracket.distance_bracket`).
     **params
         Options of that metric (e.g. ``sigma2`` for the information metrics).
     """
-    if metric not in METRICS:
-        raise ValueError(f"unknown metric {metric!r}; choose one of {sorted(METRICS)}")
+    if rtol is None:
+        check_metric_params(metric, params)
+        u, v = as_shape_pair(u, v)
+        return float(METRICS[metric](u, v, **params))
+    return pair_record(u, v, metric=metric, rtol=rtol, **params)["value"]
+
+
+def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> dict:
+    """Distance of one pair with its diagnostics — the one per-pair function of the library.
+
+    Parameters
+    ----------
+    u, v : array_like, shape (K, d)
+    metric : str
+        One of :data:`METRICS`.
+    rtol : float, optional
+        As in :func:`distance` (path metrics ``"alpha"``, ``"fisher_rao"`` only).
+    **params
+        Options of that metric.
+
+    Returns
+    -------
+    dict
+        ``value`` (the distance :func:`distance` returns), ``lower`` and ``upper`` (certified bounds:
+        the closed-form bound of eqs. 5/6 and the computed path's length for the information
+        metrics; ``lower = upper = value`` for the non-path metrics), ``energy`` (path energy,
+        eq. 8; NaN for non-path metrics, which have none), ``converged`` (bool; the geodesic
+        solver's certificate, or ``upper / lower − 1 ≤ rtol``; True for non-path metrics),
+        ``n_iter`` (solver iterations, 0 for non-path metrics), ``seconds`` (wall time).
+    """
+    check_metric_params(metric, params, rtol=rtol)
     u, v = as_shape_pair(u, v)
-    return float(METRICS[metric](u, v, **params))
+    t0 = time.perf_counter()
+    if rtol is not None:
+        from .bracket import distance_bracket
+
+        b = distance_bracket(u, v, metric=metric, rtol=rtol, **params)
+        rec = (b.upper, b.lower, b.upper, b.energy, b.converged, b.n_iter)
+    elif metric in PATH_METRICS:
+        r = path_result(u, v, metric=metric, **params)
+        rec = (r.length, r.lower_bound, r.length, r.energy, r.converged, r.n_iter)
+    else:
+        d = float(METRICS[metric](u, v, **params))
+        rec = (d, d, d, math.nan, True, 0)
+    seconds = time.perf_counter() - t0
+    value, lower, upper, energy, converged, n_iter = rec
+    return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
+            "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
 
 
 def _one(args):
@@ -117,7 +254,7 @@ def _one(args):
     return i, j, distance(u, v, metric=metric, **params)
 
 
-def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = 1, progress: bool = False, **params) -> np.ndarray:
+def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = 1, progress: bool = False, **params) -> np.ndarray:  # replaced by shapelib.pairwise next
     """Matrix of distances between every pair of ``shapes`` (N, K, d).
 
     Symmetric metrics are computed once per unordered pair; for the bending energies entry
@@ -139,8 +276,7 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = 1, progress:
     ndarray, shape (N, N)
         Zero diagonal.
     """
-    if metric not in METRICS:
-        raise ValueError(f"unknown metric {metric!r}; choose one of {sorted(METRICS)}")
+    check_metric_params(metric, params)
     x = as_shapes(shapes, name="shapes")
     n = len(x)
     pairs = itertools.combinations(range(n), 2) if metric in SYMMETRIC else itertools.permutations(range(n), 2)

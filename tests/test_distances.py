@@ -47,3 +47,48 @@ def test_path_result_gives_the_full_geodesic(shapes):
     assert r.path.shape == (5, 5, 2)
     with pytest.raises(ValueError, match="not a path metric"):
         path_result(u, v, metric="procrustes")
+
+
+def test_bound_metrics_are_the_closed_forms_and_bound_the_geodesics(shapes):
+    from shapelib import fisher_rao_lower_bound, l2_distance
+    from shapelib.distances import SYMMETRIC, pair_record
+
+    u, v = shapes[:2]
+    assert distance(u, v, metric="alpha_bound", sigma2=0.5) == l2_distance(u, v, 0.5)
+    assert distance(u, v, metric="fisher_rao_bound", sigma2=0.5) == fisher_rao_lower_bound(u, v, sigma2=0.5)
+    assert {"alpha_bound", "fisher_rao_bound"} <= SYMMETRIC
+    for metric in ("alpha", "fisher_rao"):
+        rec = pair_record(u, v, metric=metric, sigma2=0.5, n_steps=4)
+        bound = distance(u, v, metric=f"{metric}_bound", sigma2=0.5)
+        assert rec["lower"] == pytest.approx(bound, rel=1e-12)
+        assert bound <= rec["upper"] == rec["value"]
+        assert rec["energy"] >= rec["upper"] ** 2 * (1 - 1e-9)  # Cauchy-Schwarz: E >= L^2
+        assert rec["n_iter"] > 0 and rec["seconds"] > 0 and isinstance(rec["converged"], bool)
+
+
+def test_pair_record_of_a_non_path_metric(shapes):
+    from shapelib.distances import RECORD_FIELDS, pair_record
+
+    u, v = shapes[:2]
+    rec = pair_record(u, v, metric="tps")
+    assert tuple(rec) == RECORD_FIELDS
+    assert rec["value"] == rec["lower"] == rec["upper"] == tps_bending_energy(u, v)
+    assert np.isnan(rec["energy"]) and rec["converged"] is True and rec["n_iter"] == 0
+
+
+def test_unknown_metric_parameter_or_rtol_is_named(shapes):
+    from shapelib.distances import pair_record
+
+    u, v = shapes[:2]
+    with pytest.raises(ValueError, match=r"'procrustes' has no parameter\(s\) \['sigma2'\]"):
+        distance(u, v, metric="procrustes", sigma2=0.5)
+    with pytest.raises(ValueError, match="n_stpes"):
+        pair_record(u, v, metric="alpha", sigma2=0.5, n_stpes=4)
+    with pytest.raises(ValueError, match="needs sigma2"):
+        pair_record(u, v, metric="alpha_bound")
+    with pytest.raises(ValueError, match="unknown metric 'cosine'"):
+        pair_record(u, v, metric="cosine")
+    with pytest.raises(ValueError, match="rtol applies"):
+        pair_record(u, v, metric="tps", rtol=1e-3)
+    with pytest.raises(ValueError, match="unknown metric"):
+        pairwise_distances(np.stack([u, v]), metric="cosine")
