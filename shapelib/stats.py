@@ -1,0 +1,450 @@
+"""Population statistics on distance matrices: PERMANOVA with covariates, leave-one-out k-NN,
+classical MDS and Mantel correlations.
+
+The paper stops at computing shape distances ("we have yet to perform statistical comparisons on
+the computed shape geodesic distances", §V). These are the comparisons, as pure functions of an
+``(N, N)`` distance matrix and per-subject labels; they know nothing about shapes.
+
+PERMANOVA (McArdle & Anderson 2001, *Ecology* 82:290). With ``A = −½ D∘D`` and the centring
+matrix ``J = I − 11ᵀ/N``, Gower's centred matrix is ``G = J A J``; for Euclidean distances
+``G = Y Yᵀ`` for the centred coordinates ``Y``. With the hat matrix ``H`` of a design ``X``
+(intercept and covariates), the sums of squares of the linear model are traces:
+
+* total ``SS_T = tr G = Σ_{i<j} d_ij² / N``,
+* a term ``T`` added to a model ``Z``: ``SS_term = tr((H_X − H_Z) G)``,
+* residual ``SS_res = tr((I − H_full) G)``,
+
+and ``F = (SS_term / df_term) / (SS_res / df_res)``. With one factor and no covariates this is
+Anderson's (2001) pseudo-F, the statistic of :func:`skbio.stats.distance.permanova`.
+
+Permutations. ``permute="residuals"`` (default) is Freedman & Lane's (1983) scheme, the one
+Anderson (2001, *Can. J. Fish. Aquat. Sci.* 58:626) recommends for a term in the presence of
+covariates: the responses are replaced by ``Ŷ_Z + P R_Z Y`` (fitted values of the reduced model
+plus permuted residuals), so the covariates keep their relation to the response under every
+permutation and only the tested term's association is broken. In Gram form the permuted
+statistic only needs ``E = R_Z G R_Z`` and the permuted design basis (the projections onto
+``Z`` cancel), which is what :func:`permanova` computes, vectorised over permutations.
+``permute="rows"`` permutes whole observations (the design rows), which is exact only without
+covariates. With an intercept-only reduced model the two coincide (``R_Z G R_Z = G``) and
+equal scikit-bio's label permutation, draw for draw (``tests/test_stats.py``).
+
+Leave-one-out k-NN uses scikit-learn's neighbour search on the precomputed matrix, and the
+permutation p-value of :func:`sklearn.model_selection.permutation_test_score`; see
+:func:`knn_loo_accuracy` for why the permutations re-vote instead of refitting.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "as_distance_matrix",
+    "gower_centered",
+    "permanova",
+    "PermanovaResult",
+    "knn_loo_accuracy",
+    "KnnResult",
+    "classical_mds",
+    "mantel_test",
+]
+
+
+def as_distance_matrix(d, *, name: str = "distances", atol: float = 1e-9) -> np.ndarray:
+    """Validate a distance matrix: square, finite, non-negative, zero diagonal, symmetric.
+
+    Parameters
+    ----------
+    d : array_like, shape (N, N)
+    name : str
+        Used in error messages.
+    atol : float
+        Symmetry and diagonal tolerance, relative to the largest entry.
+
+    Returns
+    -------
+    ndarray, float64, exactly symmetric (``(d + dᵀ) / 2``) with an exactly zero diagonal.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name`` and the first offending entry.
+    """
+    x = np.asarray(d, dtype=np.float64)
+    if x.ndim != 2 or x.shape[0] != x.shape[1]:
+        raise ValueError(f"{name} must be a square (N, N) matrix; got shape {x.shape}")
+    if x.shape[0] < 3:
+        raise ValueError(f"{name} must hold at least 3 objects; got {x.shape[0]}")
+    bad = ~np.isfinite(x)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise ValueError(f"{name}[{i}, {j}] is {float(x[i, j])}: distances must be finite")
+    if (x < 0).any():
+        i, j = np.argwhere(x < 0)[0]
+        raise ValueError(f"{name}[{i}, {j}] = {float(x[i, j])} is negative")
+    scale = max(float(x.max()), 1e-300)
+    diag = np.abs(np.diag(x))
+    if diag.max() > atol * scale:
+        i = int(np.argmax(diag))
+        raise ValueError(f"{name}[{i}, {i}] = {float(x[i, i])}: the diagonal must be zero")
+    asym = np.abs(x - x.T)
+    if asym.max() > atol * scale:
+        i, j = np.unravel_index(int(np.argmax(asym)), asym.shape)
+        raise ValueError(
+            f"{name} is not symmetric: [{i}, {j}] = {float(x[i, j])} but [{j}, {i}] = {float(x[j, i])} "
+            "(symmetrise an asymmetric measure first)"
+        )
+    out = 0.5 * (x + x.T)
+    np.fill_diagonal(out, 0.0)
+    return out
+
+
+def gower_centered(d) -> np.ndarray:
+    """Gower's centred matrix ``G = −½ J (D∘D) J`` (McArdle & Anderson 2001, eq. 2)."""
+    x = as_distance_matrix(d)
+    a = -0.5 * x * x
+    a -= a.mean(axis=0, keepdims=True)
+    a -= a.mean(axis=1, keepdims=True)
+    return a
+
+
+# ---------------------------------------------------------------------------------------------
+# PERMANOVA
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class PermanovaResult:
+    """Result of :func:`permanova`.
+
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        One row per term, then ``Residual`` and ``Total``; columns ``df``, ``sum_of_squares``,
+        ``r2`` (``SS / SS_T``), ``pseudo_F``, ``p_value`` (NaN for Residual and Total).
+    null : dict
+        ``{term: ndarray (permutations,)}``, the permuted pseudo-F values.
+    permutations, seed : int
+    by : {"margin", "terms"}
+    permute : {"residuals", "rows"}
+    """
+
+    table: pd.DataFrame
+    null: dict = field(repr=False)
+    permutations: int
+    seed: int | None
+    by: str
+    permute: str
+
+
+def _term_columns(col: pd.Series, term: str) -> np.ndarray:
+    """Design columns of one term: treatment-coded indicators (first level dropped) for a
+    categorical/boolean/string column, the centred values for a numeric one."""
+    if col.isna().any():
+        row = int(np.flatnonzero(col.isna().to_numpy())[0])
+        raise ValueError(f"covariate {term!r} is missing at row {row}")
+    if isinstance(col.dtype, pd.CategoricalDtype) or col.dtype == bool or not pd.api.types.is_numeric_dtype(col):
+        levels = sorted(pd.unique(col), key=str) if not isinstance(col.dtype, pd.CategoricalDtype) else [
+            c for c in col.cat.categories if (col == c).any()]
+        if len(levels) < 2:
+            raise ValueError(f"covariate {term!r} has a single level {levels!r}: nothing to test")
+        return np.column_stack([(col == lev).to_numpy(dtype=np.float64) for lev in levels[1:]])
+    v = col.to_numpy(dtype=np.float64)
+    if not np.all(np.isfinite(v)):
+        row = int(np.flatnonzero(~np.isfinite(v))[0])
+        raise ValueError(f"covariate {term!r} is {float(v[row])} at row {row}")
+    if np.ptp(v) == 0:
+        raise ValueError(f"covariate {term!r} is constant: nothing to test")
+    return (v - v.mean())[:, None]
+
+
+def _extend_basis(basis: np.ndarray, block: np.ndarray, term: str) -> np.ndarray:
+    """Orthonormal basis of the part of ``block``'s column space orthogonal to ``basis``."""
+    r = block - basis @ (basis.T @ block)
+    u, s, _ = np.linalg.svd(r, full_matrices=False)
+    keep = s > 1e-10 * max(1.0, float(np.linalg.norm(block)))
+    if not keep.any():
+        raise ValueError(f"term {term!r} is collinear with the terms before it (no degrees of freedom left)")
+    return u[:, keep]
+
+
+def _quadratic_by_column(e: np.ndarray, q: np.ndarray, perms: np.ndarray, chunk: int = 64) -> np.ndarray:
+    """``c[p, k] = q[π_p]_kᵀ E q[π_p]_k`` for every permutation ``π_p`` (rows of ``perms``)."""
+    out = np.empty((len(perms), q.shape[1]))
+    for start in range(0, len(perms), chunk):
+        qp = q[perms[start:start + chunk]]  # (P, N, k): rows of the basis permuted
+        out[start:start + chunk] = np.einsum("pnk,pnk->pk", qp, np.matmul(e, qp))
+    return out
+
+
+def permanova(distances, covariates, *, terms=None, by: str = "margin", permute: str = "residuals",
+              permutations: int = 999, seed: int | None = 0) -> PermanovaResult:
+    """Multi-term PERMANOVA on a distance matrix (McArdle & Anderson 2001; R vegan's ``adonis2``).
+
+    Parameters
+    ----------
+    distances : array_like, shape (N, N)
+        Symmetric distance matrix with zero diagonal.
+    covariates : pandas.DataFrame or dict of 1-D arrays
+        One column per term, rows in the order of ``distances``. Categorical, boolean and
+        string columns are treatment coded (first level in sorted order is the baseline);
+        numeric columns enter as one centred column.
+    terms : sequence of str, optional
+        Terms in model order (default: all columns of ``covariates``).
+    by : {"margin", "terms"}
+        ``"margin"``: each term tested against the model with all the other terms (type III,
+        "accounted for the others"); ``"terms"``: sequentially in the given order (type I),
+        every F using the full model's residual.
+    permute : {"residuals", "rows"}
+        ``"residuals"``: Freedman–Lane, permute the residuals of the reduced model (see the module
+        docstring); ``"rows"``: permute whole observations.
+    permutations : int
+        Number of random permutations (``>= 1``); ``p = (1 + #{F* ≥ F}) / (1 + permutations)``.
+    seed : int or None
+        Seed of :func:`numpy.random.default_rng`; permutation ``p`` is the ``p``-th call to
+        ``rng.permutation(N)``, the draws scikit-bio makes, shared by all terms. Draw ``π`` permutes
+        the design rows by ``π`` (``"rows"``), i.e. moves the reduced-model residual of object ``i``
+        to row ``π⁻¹(i)`` (``"residuals"``).
+
+    Returns
+    -------
+    PermanovaResult
+    """
+    d = as_distance_matrix(distances)
+    n = len(d)
+    if by not in ("margin", "terms"):
+        raise ValueError(f"by must be 'margin' or 'terms'; got {by!r}")
+    if permute not in ("residuals", "rows"):
+        raise ValueError(f"permute must be 'residuals' or 'rows'; got {permute!r}")
+    if int(permutations) != permutations or permutations < 1:
+        raise ValueError(f"permutations must be a positive integer; got {permutations!r}")
+    cov = pd.DataFrame(covariates)
+    if len(cov) != n:
+        raise ValueError(f"covariates have {len(cov)} rows but distances are {n} x {n}")
+    cov = cov.reset_index(drop=True)
+    terms = list(cov.columns if terms is None else terms)
+    if not terms:
+        raise ValueError("no terms to test")
+    missing = [t for t in terms if t not in cov.columns]
+    if missing:
+        raise ValueError(f"terms {missing} are not columns of covariates {list(cov.columns)}")
+    if len(set(terms)) != len(terms):
+        raise ValueError(f"terms repeated: {terms}")
+    blocks = {t: _term_columns(cov[t], t) for t in terms}
+    one = np.full((n, 1), 1.0 / np.sqrt(n))
+
+    # orthonormal bases: sequential in model order (also gives the full model's residual space)
+    seq = {}
+    basis = one
+    for t in terms:
+        seq[t] = _extend_basis(basis, blocks[t], t)
+        basis = np.hstack([basis, seq[t]])
+    full = basis
+    df_res = n - full.shape[1]
+    if df_res < 1:
+        raise ValueError(f"no residual degrees of freedom: {n} objects, {full.shape[1]} model columns")
+
+    g = gower_centered(d)
+    ss_total = float(np.trace(g))
+    ss_res = ss_total - float(np.einsum("nk,nk->", full, g @ full))
+    rng = np.random.default_rng(seed)
+    perms = np.stack([rng.permutation(n) for _ in range(int(permutations))])
+
+    rows, null = [], {}
+    for t in terms:
+        if by == "terms":
+            k = terms.index(t)
+            qz = np.hstack([one] + [seq[s] for s in terms[:k]])
+            qt = seq[t]
+            qw = np.hstack([np.zeros((n, 0))] + [seq[s] for s in terms[k + 1:]])
+        else:
+            qz = one
+            for s in terms:
+                if s != t:
+                    qz = np.hstack([qz, _extend_basis(qz, blocks[s], s)])
+            qt = _extend_basis(qz, blocks[t], t)
+            qw = np.zeros((n, 0))
+        df_t = qt.shape[1]
+        ss_t = float(np.einsum("nk,nk->", qt, g @ qt))
+        f_obs = (ss_t / df_t) / (ss_res / df_res)
+        if permute == "residuals":
+            rz = np.eye(n) - qz @ qz.T
+            e = rz @ g @ rz
+        else:
+            e = g
+        q_all = np.hstack([qz, qt, qw])
+        c = _quadratic_by_column(e, q_all, perms)
+        nz = qz.shape[1]
+        s_t = c[:, nz:nz + df_t].sum(axis=1)
+        s_res = np.trace(e) - c.sum(axis=1)
+        f_null = (s_t / df_t) / (s_res / df_res)
+        p = (1.0 + np.count_nonzero(f_null >= f_obs)) / (1.0 + permutations)
+        null[t] = f_null
+        rows.append({"term": t, "df": df_t, "sum_of_squares": ss_t, "r2": ss_t / ss_total,
+                     "pseudo_F": f_obs, "p_value": p})
+    rows.append({"term": "Residual", "df": df_res, "sum_of_squares": ss_res, "r2": ss_res / ss_total,
+                 "pseudo_F": np.nan, "p_value": np.nan})
+    rows.append({"term": "Total", "df": n - 1, "sum_of_squares": ss_total, "r2": 1.0,
+                 "pseudo_F": np.nan, "p_value": np.nan})
+    table = pd.DataFrame(rows).set_index("term")
+    return PermanovaResult(table=table, null=null, permutations=int(permutations), seed=seed, by=by,
+                           permute=permute)
+
+
+# ---------------------------------------------------------------------------------------------
+# Leave-one-out k-NN
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class KnnResult:
+    """Result of :func:`knn_loo_accuracy`.
+
+    Attributes
+    ----------
+    accuracy : float
+        Leave-one-out accuracy of the k-NN classifier.
+    p_value : float
+        ``(1 + #{accuracy* ≥ accuracy}) / (1 + permutations)`` over label permutations.
+    null : ndarray, shape (permutations,)
+        Accuracies with permuted labels.
+    majority_rate : float
+        Share of the most frequent class (what always guessing it scores).
+    predictions : ndarray, shape (N,)
+        Leave-one-out predicted label of each object.
+    n_neighbors, permutations : int
+    """
+
+    accuracy: float
+    p_value: float
+    null: np.ndarray = field(repr=False)
+    majority_rate: float
+    predictions: np.ndarray = field(repr=False)
+    n_neighbors: int
+    permutations: int
+
+
+def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, permutations: int = 999,
+                     seed: int | None = 0) -> KnnResult:
+    """Leave-one-out k-nearest-neighbour accuracy on a precomputed distance matrix, with a
+    label-permutation p-value.
+
+    The statistic is exactly that of ``permutation_test_score(KNeighborsClassifier(n_neighbors,
+    metric="precomputed"), D, labels, cv=LeaveOneOut(), n_permutations=permutations,
+    random_state=seed)`` — the same accuracy and the same permuted accuracies, draw for draw
+    (``tests/test_stats.py``). That call refits the classifier N times per permutation (about
+    3 s per permutation for N = 647 here, an hour for 999). The leave-one-out neighbours do not
+    depend on the labels, so they are found once, with scikit-learn's own query
+    (``KNeighborsClassifier.kneighbors()`` without ``X``: each training point's neighbours,
+    itself excluded), and every permutation only re-votes (uniform weights; a tied vote goes
+    to the first class in sorted order, as ``KNeighborsClassifier.predict`` does).
+
+    Parameters
+    ----------
+    distances : array_like, shape (N, N)
+    labels : array_like, shape (N,)
+        Class of each object (any sortable values).
+    n_neighbors : int
+        ``k`` (use an odd ``k`` with two classes to avoid tied votes).
+    permutations : int
+        Number of label permutations (``>= 1``).
+    seed : int or None
+        Seed of :class:`numpy.random.RandomState`, as ``permutation_test_score``'s ``random_state``.
+
+    Returns
+    -------
+    KnnResult
+    """
+    from sklearn.neighbors import KNeighborsClassifier
+
+    d = as_distance_matrix(distances)
+    n = len(d)
+    y = np.asarray(labels)
+    if y.shape != (n,):
+        raise ValueError(f"labels must have shape ({n},) to match distances; got {y.shape}")
+    if pd.isna(pd.Series(y)).any():
+        raise ValueError(f"labels are missing at row {int(np.flatnonzero(pd.isna(pd.Series(y)))[0])}")
+    if int(n_neighbors) != n_neighbors or not 1 <= n_neighbors < n - 1:
+        raise ValueError(f"n_neighbors must be an integer in [1, {n - 2}]; got {n_neighbors!r}")
+    if int(permutations) != permutations or permutations < 1:
+        raise ValueError(f"permutations must be a positive integer; got {permutations!r}")
+    classes, codes = np.unique(y, return_inverse=True)
+    if len(classes) < 2:
+        raise ValueError(f"labels have a single class {classes.tolist()}: nothing to classify")
+    neigh = KNeighborsClassifier(n_neighbors=int(n_neighbors), metric="precomputed").fit(d, codes).kneighbors(
+        return_distance=False)
+
+    def accuracies(ys):  # ys: (P, N) label codes
+        votes = ys[:, neigh]  # (P, N, k)
+        counts = np.stack([(votes == c).sum(axis=-1) for c in range(len(classes))], axis=-1)
+        pred = counts.argmax(axis=-1)  # first class among ties
+        return (pred == ys).mean(axis=1), pred
+
+    acc, pred = accuracies(codes[None])
+    rs = np.random.RandomState(seed)
+    null = np.concatenate([accuracies(codes[np.stack([rs.permutation(n) for _ in range(m)])])[0]
+                           for m in np.diff(np.r_[0:int(permutations):256, int(permutations)])])
+    p = (1.0 + np.count_nonzero(null >= acc[0])) / (1.0 + permutations)
+    return KnnResult(accuracy=float(acc[0]), p_value=float(p), null=null,
+                     majority_rate=float(np.bincount(codes).max() / n), predictions=classes[pred[0]],
+                     n_neighbors=int(n_neighbors), permutations=int(permutations))
+
+
+# ---------------------------------------------------------------------------------------------
+# Ordination and matrix correlation
+# ---------------------------------------------------------------------------------------------
+
+
+def classical_mds(distances, *, n_components: int = 2):
+    """Classical (Torgerson) MDS / principal coordinates of a distance matrix (scikit-learn).
+
+    Returns
+    -------
+    coords : ndarray, shape (N, n_components)
+    explained : ndarray, shape (n_components,)
+        Each axis' eigenvalue of Gower's matrix over its trace (the total inertia
+        ``Σ_{i<j} d_ij² / N``); for non-Euclidean distances the negative eigenvalues count in
+        the trace, so the shares are conservative.
+    """
+    from sklearn.manifold import ClassicalMDS
+
+    d = as_distance_matrix(distances)
+    if int(n_components) != n_components or not 1 <= n_components < len(d):
+        raise ValueError(f"n_components must be an integer in [1, {len(d) - 1}]; got {n_components!r}")
+    mds = ClassicalMDS(n_components=int(n_components), metric="precomputed")
+    coords = mds.fit_transform(d)
+    total = float(np.sum(d * d) / (2 * len(d)))
+    return coords, np.asarray(mds.eigenvalues_, dtype=np.float64) / total
+
+
+def mantel_test(x, y, *, method: str = "spearman", permutations: int = 999, seed: int | None = 0):
+    """Mantel correlation between two distance matrices over the same objects (scikit-bio).
+
+    Parameters
+    ----------
+    x, y : array_like, shape (N, N)
+    method : {"spearman", "pearson"}
+        Spearman (default) compares the rankings of the pairs, insensitive to monotone
+        transformations such as squaring a distance.
+    permutations : int
+    seed : int or None
+
+    Returns
+    -------
+    r : float
+        Correlation of the upper-triangle entries.
+    p_value : float
+        Two-sided permutation p-value (objects permuted in one matrix).
+    """
+    from skbio.stats.distance import mantel
+
+    a = as_distance_matrix(x, name="x")
+    b = as_distance_matrix(y, name="y")
+    if a.shape != b.shape:
+        raise ValueError(f"x is {a.shape} but y is {b.shape}")
+    if method not in ("spearman", "pearson"):
+        raise ValueError(f"method must be 'spearman' or 'pearson'; got {method!r}")
+    r, p, _ = mantel(a, b, method=method, permutations=int(permutations), alternative="two-sided", seed=seed)
+    return float(r), float(p)
