@@ -33,16 +33,11 @@ squared values) belong to the study notebooks.
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import inspect
-import itertools
 import math
-import os
 import time
 
-import numpy as np
-
-from ._validate import as_shape_pair, as_shapes
+from ._validate import as_shape_pair
 
 __all__ = ["distance", "pair_record", "pairwise_distances", "path_result", "check_metric_params",
            "METRICS", "SYMMETRIC", "PATH_METRICS", "RECORD_FIELDS"]
@@ -249,63 +244,51 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
             "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
 
 
-def _one(args):
-    i, j, u, v, metric, params = args
-    return i, j, distance(u, v, metric=metric, **params)
+def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
+                       store=None, block_size: int | None = None, progress: bool = True,
+                       rtol: float | None = None, return_result: bool = False, **params):
+    """Matrix of distances between every pair of ``shapes`` (N, K, d), on Dask, with a resumable store.
 
-
-def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = 1, progress: bool = False, **params) -> np.ndarray:  # replaced by shapelib.pairwise next
-    """Matrix of distances between every pair of ``shapes`` (N, K, d).
-
-    Symmetric metrics are computed once per unordered pair; for the bending energies entry
-    ``[i, j]`` is the energy of the map taking shape ``i`` onto shape ``j``.
+    Symmetric metrics are computed once per unordered pair; for the bending energies (``"tps"``,
+    ``"wendland"``) entry ``[i, j]`` is the energy of the map taking shape ``i`` onto shape ``j``.
+    The work is done by :func:`shapelib.pairwise.compute_pairwise` (blocks of pairs, one Dask task
+    per block; see there for how the local cluster and the block size are chosen).
 
     Parameters
     ----------
     shapes : array_like, shape (N, K, d)
     metric : str
-    n_jobs : int or None
-        Worker processes (``None`` or ``-1``: all cores). Pairs are independent.
+        One of :data:`METRICS`.
+    n_jobs : int, optional
+        ``1``: in this process. ``k > 1``: a local cluster of ``k`` worker processes. ``None`` or
+        ``-1``: chosen from a measured pair (in this process when the whole matrix takes a few
+        seconds, else one worker per core).
+    client : distributed.Client, optional
+        Run on this Dask cluster.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``"tcp://host:8786"``).
+    store : path-like, optional
+        Zarr directory the finished blocks are written to; rerunning with the same store resumes.
+    block_size : int, optional
+        Shapes per block side (a task computes up to ``block_size²`` pairs). Default from the
+        measured cost of one pair.
     progress : bool
-        Show a progress bar (tqdm) if it is installed.
+        Progress bar (pairs done, pairs/s, ETA).
+    rtol : float, optional
+        Certified relative tolerance for ``"alpha"`` / ``"fisher_rao"`` (see :func:`distance`).
+    return_result : bool
+        Return the :class:`shapelib.pairwise.PairwiseResult` (bounds, convergence, iterations,
+        seconds per pair) instead of the matrix.
     **params
-        Passed to :func:`distance`.
+        Options of the metric.
 
     Returns
     -------
-    ndarray, shape (N, N)
+    ndarray, shape (N, N), or PairwiseResult
         Zero diagonal.
     """
-    check_metric_params(metric, params)
-    x = as_shapes(shapes, name="shapes")
-    n = len(x)
-    pairs = itertools.combinations(range(n), 2) if metric in SYMMETRIC else itertools.permutations(range(n), 2)
-    tasks = [(i, j, x[i], x[j], metric, params) for i, j in pairs]
-    out = np.zeros((n, n))
-    workers = (os.cpu_count() or 1) if n_jobs in (None, -1) else int(n_jobs)
-    bar = None
-    if progress:
-        try:
-            from tqdm.auto import tqdm
+    from .pairwise import compute_pairwise
 
-            bar = tqdm(total=len(tasks), desc=f"{metric} distances")
-        except ImportError:
-            pass
-    if workers <= 1:
-        results = map(_one, tasks)
-    else:
-        pool = cf.ProcessPoolExecutor(max_workers=workers)
-        results = pool.map(_one, tasks, chunksize=1)
-    try:
-        for i, j, d in results:
-            out[i, j] = d
-            if metric in SYMMETRIC:
-                out[j, i] = d
-            if bar is not None:
-                bar.update()
-    finally:
-        if workers > 1:
-            pool.shutdown()
-        if bar is not None:
-            bar.close()
-    return out
+    result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
+                              store=store, block_size=block_size, progress=progress, rtol=rtol, **params)
+    return result if return_result else result.matrix

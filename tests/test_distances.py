@@ -32,10 +32,13 @@ def test_pairwise_symmetric_and_directional(shapes):
     assert t[1, 0] == pytest.approx(tps_bending_energy(shapes[1], shapes[0]))
 
 
-def test_pairwise_parallel_equals_serial(shapes):
-    serial = pairwise_distances(shapes, metric="alpha", sigma2=0.5, n_steps=4)
-    parallel = pairwise_distances(shapes, metric="alpha", sigma2=0.5, n_steps=4, n_jobs=2)
-    assert np.allclose(serial, parallel)
+def test_pairwise_default_runs_a_tiny_job_in_process_and_equals_pair_by_pair(shapes):
+    r = pairwise_distances(shapes, metric="alpha", sigma2=0.5, n_steps=4, return_result=True, progress=False)
+    assert r.log["mode"] == "in-process"  # a few ms of work: no cluster is started
+    for i in range(4):
+        for j in range(i + 1, 4):
+            assert r.matrix[i, j] == r.matrix[j, i] == pytest.approx(
+                distance(shapes[i], shapes[j], metric="alpha", sigma2=0.5, n_steps=4), rel=1e-12)
 
 
 def test_path_result_gives_the_full_geodesic(shapes):

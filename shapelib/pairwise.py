@@ -1,0 +1,680 @@
+"""Distance matrices at population scale: blocks of pairs as Dask tasks, finished blocks in a zarr store.
+
+:func:`compute_pairwise` (what :func:`shapelib.distances.pairwise_distances` calls) cuts the N×N
+matrix into ``block_size × block_size`` blocks — the upper-triangle blocks for symmetric metrics,
+every block (without the diagonal pairs) for the bending energies ``"tps"`` / ``"wendland"`` — and
+computes each block as one task, every pair through :func:`shapelib.distances.pair_record`.
+
+Where the tasks run
+    ``client=`` (a :class:`distributed.Client`) or ``scheduler="tcp://host:port"`` runs them on
+    that Dask cluster; ``n_jobs=k > 1`` on a :class:`distributed.LocalCluster` of ``k`` single-threaded
+    worker processes started and shut down by the call (also on ``KeyboardInterrupt``);
+    ``n_jobs=1`` in this process, through the same block and store code. ``n_jobs=None`` measures one
+    pair and decides: starting a two-process LocalCluster and importing shapelib in its workers
+    costs about :data:`CLUSTER_OVERHEAD_SECONDS` (5 s; measured on the 2-core development machine:
+    cluster start 0.9 s, importing distributed + shapelib 2.2 s per spawned worker, shutdown 0.4 s —
+    3–4 s when quiet, 8 s at load average 4.5), so a matrix whose projected serial time is below
+    ``CLUSTER_OVERHEAD_SECONDS · W / (W − 1)`` (the break-even on ``W`` cores: 10 s on 2 cores) runs
+    in this process, a larger one on one worker per core.
+    Dask does the scheduling: a worker that dies has its tasks rerun elsewhere by the scheduler
+    (``distributed.scheduler.allowed-failures``); nothing here retries by hand. BLAS runs on one
+    thread inside every task (one single-threaded worker process per core).
+
+Block size
+    Default: the largest ``b`` with ``b² · t_pair ≤`` :data:`TASK_SECONDS` (2 s), ``t_pair`` the
+    measured seconds of one pair (one pair timed in this process, or the mean of a resumed store's
+    pairs), and small enough that there are at least :data:`TASKS_PER_WORKER` tasks per worker.
+    Measured per pair on ADHD-200 shapes (K = 50, centroid size 20, σ² = 0.5): Procrustes 0.2 ms,
+    TPS 0.4 ms, Hausdorff 0.07 ms, α bound 0.2 ms, Fisher–Rao bound 5 ms, α geodesic ≈ 1.2 s,
+    Fisher–Rao geodesic ≈ 27 s — so the cheap metrics get blocks of ~60–160 shapes and the geodesics
+    one or two (a task of a few seconds: scheduling costs of ~ms per task vanish, a lost worker or a
+    killed run costs a few seconds of work).
+
+The store
+    A zarr v3 directory (client-side writes only: workers need no shared disk). Arrays ``matrix``,
+    ``lower``, ``upper``, ``energy``, ``seconds`` (float64, NaN where not computed), ``converged``
+    (bool), ``n_iter`` (int64, −1 where not computed), each N×N; ``done`` (bool, one entry per block,
+    written after the block's data, so a block counts only once all its data are on disk). Every
+    chunk carries a CRC32C checksum (zarr's ``crc32c`` codec), and zarr's local store replaces chunk
+    files atomically. Attributes (``shapelib_pairwise``): metric, every parameter (defaults filled in),
+    rtol, SHA-256 of the shapes, N, K, d, block size, symmetric, shapelib version. Reopening it with
+    other shapes, metric or parameters raises ``ValueError`` saying what differs; rerunning with the
+    same ones computes only the blocks not done. A checksum mismatch, unreadable or missing chunk
+    raises ``ValueError`` naming the store, the array and the block.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import json
+import math
+import os
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ._validate import as_shapes
+from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record
+
+__all__ = ["PairwiseResult", "compute_pairwise", "open_store", "compute_block", "block_pairs",
+           "default_block_size", "ARRAYS"]
+
+#: seconds one task should take (sets the default block size)
+TASK_SECONDS = 2.0
+#: at least this many tasks per worker, for load balance
+TASKS_PER_WORKER = 4
+#: measured cost of starting a LocalCluster and importing shapelib in its workers (2-core machine)
+CLUSTER_OVERHEAD_SECONDS = 5.0
+#: side of the stored chunks (a multiple of the block size near this)
+CHUNK_SIDE = 64
+#: the per-pair arrays of the store: name -> (dtype, fill value)
+ARRAYS = {
+    "matrix": ("float64", math.nan),
+    "lower": ("float64", math.nan),
+    "upper": ("float64", math.nan),
+    "energy": ("float64", math.nan),
+    "seconds": ("float64", math.nan),
+    "converged": ("bool", False),
+    "n_iter": ("int64", -1),
+}
+_FIELD = {"matrix": "value"}  # pair_record key of each array (same name otherwise)
+_ATTR = "shapelib_pairwise"
+_FORMAT = 1
+
+
+# ---------------------------------------------------------------------------------------------
+# Result
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class PairwiseResult:
+    """A distance matrix with the diagnostics of every pair.
+
+    Attributes
+    ----------
+    matrix : ndarray, shape (N, N)
+        Distances, zero diagonal; for asymmetric metrics ``[i, j]`` is the map from ``i`` onto ``j``.
+        NaN where a partial store has no value yet (see ``computed``).
+    lower, upper : ndarray, shape (N, N)
+        Certified bounds ``lower ≤ d ≤ upper`` (= ``matrix`` for non-path metrics).
+    energy : ndarray, shape (N, N)
+        Path energy (eq. 8) of the computed path; NaN for non-path metrics.
+    seconds : ndarray, shape (N, N)
+        Wall time of each pair.
+    converged : ndarray of bool, shape (N, N)
+    n_iter : ndarray of int, shape (N, N)
+        Solver iterations (0 for non-path metrics, −1 where not computed).
+    metric : str
+    params : dict
+        Every parameter of the metric, defaults filled in (and ``rtol`` if given).
+    store : str or None
+        Path of the zarr store.
+    computed : ndarray of bool, shape (N, N)
+        Pairs whose values are present (all, for a finished run).
+    log : dict
+        Blocks in total / computed by this call / found done, block size, where it ran, wall seconds.
+    """
+
+    matrix: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    energy: np.ndarray
+    seconds: np.ndarray
+    converged: np.ndarray
+    n_iter: np.ndarray
+    metric: str
+    params: dict
+    store: str | None = None
+    computed: np.ndarray | None = None
+    log: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def complete(self) -> bool:
+        """True when every pair is computed."""
+        return bool(self.computed is None or self.computed.all())
+
+    def _pairs(self):
+        n = len(self.matrix)
+        i, j = (np.triu_indices(n, 1) if self.metric in SYMMETRIC
+                else np.nonzero(~np.eye(n, dtype=bool)))
+        keep = self.computed[i, j] if self.computed is not None else np.ones(len(i), bool)
+        return i[keep], j[keep]
+
+    def nonconverged_pairs(self) -> list[tuple[int, int]]:
+        """Computed pairs ``(i, j)`` (``i < j`` for symmetric metrics) whose solver did not converge."""
+        i, j = self._pairs()
+        bad = ~self.converged[i, j]
+        return [(int(a), int(b)) for a, b in zip(i[bad], j[bad])]
+
+    def to_frame(self):
+        """One row per computed pair (``i < j`` for symmetric metrics) with all diagnostics."""
+        import pandas as pd
+
+        i, j = self._pairs()
+        return pd.DataFrame({"i": i, "j": j, "value": self.matrix[i, j], "lower": self.lower[i, j],
+                             "upper": self.upper[i, j], "energy": self.energy[i, j],
+                             "converged": self.converged[i, j], "n_iter": self.n_iter[i, j],
+                             "seconds": self.seconds[i, j]})
+
+
+# ---------------------------------------------------------------------------------------------
+# Blocks: the unit of work
+# ---------------------------------------------------------------------------------------------
+
+
+def _n_blocks(n: int, b: int) -> int:
+    return -(-n // b)
+
+
+def block_pairs(n: int, block_size: int, *, symmetric: bool) -> list[tuple[int, int]]:
+    """Block indices ``(I, J)`` of the tasks: ``I ≤ J`` for symmetric metrics, all for asymmetric ones."""
+    nb = _n_blocks(n, block_size)
+    return [(a, b) for a in range(nb) for b in range(nb) if not symmetric or a <= b]
+
+
+def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol, params: dict) -> dict:
+    """All pairs of one block through :func:`shapelib.distances.pair_record`: ``{array: (bi, bj)}``.
+
+    ``xi``, ``xj`` are the block's row and column shapes. On a diagonal block only the pairs
+    ``i ≠ j`` are computed (``i < j``, then mirrored, for symmetric metrics) and the diagonal is
+    zero. Solver warnings are not emitted: convergence is recorded per pair instead.
+    """
+    from .geodesic import GeodesicWarning
+
+    bi, bj = len(xi), len(xj)
+    out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
+    with _one_blas_thread(), warnings.catch_warnings():
+        warnings.simplefilter("ignore", GeodesicWarning)
+        for a in range(bi):
+            for b in range(bj):
+                if diagonal and (a == b or (symmetric and b < a)):
+                    continue
+                rec = pair_record(xi[a], xj[b], metric=metric, rtol=rtol, **params)
+                for name in ARRAYS:
+                    out[name][a, b] = rec[_FIELD.get(name, name)]
+    if diagonal:
+        if symmetric:
+            low = np.tril_indices(bi, -1)
+            for arr in out.values():
+                arr[low] = arr.T[low]
+        d = np.diag_indices(bi)
+        for name in ("matrix", "lower", "upper", "energy", "seconds", "n_iter"):
+            out[name][d] = 0
+        out["converged"][d] = True
+    return out
+
+
+def default_block_size(seconds_per_pair: float, n: int, *, n_workers: int = 1, symmetric: bool = True) -> int:
+    """Block side ``b`` with ``b² · seconds_per_pair ≤ TASK_SECONDS`` and ≥ ``TASKS_PER_WORKER`` tasks
+    per worker (see the module docstring)."""
+    b = max(1, int(math.sqrt(TASK_SECONDS / max(seconds_per_pair, 1e-9))))
+    if n_workers > 1:
+        want = TASKS_PER_WORKER * n_workers
+        nb = 1
+        while (nb * (nb + 1) // 2 if symmetric else nb * nb) < want and nb < n:
+            nb += 1
+        b = min(b, _n_blocks(n, nb))
+    return max(1, min(b, n))
+
+
+# ---------------------------------------------------------------------------------------------
+# Parameters and fingerprints
+# ---------------------------------------------------------------------------------------------
+
+
+def _jsonable(name, value):
+    if isinstance(value, (np.bool_, bool)):
+        return bool(value)
+    if isinstance(value, (np.integer, int)):
+        return int(value)
+    if isinstance(value, (np.floating, float)):
+        return float(value)
+    if value is None or isinstance(value, str):
+        return value
+    raise ValueError(f"parameter {name}={value!r} cannot be recorded in a pairwise store "
+                     "(numbers, strings, booleans and None only)")
+
+
+def _full_params(metric: str, rtol, params: dict) -> dict:
+    """``params`` with the computing function's defaults filled in (so n_steps=16 == omitted)."""
+    from .distances import _target
+
+    full = {}
+    for name, p in inspect.signature(_target(metric, rtol)).parameters.items():
+        if name in ("u", "v", "metric", "rtol") or p.kind in (p.VAR_KEYWORD, p.VAR_POSITIONAL):
+            continue
+        if name in params:
+            full[name] = params[name]
+        elif p.default is not p.empty:
+            full[name] = p.default
+    full.update(params)
+    return {k: _jsonable(k, v) for k, v in sorted(full.items())}
+
+
+def shapes_sha256(x: np.ndarray) -> str:
+    """SHA-256 of the float64 shapes array and its shape."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    h = hashlib.sha256(repr(x.shape).encode())
+    h.update(x.tobytes())
+    return h.hexdigest()
+
+
+# ---------------------------------------------------------------------------------------------
+# The store
+# ---------------------------------------------------------------------------------------------
+
+
+class _Store:
+    """The zarr group of one matrix (directory, or in memory when no path is given)."""
+
+    def __init__(self, group, path, attrs):
+        self.group, self.path, self.attrs = group, path, attrs
+        self.n, self.b = attrs["N"], attrs["block_size"]
+        self.symmetric = attrs["symmetric"]
+        self.nb = _n_blocks(self.n, self.b)
+        self.arrays = {name: group[name] for name in (*ARRAYS, "done")}
+
+    @property
+    def where(self) -> str:
+        return f"pairwise store {self.path}" if self.path else "in-memory pairwise store"
+
+    @classmethod
+    def create(cls, path, attrs):
+        import zarr
+        from zarr.codecs import BytesCodec, Crc32cCodec, ZstdCodec
+
+        store = zarr.storage.MemoryStore() if path is None else zarr.storage.LocalStore(str(path))
+        group = zarr.open_group(store, mode="w", zarr_format=3)
+        b = attrs["block_size"]
+        n = attrs["N"]
+        chunk = min(n, b * max(1, CHUNK_SIDE // b))
+        nb = _n_blocks(n, b)
+        kw = dict(serializer=BytesCodec(), compressors=[ZstdCodec(level=3), Crc32cCodec()])
+        for name, (dtype, fill) in ARRAYS.items():
+            group.create_array(name, shape=(n, n), chunks=(chunk, chunk), dtype=dtype, fill_value=fill, **kw)
+        group.create_array("done", shape=(nb, nb), chunks=(min(nb, CHUNK_SIDE),) * 2, dtype="bool",
+                           fill_value=False, **kw)
+        group.attrs[_ATTR] = attrs  # written last: a store without it is not a store
+        return cls(group, None if path is None else str(path), attrs)
+
+    @classmethod
+    def open(cls, path):
+        import zarr
+
+        path = str(path)
+        meta = Path(path) / "zarr.json"
+        if not meta.is_file():
+            raise ValueError(f"pairwise store {path}: no zarr.json (not a zarr v3 group, or truncated)")
+        try:
+            group = zarr.open_group(zarr.storage.LocalStore(path), mode="r+", zarr_format=3)
+            attrs = dict(group.attrs[_ATTR])
+        except KeyError as exc:
+            raise ValueError(f"pairwise store {path}: a zarr group without the {_ATTR!r} attributes "
+                             "(not a shapelib pairwise store, or its creation was interrupted)") from exc
+        except Exception as exc:
+            raise ValueError(f"pairwise store {path}: unreadable group metadata or attributes "
+                             f"({type(exc).__name__}: {exc})") from exc
+        for name in (*ARRAYS, "done"):
+            try:
+                group[name]
+            except Exception as exc:
+                raise ValueError(f"pairwise store {path}: array {name!r} is missing or its metadata is "
+                                 f"unreadable ({type(exc).__name__}: {exc})") from exc
+        return cls(group, path, attrs)
+
+    # -- reading, with corruption named --------------------------------------------------------
+
+    def _chunk_file(self, name, ci, cj):
+        return Path(self.path) / name / "c" / str(ci) / str(cj)
+
+    def _read(self, name, what_block):
+        """The whole array; on failure, find and name the bad chunk(s)."""
+        arr = self.arrays[name]
+        try:
+            return arr[...]
+        except Exception as exc:
+            cs = arr.chunks
+            bad = []
+            for ci in range(_n_blocks(arr.shape[0], cs[0])):
+                for cj in range(_n_blocks(arr.shape[1], cs[1])):
+                    try:
+                        arr[ci * cs[0]:(ci + 1) * cs[0], cj * cs[1]:(cj + 1) * cs[1]]
+                    except Exception:
+                        bad.append((ci, cj))
+            where = "; ".join(what_block(name, ci, cj) for ci, cj in bad) or "unknown chunk"
+            raise ValueError(f"{self.where}: array {name!r} is corrupt or truncated ({where}): "
+                             f"{type(exc).__name__}: {exc}. Delete the store (or that chunk file and the "
+                             "matching 'done' entries) and rerun to recompute.") from exc
+
+    def _describe_data_chunk(self, name, ci, cj):
+        c = self.arrays[name].chunks[0]
+        rows = f"{ci * c}:{min((ci + 1) * c, self.n)}"
+        cols = f"{cj * c}:{min((cj + 1) * c, self.n)}"
+        k = c // self.b
+        return (f"chunk {name}/c/{ci}/{cj}, pairs [{rows}, {cols}], blocks "
+                f"[{ci * k}:{min((ci + 1) * k, self.nb)}, {cj * k}:{min((cj + 1) * k, self.nb)}]")
+
+    def _describe_done_chunk(self, name, ci, cj):
+        c = self.arrays["done"].chunks[0]
+        return f"chunk done/c/{ci}/{cj}, blocks [{ci * c}:{(ci + 1) * c}, {cj * c}:{(cj + 1) * c}]"
+
+    def done(self) -> np.ndarray:
+        return self._read("done", self._describe_done_chunk)
+
+    def task_done(self, done=None) -> set:
+        done = self.done() if done is None else done
+        return {(a, b) for a, b in block_pairs(self.n, self.b, symmetric=self.symmetric) if done[a, b]}
+
+    def read(self) -> tuple[dict, np.ndarray]:
+        """All arrays and the pair-level ``computed`` mask; checks every done block is really there."""
+        done = self.done()
+        computed = np.zeros((self.n, self.n), dtype=bool)
+        for a, b in self.task_done(done):
+            for p, q in ((a, b), (b, a)) if self.symmetric else ((a, b),):
+                computed[p * self.b:(p + 1) * self.b, q * self.b:(q + 1) * self.b] = True
+        if self.path is not None:  # a done block must have its chunk files on disk
+            for name in ARRAYS:
+                c = self.arrays[name].chunks[0]
+                for ci, cj in {(p * self.b // c, q * self.b // c) for p, q in zip(*np.nonzero(done))}:
+                    if not self._chunk_file(name, ci, cj).is_file():
+                        raise ValueError(f"{self.where}: array {name!r} is truncated: "
+                                         f"{self._describe_data_chunk(name, ci, cj)} of a done block is missing")
+        data = {name: self._read(name, self._describe_data_chunk) for name in ARRAYS}
+        # a done pair must have a value: a NaN there is damage, never a result
+        holes = computed & (np.isnan(data["matrix"]) | np.isnan(data["upper"]) | (data["n_iter"] < 0))
+        if holes.any():
+            i, j = np.argwhere(holes)[0]
+            raise ValueError(f"{self.where}: pair ({i}, {j}) of done block ({i // self.b}, {j // self.b}) "
+                             "has no value: the store is corrupt")
+        return data, computed
+
+    # -- writing --------------------------------------------------------------------------------
+
+    def write_block(self, a: int, b: int, out: dict) -> None:
+        """Write block ``(a, b)``'s data (and its mirror for symmetric metrics), then its done flag."""
+        s = self.b
+        ra, rb = slice(a * s, min((a + 1) * s, self.n)), slice(b * s, min((b + 1) * s, self.n))
+        for name in ARRAYS:
+            self.arrays[name][ra, rb] = out[name]
+            if self.symmetric and a != b:
+                self.arrays[name][rb, ra] = out[name].T
+        if self.symmetric and a != b:
+            self.arrays["done"][b, a] = True
+        self.arrays["done"][a, b] = True
+
+
+def _check_same(store: _Store, want: dict, *, block_size_given) -> None:
+    have = store.attrs
+    for key, what in (("N", "number of shapes"), ("K", "landmarks per shape"), ("d", "dimension"),
+                      ("shapes_sha256", "shapes (SHA-256)"), ("metric", "metric"), ("rtol", "rtol")):
+        if have.get(key) != want[key]:
+            raise ValueError(f"{store.where} was computed with {what} {have.get(key)!r}, "
+                             f"not {want[key]!r}: use another store (or delete this one)")
+    if have.get("params") != want["params"]:
+        old, new = have.get("params") or {}, want["params"]
+        diff = {k: (old.get(k), new.get(k)) for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)}
+        text = ", ".join(f"{k}: stored {o!r}, given {n!r}" for k, (o, n) in diff.items())
+        raise ValueError(f"{store.where} was computed with other parameters ({text}): use another store "
+                         "(or delete this one)")
+    if block_size_given is not None and block_size_given != have["block_size"]:
+        raise ValueError(f"{store.where} has block_size {have['block_size']}, not {block_size_given}: "
+                         "omit block_size to resume it")
+    if have.get("shapelib_version") != want["shapelib_version"]:
+        warnings.warn(f"{store.where} was written by shapelib {have.get('shapelib_version')}, this is "
+                      f"{want['shapelib_version']}: resuming mixes the two versions' results", stacklevel=3)
+
+
+def open_store(path) -> PairwiseResult:
+    """Read a finished or partial pairwise store (see the module docstring).
+
+    Raises ``ValueError`` naming the store and the array/block when it is corrupt or truncated.
+    Pairs not yet computed are NaN in the float arrays and ``False`` in ``result.computed``.
+    """
+    store = _Store.open(path)
+    data, computed = store.read()
+    return _result(store, data, computed, log={"blocks_total": len(block_pairs(store.n, store.b,
+                                                                               symmetric=store.symmetric)),
+                                               "blocks_done": len(store.task_done())})
+
+
+def _result(store: _Store, data: dict, computed, log) -> PairwiseResult:
+    params = dict(store.attrs["params"])
+    if store.attrs.get("rtol") is not None:
+        params["rtol"] = store.attrs["rtol"]
+    return PairwiseResult(matrix=data["matrix"], lower=data["lower"], upper=data["upper"],
+                          energy=data["energy"], seconds=data["seconds"], converged=data["converged"],
+                          n_iter=data["n_iter"], metric=store.attrs["metric"], params=params,
+                          store=store.path, computed=computed, log=log)
+
+
+# ---------------------------------------------------------------------------------------------
+# Running
+# ---------------------------------------------------------------------------------------------
+
+
+def _n_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _one_blas_thread():
+    """BLAS on one thread inside a task: workers are single-threaded processes, one per core."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _time_one_pair(x, metric, rtol, params) -> float:
+    from .geodesic import GeodesicWarning
+
+    with _one_blas_thread(), warnings.catch_warnings():
+        warnings.simplefilter("ignore", GeodesicWarning)
+        t0 = time.perf_counter()
+        pair_record(x[0], x[1 % len(x)], metric=metric, rtol=rtol, **params)
+        return time.perf_counter() - t0
+
+
+def _stored_seconds_per_pair(store: _Store) -> float | None:
+    done = store.task_done()
+    if not done:
+        return None
+    a, b = next(iter(done))
+    s = store.b
+    try:
+        sec = store.arrays["seconds"][a * s:(a + 1) * s, b * s:(b + 1) * s]
+    except Exception:
+        return None  # read() names the damage later
+    sec = sec[np.isfinite(sec) & (sec > 0)]
+    return float(sec.mean()) if sec.size else None
+
+
+def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
+                     store=None, block_size: int | None = None, progress: bool = True,
+                     rtol: float | None = None, **params) -> PairwiseResult:
+    """Distances (and diagnostics) of every pair of ``shapes``; see the module docstring and
+    :func:`shapelib.distances.pairwise_distances` for the parameters.
+
+    Returns
+    -------
+    PairwiseResult
+    """
+    from . import __version__
+
+    check_metric_params(metric, params, rtol=rtol)
+    x = as_shapes(shapes, name="shapes")
+    n, k, d = x.shape
+    symmetric = metric in SYMMETRIC
+    if client is not None and scheduler is not None:
+        raise ValueError("give client or scheduler, not both")
+    if n_jobs is not None and n_jobs != -1 and (isinstance(n_jobs, bool) or not isinstance(n_jobs, (int, np.integer))
+                                                or n_jobs < 1):
+        raise ValueError(f"n_jobs must be a positive integer, -1 or None; got {n_jobs!r}")
+    if (client is not None or scheduler is not None) and n_jobs not in (None, -1):
+        raise ValueError("n_jobs sizes a local cluster; it cannot be combined with client or scheduler")
+    if block_size is not None and (isinstance(block_size, bool) or not isinstance(block_size, (int, np.integer))
+                                   or block_size < 1):
+        raise ValueError(f"block_size must be a positive integer; got {block_size!r}")
+    want = {"format": _FORMAT, "metric": metric, "params": _full_params(metric, rtol, params),
+            "rtol": None if rtol is None else float(rtol), "shapes_sha256": shapes_sha256(x),
+            "N": int(n), "K": int(k), "d": int(d), "symmetric": symmetric, "shapelib_version": __version__}
+
+    st = None
+    if store is not None and Path(store).exists() and not (Path(store) / "zarr.json").exists() and (
+            not Path(store).is_dir() or any(Path(store).iterdir())):
+        raise ValueError(f"store {str(store)!r} exists and is not a pairwise store (no zarr.json); "
+                         "give a new path")
+    if store is not None and (Path(store) / "zarr.json").exists():
+        st = _Store.open(store)
+        _check_same(st, want, block_size_given=block_size)
+    local = client is None and scheduler is None
+    n_workers = _n_cores() if n_jobs in (None, -1) else int(n_jobs)
+    seconds_per_pair = None
+    if (st is None and block_size is None) or (local and n_jobs in (None, -1)):
+        seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
+            _time_one_pair(x, metric, rtol, params) if n > 1 else 0.0)
+    if local and n_jobs in (None, -1):
+        left = _pairs_left(st, n, symmetric)
+        n_workers = 1 if n_workers < 2 or seconds_per_pair * left < (
+            CLUSTER_OVERHEAD_SECONDS * n_workers / (n_workers - 1)) else n_workers
+    if st is None:
+        b = int(block_size) if block_size is not None else default_block_size(
+            seconds_per_pair, n, n_workers=n_workers if local else max(2, _cluster_size(client)),
+            symmetric=symmetric)
+        st = _Store.create(store, {**want, "block_size": b})
+    done = st.task_done()
+    todo = [t for t in block_pairs(n, st.b, symmetric=symmetric) if t not in done]
+    n_todo = sum(_block_n_pairs(st, a, b) for a, b in todo)
+    mode = "in-process" if local and n_workers == 1 else (
+        f"LocalCluster({n_workers} processes)" if local else "cluster")
+    log = {"blocks_total": len(done) + len(todo), "blocks_found_done": len(done), "blocks_computed": 0,
+           "block_size": st.b, "mode": mode, "seconds_per_pair_estimate": seconds_per_pair}
+    total_pairs = sum(_block_n_pairs(st, a, b) for a, b in block_pairs(n, st.b, symmetric=symmetric))
+    bar = _progress(progress, total=total_pairs, initial=total_pairs - n_todo, metric=metric)
+    kw = dict(symmetric=symmetric, metric=metric, rtol=rtol, params=params)
+    t0 = time.perf_counter()
+    try:
+        if todo and mode == "in-process":
+            for a, b in todo:
+                out = compute_block(x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b, **kw)
+                st.write_block(a, b, out)
+                log["blocks_computed"] += 1
+                bar.update(_block_n_pairs(st, a, b))
+        elif todo:
+            _run_dask(x, st, todo, kw, client=client, scheduler=scheduler, n_workers=n_workers, bar=bar,
+                      log=log, token=_token(want, st.b))
+    finally:
+        bar.close()
+    log["seconds"] = time.perf_counter() - t0
+    data, computed = st.read()
+    if not computed.all():
+        raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
+    result = _result(st, data, computed, log)
+    bad = result.nonconverged_pairs()
+    if bad:
+        from .geodesic import GeodesicWarning
+
+        warnings.warn(f"{len(bad)} of {total_pairs} {metric} pairs did not converge "
+                      f"(first: {bad[:3]}); see PairwiseResult.nonconverged_pairs()", GeodesicWarning,
+                      stacklevel=3)
+    return result
+
+
+def _pairs_left(st, n, symmetric) -> int:
+    if st is None:
+        return n * (n - 1) // 2 if symmetric else n * (n - 1)
+    done = st.task_done()
+    return sum(_block_n_pairs(st, a, b) for a, b in block_pairs(n, st.b, symmetric=symmetric)
+               if (a, b) not in done)
+
+
+def _cluster_size(client) -> int:
+    """Worker threads of ``client``'s cluster (1 if unknown, e.g. a scheduler address not yet joined)."""
+    try:
+        return max(1, sum(client.nthreads().values()))
+    except Exception:
+        return 1
+
+
+def _token(want: dict, block_size: int) -> str:
+    """Task-key prefix: the same computation (shapes, metric, parameters, blocks) has the same keys."""
+    body = {k: v for k, v in want.items() if k != "shapelib_version"}
+    return hashlib.sha256(json.dumps({**body, "block_size": block_size}, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _rows(st: _Store, a: int) -> slice:
+    return slice(a * st.b, min((a + 1) * st.b, st.n))
+
+
+def _block_n_pairs(st: _Store, a: int, b: int) -> int:
+    ra, rb = _rows(st, a), _rows(st, b)
+    na, nb = ra.stop - ra.start, rb.stop - rb.start
+    if a != b:
+        return na * nb
+    return na * (na - 1) // 2 if st.symmetric else na * (na - 1)
+
+
+def _progress(enabled: bool, *, total: int, initial: int, metric: str):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, unit="pair", desc=f"{metric} pairs", disable=not enabled,
+                smoothing=0.1, dynamic_ncols=True)
+
+
+def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token):
+    """Submit the blocks to Dask and write each one as it finishes (client side)."""
+    from distributed import Client, LocalCluster, as_completed
+
+    cluster = own_client = None
+    inflight = {}
+    try:
+        if client is None:
+            if scheduler is not None:
+                try:
+                    own_client = Client(scheduler, timeout="20s")
+                except (OSError, TimeoutError) as exc:
+                    raise ValueError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from exc
+            else:
+                cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=40)
+                own_client = Client(cluster)
+            client = own_client
+        # keep a bounded number of blocks in flight (the shapes of each travel with its task)
+        limit = max(64, 8 * max(1, sum(client.nthreads().values())))
+        pending = iter(todo)
+
+        def submit(a, b):
+            fut = client.submit(compute_block, x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b, **kw,
+                                key=f"shapelib-pairwise-{token}-{a}-{b}")
+            inflight[fut.key] = (fut, (a, b))
+            return fut
+
+        futures = as_completed([submit(*t) for t, _ in zip(pending, range(limit))])
+        for fut in futures:
+            out = fut.result()
+            _, (a, b) = inflight.pop(fut.key)
+            fut.release()
+            st.write_block(a, b, out)
+            log["blocks_computed"] += 1
+            bar.update(_block_n_pairs(st, a, b))
+            nxt = next(pending, None)
+            if nxt is not None:
+                futures.add(submit(*nxt))
+    except BaseException:
+        if client is not None and inflight:
+            try:
+                client.cancel([f for f, _ in inflight.values()])
+            except Exception:  # the cluster may be gone already; closing below still runs
+                pass
+        raise
+    finally:
+        if own_client is not None:
+            own_client.close()
+        if cluster is not None:
+            cluster.close()
