@@ -26,7 +26,8 @@ Solver: Levenberg–Marquardt (a trust-region Newton method) on a block-tridiago
 factorised by block Cholesky in O(n (Kd)³):
 
 * by default the **exact** Hessian of the path energy, assembled from the second derivatives
-  of ``Q = vᵀg(θ)v`` — in closed form for α (:func:`shapelib.metrics._alpha_qform_hessian`),
+  of ``Q = vᵀg(θ)v`` — in closed form for α (:func:`shapelib.metrics._alpha_qform_hessian`, run
+  as one compiled pass over the path by :func:`shapelib._kernels.alpha_path_hessian`),
   by the same quadrature as the metric for Fisher–Rao (:func:`shapelib.metrics._fr_qform_hessian`).
   Where it is positive definite the Newton decrement ``½ gᵀH⁻¹g`` estimates the energy still
   to be gained; the solver stops when it falls below ``tol · E`` (``log["stopped_by"] ==
@@ -65,11 +66,10 @@ import numpy as np
 from scipy.linalg import cholesky, solve_triangular
 from threadpoolctl import ThreadpoolController
 
+from . import _kernels
 from ._validate import as_shape_pair, check_positive, check_sigma2
 from .gmm import l2_distance
 from .metrics import (
-    _alpha_qform,
-    _alpha_qform_grad,
     _alpha_qform_hessian,
     _alpha_tensor_batch,
     _fr_qform,
@@ -187,16 +187,25 @@ class _AlphaModel:
         return None
 
     def qform_grad(self, theta, vel, ctx):
-        return _alpha_qform_grad(theta, vel, self.s2)
+        return _kernels.alpha_qform_grad(np.ascontiguousarray(theta), np.ascontiguousarray(vel), self.s2)
 
     def qform(self, theta, vel, ctx):
-        return _alpha_qform(theta, vel, self.s2)
+        return _kernels.alpha_qform(np.ascontiguousarray(theta), np.ascontiguousarray(vel), self.s2)
 
     def tensors(self, theta, ctx):
         return _alpha_tensor_batch(theta, self.s2)
 
     def qform_hessian(self, theta, vel, ctx):
         return _alpha_qform_hessian(theta, vel, self.s2)
+
+    def path_hessian(self, path, ctx):
+        """:func:`_exact_path_hessian` in one compiled pass (:func:`shapelib._kernels.alpha_path_hessian`)."""
+        n = len(path) - 1
+        q = path[0].size
+        tau, w = _GL3_NODES, _GL3_WEIGHTS
+        tw = np.stack([w * (1 - tau) ** 2 / n, w * (1 - tau) * tau / n, w * tau**2 / n, w * (1 - tau), w * tau, w * n])
+        diag, upper = _kernels.alpha_path_hessian(np.ascontiguousarray(path), self.s2, tau, tw, np.array([1.0, -1.0, 1.0]))
+        return diag.reshape(-1, q, q), upper.reshape(-1, q, q)
 
     def lower_bound(self, u, v):
         return l2_distance(u, v, self.s2)
@@ -293,25 +302,44 @@ def _energy(model, path, *, gradient=True, hessian=None):
         gbar = model.tensors(path[:-1] + 0.5 * np.diff(path, axis=0), ctx)
         blocks = (2 * n * (gbar[:-1] + gbar[1:]), -2 * n * gbar[1:-1])
     elif hessian == "exact":
-        blocks = _exact_path_hessian(model, flat_t, flat_v, ctx, n)
+        if hasattr(model, "path_hessian"):
+            blocks = model.path_hessian(path, ctx)
+        else:
+            blocks = _exact_path_hessian(model, flat_t, flat_v, ctx, n)
     elif hessian is not None:
         raise ValueError(f"unknown hessian {hessian!r}")
     return energy, grad, blocks
 
 
-def _exact_path_hessian(model, theta, vel, ctx, n):
-    """Exact Hessian of the piecewise-linear path energy from the Hessian of ``Q = vᵀg(θ)v``.
+@lru_cache(maxsize=64)
+def _path_hessian_weights(n):
+    """``coef[x, k] = (k_a, k_b, k_bᵀ, k_c)·w_k/n``: the weights of ``(Q_θθ, Q_θv, Q_θvᵀ, Q_vv)`` at
+    Gauss–Legendre node k in the segment blocks x = (t, t), (t, t+1), (t+1, t+1).
 
     On segment t, ``∂/∂θ_t = (1 − τ) ∂_θ − n ∂_v`` and ``∂/∂θ_{t+1} = τ ∂_θ + n ∂_v``.
     """
+    tau, w = _GL3_NODES, _GL3_WEIGHTS / n
+    coef = np.stack([
+        np.stack([(1 - tau) ** 2, -(1 - tau) * n, -(1 - tau) * n, np.full_like(tau, n * n)], axis=1),
+        np.stack([(1 - tau) * tau, (1 - tau) * n, -tau * n, np.full_like(tau, -n * n)], axis=1),
+        np.stack([tau**2, tau * n, tau * n, np.full_like(tau, n * n)], axis=1),
+    ]) * w[None, :, None]
+    coef.setflags(write=False)
+    return coef
+
+
+def _exact_path_hessian(model, theta, vel, ctx, n):
+    """Exact Hessian of the piecewise-linear path energy from the Hessian of ``Q = vᵀg(θ)v``.
+
+    Returns ``(diag, upper)`` as :func:`_energy`; the segment blocks are combined with the
+    weights of :func:`_path_hessian_weights` (models with a compiled ``path_hessian`` do the
+    same in one pass).
+    """
     a, b, c = (x.reshape(n, len(_GL3_NODES), *x.shape[1:]) for x in model.qform_hessian(theta, vel, ctx))
-    w, tau = _GL3_WEIGHTS / n, _GL3_NODES
     bt = b.transpose(0, 1, 3, 2)
-    comb = lambda ka, kb, kbt, kc: (np.einsum("k,tkij->tij", w * ka, a) + np.einsum("k,tkij->tij", w * kb, b)  # noqa: E731
-                                    + np.einsum("k,tkij->tij", w * kbt, bt) + np.einsum("k,tkij->tij", w * kc, c))
-    h00 = comb((1 - tau) ** 2, -(1 - tau) * n, -(1 - tau) * n, n * n)
-    h01 = comb((1 - tau) * tau, (1 - tau) * n, -tau * n, -n * n)
-    h11 = comb(tau**2, tau * n, tau * n, n * n)
+    coef = _path_hessian_weights(n)
+    h00, h01, h11 = (np.einsum("k,tkij->tij", cx[:, 0], a) + np.einsum("k,tkij->tij", cx[:, 1], b)
+                     + np.einsum("k,tkij->tij", cx[:, 2], bt) + np.einsum("k,tkij->tij", cx[:, 3], c) for cx in coef)
     return h11[:-1] + h00[1:], h01[1:-1]
 
 

@@ -19,12 +19,17 @@ Fisher–Rao metric (eq. 6)
     the L² metric by ``θ ↦ 2√p``, which maps into the sphere of radius 2. It has no closed
     form; it is integrated on a grid (:mod:`shapelib.quadrature`). Bounds used in the tests:
     ``g ≼ I/(Kσ²)`` (the complete-data information) and ``g = I/σ²`` exactly when K = 1.
+
+The α formulas below (quadratic form, gradient, second derivatives) are written once here, in
+numpy; the geodesic solver runs compiled versions of the same sums (:mod:`shapelib._kernels`,
+numba), which ``tests/test_kernels.py`` checks against these to ~1e-12.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from . import _kernels
 from ._validate import as_shape, check_sigma2
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, Grid, make_grid
 
@@ -109,7 +114,7 @@ def alpha_quadratic_form(theta, velocity, sigma2) -> float:
     vel = as_shape(velocity, name="velocity")
     if vel.shape != theta.shape:
         raise ValueError(f"velocity must have the shape of theta {theta.shape}; got {vel.shape}")
-    return float(_alpha_qform(theta[None], vel[None], check_sigma2(sigma2))[0])
+    return float(_kernels.alpha_qform(theta[None], vel[None], check_sigma2(sigma2))[0])
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,0 +1,243 @@
+"""Compiled (numba) kernels for the α-order metric's quadratic form, its gradient and the exact
+Hessian of the piecewise-linear path energy.
+
+The formulas are documented once, in :mod:`shapelib.metrics` (eq. 22: :func:`~shapelib.metrics._alpha_qform`,
+:func:`~shapelib.metrics._alpha_qform_grad`, :func:`~shapelib.metrics._alpha_qform_hessian`) and
+:mod:`shapelib.geodesic` (:func:`~shapelib.geodesic._exact_path_hessian`). The numpy versions
+there are the test oracle (``tests/test_kernels.py``: equal to ~1e-12); these loops compute
+the same sums pair by pair, without the (m, K, K) temporaries, and use the symmetry of the
+summand in (a, b) so that every Gaussian overlap is evaluated once per unordered pair.
+
+Why compiled: at the corpus callosum's K = 63 the numpy versions are memory bound on
+(m, K, K) and (m, K d, K d) temporaries (``benchmarks/bench_geodesic.py --parts`` prints the
+per-iteration breakdown). All kernels are float64, ``fastmath=False`` (IEEE semantics: no
+reassociation), single-threaded (the machine's cores go to separate pairs), and cached on disk
+(``cache=True``) so that only the first import after installation pays the compilation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["alpha_qform", "alpha_qform_grad", "alpha_path_hessian"]
+
+
+@njit(cache=True, fastmath=False)
+def _overlap_norm(s2, k, d):
+    """``1 / ((4πσ²)^{d/2} K²)``: the factor of ``c_ab = G(Δ_ab)/K²``."""
+    return 1.0 / ((4.0 * math.pi * s2) ** (0.5 * d) * k * k)
+
+
+@njit(cache=True, fastmath=False)
+def alpha_qform(theta, vel, s2):
+    """``Q = vᵀ g_α(θ) v`` for ``theta, vel`` of shape (m, K, d) -> (m,) (see ``metrics._alpha_qform``)."""
+    m, k, d = theta.shape
+    norm = _overlap_norm(s2, k, d)
+    s4 = 4.0 * s2 * s2
+    out = np.empty(m)
+    for n in range(m):
+        diag = 0.0
+        off = 0.0
+        for a in range(k):
+            vva = 0.0
+            for i in range(d):
+                vva += vel[n, a, i] * vel[n, a, i]
+            diag += vva
+            for b in range(a + 1, k):
+                r2 = 0.0
+                vv = 0.0
+                dva = 0.0
+                dvb = 0.0
+                for i in range(d):
+                    x = theta[n, a, i] - theta[n, b, i]
+                    r2 += x * x
+                    vv += vel[n, a, i] * vel[n, b, i]
+                    dva += x * vel[n, a, i]
+                    dvb += x * vel[n, b, i]
+                off += math.exp(-r2 / (4.0 * s2)) * (vv / (2.0 * s2) - dva * dvb / s4)
+        out[n] = norm * (diag / (2.0 * s2) + 2.0 * off)
+    return out
+
+
+@njit(cache=True, fastmath=False)
+def alpha_qform_grad(theta, vel, s2):
+    """``Q``, ``∂Q/∂θ`` and ``∂Q/∂v`` for (m, K, d) inputs (see ``metrics._alpha_qform_grad``)."""
+    m, k, d = theta.shape
+    norm = _overlap_norm(s2, k, d)
+    r4 = 1.0 / (4.0 * s2 * s2)
+    r2 = 1.0 / (2.0 * s2)
+    q = np.empty(m)
+    d_theta = np.zeros((m, k, d))
+    d_vel = np.zeros((m, k, d))
+    delta = np.empty(d)
+    for n in range(m):
+        diag = 0.0
+        off = 0.0
+        for a in range(k):
+            vva = 0.0
+            for i in range(d):
+                vva += vel[n, a, i] * vel[n, a, i]
+                d_vel[n, a, i] += 2.0 * norm * vel[n, a, i] * r2  # the a = b term
+            diag += vva
+            for b in range(a + 1, k):
+                rr = 0.0
+                vv = 0.0
+                dva = 0.0
+                dvb = 0.0
+                for i in range(d):
+                    x = theta[n, a, i] - theta[n, b, i]
+                    delta[i] = x
+                    rr += x * x
+                    vv += vel[n, a, i] * vel[n, b, i]
+                    dva += x * vel[n, a, i]
+                    dvb += x * vel[n, b, i]
+                c = norm * math.exp(-rr / (4.0 * s2))
+                cb = c * (vv * r2 - dva * dvb * r4)
+                off += cb
+                # ordered pairs (a, b) and (b, a): Δ → −Δ, (Δ·V_a, Δ·V_b) → (−Δ·V_b, −Δ·V_a)
+                c2, c4 = 2.0 * c * r2, 2.0 * c * r4
+                for i in range(d):
+                    gt = -2.0 * cb * r2 * delta[i] - c4 * (dvb * vel[n, a, i] + dva * vel[n, b, i])
+                    d_theta[n, a, i] += gt
+                    d_theta[n, b, i] -= gt
+                    d_vel[n, a, i] += c2 * vel[n, b, i] - c4 * dvb * delta[i]
+                    d_vel[n, b, i] += c2 * vel[n, a, i] - c4 * dva * delta[i]
+        q[n] = norm * diag * r2 + 2.0 * off
+    return q, d_theta, d_vel
+
+
+@njit(cache=True, fastmath=False)
+def alpha_path_hessian(path, s2, tau, tw, csign):
+    """Exact Hessian of the α path energy, block tridiagonal over the interior points.
+
+    ``path`` (n + 1, K, d); the energy is ``Σ_t Σ_k w_k Q(θ_t + τ_k Δ_t, n Δ_t) / n`` (3-point
+    Gauss–Legendre nodes ``tau``). On segment t, ``∂/∂θ_t = (1 − τ) ∂_θ − n ∂_v`` and
+    ``∂/∂θ_{t+1} = τ ∂_θ + n ∂_v`` (``geodesic._exact_path_hessian``); the second derivatives of
+    one pair term of Q (``H``, ``M``, ``N`` and ``g`` of ``metrics._alpha_qform_hessian``) are
+    summed over the nodes with the six weights ``tw`` = ``w(1−τ)²/n, w(1−τ)τ/n, wτ²/n,
+    w(1−τ), wτ, w n`` and then combined into the segment blocks (t, t), (t, t+1), (t+1, t+1);
+    ``csign`` = (1, −1, 1) is the sign of ``Q_vv`` in each. Each pair term is evaluated once per
+    unordered pair (a, b), since ``H_ba = H_ab`` and ``M_ba = −N_ab``.
+
+    Returns ``diag`` (n − 1, K, d, K, d) and ``upper`` (n − 2, K, d, K, d).
+    """
+    n = path.shape[0] - 1
+    k, d = path.shape[1], path.shape[2]
+    nq = tau.shape[0]
+    norm = _overlap_norm(s2, k, d)
+    r4 = 1.0 / (4.0 * s2 * s2)
+    r2 = 1.0 / (2.0 * s2)
+    diag = np.zeros((max(n - 1, 0), k, d, k, d))
+    upper = np.zeros((max(n - 2, 0), k, d, k, d))
+    th = np.empty((nq, k, d))
+    vel = np.empty((k, d))
+    delta = np.empty(d)
+    gh = np.empty(d)
+    acc = np.empty((8, d, d))  # node sums: H·tw0, H·tw1, H·tw2, M·tw3, M·tw4, N·tw3, N·tw4, C·tw5
+    blk = np.empty((3, 2, d, d))  # the (a, b) and (b, a) blocks of the three segment blocks
+    dacc = np.empty((k, 3, d, d))  # diagonal blocks (a, a) of the three segment blocks
+    ctot = 0.0
+    for q in range(nq):
+        ctot += tw[5, q]
+    for t in range(n):
+        # segment blocks in the interior Hessian: (t, t) -> diag[t-1], (t, t+1) -> upper[t-1],
+        # (t+1, t+1) -> diag[t]
+        if n < 2:
+            break
+        for a in range(k):
+            for i in range(d):
+                vel[a, i] = n * (path[t + 1, a, i] - path[t, a, i])
+                for q in range(nq):
+                    th[q, a, i] = path[t, a, i] + tau[q] * (path[t + 1, a, i] - path[t, a, i])
+        dacc[:] = 0.0
+        for a in range(k):
+            for b in range(a + 1, k):
+                acc[:] = 0.0
+                for q in range(nq):
+                    rr = 0.0
+                    vv = 0.0
+                    dva = 0.0
+                    dvb = 0.0
+                    for i in range(d):
+                        x = th[q, a, i] - th[q, b, i]
+                        delta[i] = x
+                        rr += x * x
+                        vv += vel[a, i] * vel[b, i]
+                        dva += x * vel[a, i]
+                        dvb += x * vel[b, i]
+                    c = norm * math.exp(-rr / (4.0 * s2))
+                    h = vv * r2 - dva * dvb * r4
+                    for i in range(d):
+                        gh[i] = -(dvb * vel[a, i] + dva * vel[b, i]) * r4
+                    for i in range(d):
+                        for j in range(d):
+                            eye = 1.0 if i == j else 0.0
+                            hij = c * (-(vel[a, i] * vel[b, j] + vel[b, i] * vel[a, j]) * r4
+                                       + h * r4 * delta[i] * delta[j] - eye * h * r2
+                                       - (delta[i] * gh[j] + gh[i] * delta[j]) * r2)
+                            mij = -c * (eye * dva * r4 + vel[a, i] * delta[j] * r4
+                                        + delta[i] * (vel[a, j] * r2 - dva * delta[j] * r4) * r2)
+                            nij = -c * (eye * dvb * r4 + vel[b, i] * delta[j] * r4
+                                        + delta[i] * (vel[b, j] * r2 - dvb * delta[j] * r4) * r2)
+                            cij = 2.0 * c * (eye * r2 - delta[i] * delta[j] * r4)
+                            acc[0, i, j] += tw[0, q] * hij
+                            acc[1, i, j] += tw[1, q] * hij
+                            acc[2, i, j] += tw[2, q] * hij
+                            acc[3, i, j] += tw[3, q] * mij
+                            acc[4, i, j] += tw[4, q] * mij
+                            acc[5, i, j] += tw[3, q] * nij
+                            acc[6, i, j] += tw[4, q] * nij
+                            acc[7, i, j] += tw[5, q] * cij
+                # (t, t): k_a (1−τ)², k_b = k_bᵀ = −(1−τ)n, k_c = n²; (t, t+1): (1−τ)τ, (1−τ)n,
+                # −τn, −n²; (t+1, t+1): τ², τn, τn, n²   (all times w/n)
+                for x in range(3):
+                    hx = x
+                    if x == 0:
+                        mb, nb, mbt, nbt = -1.0, -1.0, -1.0, -1.0
+                        ib, ibt = 3, 3
+                    elif x == 1:
+                        mb, nb, mbt, nbt = 1.0, 1.0, -1.0, -1.0
+                        ib, ibt = 3, 4
+                    else:
+                        mb, nb, mbt, nbt = 1.0, 1.0, 1.0, 1.0
+                        ib, ibt = 4, 4
+                    for i in range(d):
+                        for j in range(d):
+                            hv = acc[hx, i, j]
+                            cv = csign[x] * acc[7, i, j]
+                            kb_m = mb * acc[ib, i, j]
+                            kb_n = nb * acc[ib + 2, i, j]
+                            kbt_m = mbt * acc[ibt, j, i]
+                            kbt_n = nbt * acc[ibt + 2, j, i]
+                            # Q_θθ[a,b] = −2H, Q_θv[a,b] = 2M, Q_θv[b,a] = 2M_ba = −2N, Q_vv[a,b] = g
+                            blk[x, 0, i, j] = -2.0 * hv + 2.0 * kb_m - 2.0 * kbt_n + cv
+                            blk[x, 1, i, j] = -2.0 * hv - 2.0 * kb_n + 2.0 * kbt_m + cv
+                            # Q_θθ[a,a] += 2H, Q_θv[a,a] += 2N; for b: 2H_ba = 2H, 2N_ba = −2M
+                            dacc[a, x, i, j] += 2.0 * hv + 2.0 * kb_n + 2.0 * kbt_n
+                            dacc[b, x, i, j] += 2.0 * hv - 2.0 * kb_m - 2.0 * kbt_m
+                for i in range(d):
+                    for j in range(d):
+                        if t >= 1:
+                            diag[t - 1, a, i, b, j] += blk[0, 0, i, j]
+                            diag[t - 1, b, i, a, j] += blk[0, 1, i, j]
+                        if 1 <= t <= n - 2:
+                            upper[t - 1, a, i, b, j] += blk[1, 0, i, j]
+                            upper[t - 1, b, i, a, j] += blk[1, 1, i, j]
+                        if t <= n - 2:
+                            diag[t, a, i, b, j] += blk[2, 0, i, j]
+                            diag[t, b, i, a, j] += blk[2, 1, i, j]
+        # diagonal blocks, with the a = b term of Q_vv: g_aa = c_aa I/(2σ²), c_aa = norm (Δ = 0)
+        for a in range(k):
+            for i in range(d):
+                for j in range(d):
+                    g0 = 2.0 * ctot * norm * r2 if i == j else 0.0
+                    if t >= 1:
+                        diag[t - 1, a, i, a, j] += dacc[a, 0, i, j] + csign[0] * g0
+                    if 1 <= t <= n - 2:
+                        upper[t - 1, a, i, a, j] += dacc[a, 1, i, j] + csign[1] * g0
+                    if t <= n - 2:
+                        diag[t, a, i, a, j] += dacc[a, 2, i, j] + csign[2] * g0
+    return diag, upper

@@ -1,0 +1,48 @@
+"""The compiled α kernels (shapelib._kernels) against the numpy formulas of shapelib.metrics and
+shapelib.geodesic, which stay as the test oracle (the finite-difference checks of those are in
+tests/test_metrics.py and tests/test_geodesic.py)."""
+import numpy as np
+import pytest
+
+from shapelib import _kernels
+from shapelib.geodesic import _GL3_NODES, _AlphaModel, _energy, _exact_path_hessian, _segment_nodes
+from shapelib.metrics import _alpha_qform, _alpha_qform_grad
+
+
+def _rel(a, b):
+    return np.abs(a - b).max() / np.abs(b).max()
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_alpha_qform_and_gradient_match_numpy(rng, d):
+    theta, vel = rng.normal(size=(2, 7, 6, d))
+    s2 = 0.4
+    assert _rel(_kernels.alpha_qform(theta, vel, s2), _alpha_qform(theta, vel, s2)) < 1e-12
+    for got, ref in zip(_kernels.alpha_qform_grad(theta, vel, s2), _alpha_qform_grad(theta, vel, s2)):
+        assert _rel(got, ref) < 1e-12
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("n", [2, 3, 5])
+def test_alpha_path_hessian_matches_numpy_assembly(rng, d, n):
+    """The fused path Hessian equals the per-node numpy Hessian (metrics._alpha_qform_hessian)
+    combined by geodesic._exact_path_hessian, block by block."""
+    k = 6
+    path = rng.normal(size=(n + 1, k, d))
+    model = _AlphaModel(0.4)
+    theta, vel = _segment_nodes(path, _GL3_NODES)
+    ref = _exact_path_hessian(model, theta.reshape(-1, k, d), np.repeat(vel, len(_GL3_NODES), axis=0), None, n)
+    got = model.path_hessian(path, None)
+    assert got[0].shape == (n - 1, k * d, k * d) and got[1].shape == (n - 2, k * d, k * d)
+    assert _rel(got[0], ref[0]) < 1e-12
+    if n > 2:
+        assert _rel(got[1], ref[1]) < 1e-12
+
+
+def test_alpha_path_hessian_degenerate_paths():
+    """n = 1 has no interior point; n = 2 one diagonal block and no off-diagonal block."""
+    path = np.linspace(np.zeros((3, 2)), np.ones((3, 2)), 2)
+    diag, upper = _AlphaModel(0.5).path_hessian(path, None)
+    assert diag.shape == (0, 6, 6) and upper.shape == (0, 6, 6)
+    _, _, (diag, upper) = _energy(_AlphaModel(0.5), np.linspace(np.zeros((3, 2)), np.ones((3, 2)), 3), hessian="exact")
+    assert diag.shape == (1, 6, 6) and upper.shape == (0, 6, 6) and np.allclose(diag[0], diag[0].T)
