@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["record_values", "load_values", "save_figure", "pair_key", "VALUES_FILE"]
+__all__ = ["record_values", "record_verdict", "load_values", "save_figure", "pair_key", "VALUES_FILE", "VERDICTS"]
 
 VALUES_FILE = "values.json"
 
@@ -89,6 +89,41 @@ def record_values(output_dir, values: dict, *, notes: dict | None = None, meta: 
     current["meta"].update(_to_jsonable(meta or {}))
     _atomic_write_text(path, json.dumps(current, indent=1, sort_keys=True) + "\n")
     return path
+
+
+#: The statuses a figure verdict may have (``REPORT.md``'s "Figures" table).
+VERDICTS = ("reproduced", "reproduced with a difference", "not reproduced")
+
+
+def record_verdict(output_dir, item: str, status: str, text: str) -> Path:
+    """Record the verdict on one paper item (a figure, a section) against its caption and text.
+
+    Stored in ``<output_dir>/values.json`` under ``notes["verdict/<item>"]`` as
+    ``{"status": status, "text": text}``; ``REPORT.md`` lists every verdict in its "Figures" table.
+
+    Parameters
+    ----------
+    output_dir : path-like
+        The notebook's output folder.
+    item : str
+        The paper item, e.g. ``"fig06"`` or ``"sec3e"`` (no ``/``).
+    status : {"reproduced", "reproduced with a difference", "not reproduced"}
+    text : str
+        What was measured and why this status: generated from the notebook's numbers, never
+        a hard-coded claim.
+
+    Raises
+    ------
+    ValueError
+        If ``status`` is not one of :data:`VERDICTS`, or ``item`` or ``text`` is empty.
+    """
+    if status not in VERDICTS:
+        raise ValueError(f"verdict status for {item!r} must be one of {VERDICTS}; got {status!r}")
+    if not isinstance(item, str) or not item or "/" in item:
+        raise ValueError(f"verdict item must be a non-empty name without '/'; got {item!r}")
+    if not isinstance(text, str) or not text.strip():
+        raise ValueError(f"verdict for {item!r} needs a text saying what was measured")
+    return record_values(output_dir, {}, notes={f"verdict/{item}": {"status": status, "text": text.strip()}})
 
 
 def load_values(output_dir) -> dict:
