@@ -63,7 +63,8 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-from scipy.linalg import cholesky, solve_triangular
+from scipy.linalg.blas import dsyrk, dtrsm, dtrsv
+from scipy.linalg.lapack import dpotrf
 from threadpoolctl import ThreadpoolController
 
 from . import _kernels
@@ -129,7 +130,8 @@ class GeodesicResult:
         Energy per iteration, damping, timings, the metric's settings; ``hessian`` ("exact"
         or "model"), ``stopped_by`` ("newton_decrement", "energy_window", "no_decrease",
         "max_iter" or "trivial") and the last ``newton_decrement`` (exact Hessian only, None
-        where it was not positive definite).
+        where it was not positive definite, or not computed because the damped decrement, a
+        lower bound on it, was already above ``tol · E``).
     """
 
     path: np.ndarray
@@ -364,33 +366,43 @@ def _block_cholesky(diag, upper, shift):
 
     ``H = L Lᵀ`` with lower-triangular diagonal blocks ``L_t`` and sub-diagonal blocks
     ``W_t = (L_t⁻¹ U_t)ᵀ``; O(n q³) instead of O(n q³ · 4) for a banded solver of width 2q.
+    Straight LAPACK/BLAS calls (``potrf``, ``trsm``, and ``syrk`` for the Schur complement
+    ``D_{t+1} − W_tᵀ W_t``, half a general product): the blocks are small (q = 126 for the
+    corpus callosum), so the wrappers' checks were a large part of the cost. Stored: ``L_t``
+    and ``W_tᵀ`` (as ``trsm`` returns it).
     """
     m, q, _ = diag.shape
-    eye = shift * np.eye(q)
+    idx = np.arange(q)
     lows, subs = [], []
-    carry = None
+    if m == 0:
+        return lows, subs
+    block = np.array(diag[0], order="F")  # only the lower triangle is read and updated
     for t in range(m):
-        block = diag[t] + eye if carry is None else diag[t] + eye - carry
-        low = cholesky(block, lower=True, check_finite=False)
+        if shift:
+            block[idx, idx] += shift
+        low, info = dpotrf(block, lower=1, clean=1, overwrite_a=1)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"block {t} of the shifted path Hessian is not positive definite")
         lows.append(low)
         if t < m - 1:
-            w = solve_triangular(low, upper[t], lower=True, check_finite=False)  # L_t⁻¹ U_t
-            subs.append(w)
-            carry = w.T @ w
+            wt = dtrsm(1.0, low, upper[t].T, side=1, lower=1, trans_a=1)  # W_tᵀ = U_tᵀ L_t⁻ᵀ
+            subs.append(wt)
+            block = dsyrk(-1.0, wt, beta=1.0, c=np.array(diag[t + 1], order="F"), lower=1, overwrite_c=1)
     return lows, subs
 
 
 def _block_solve(factors, rhs):
+    """Solve ``H x = rhs`` (rhs (m, q)) with the factors of :func:`_block_cholesky`."""
     lows, subs = factors
     m = len(lows)
     y = np.empty_like(rhs)
     for t in range(m):
-        r = rhs[t] if t == 0 else rhs[t] - subs[t - 1].T @ y[t - 1]
-        y[t] = solve_triangular(lows[t], r, lower=True, check_finite=False)
+        r = rhs[t] if t == 0 else rhs[t] - subs[t - 1] @ y[t - 1]
+        y[t] = dtrsv(lows[t], r, lower=1)
     x = np.empty_like(rhs)
     for t in range(m - 1, -1, -1):
-        r = y[t] if t == m - 1 else y[t] - subs[t] @ x[t + 1]
-        x[t] = solve_triangular(lows[t], r, lower=True, trans="T", check_finite=False)
+        r = y[t] if t == m - 1 else y[t] - subs[t].T @ x[t + 1]
+        x[t] = dtrsv(lows[t], r, lower=1, trans=1)
     return x
 
 
@@ -545,14 +557,30 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
             hd, ho = hess
             g2 = grad.reshape(n - 1, -1)
             scale = float(np.mean(np.einsum("tii->t", hd))) / hd.shape[1]
+            # The first damped factorisation of the Levenberg–Marquardt loop below, done first:
+            # it also tells whether the certificate can pass (failed attempts count towards the
+            # loop's 60).
+            pending, tries = None, 0
+            while tries < 60:
+                try:
+                    pending = -_block_solve(_block_cholesky(hd, ho, lam * scale), g2)
+                    break
+                except np.linalg.LinAlgError:  # Hessian + damping not positive definite
+                    lam = max(lam * 2, 1e-12)
+                    tries += 1
             if kind == "exact":
                 # Certificate: where the exact Hessian is positive definite, the Newton decrement
                 # ½ gᵀH⁻¹g estimates the energy still to gain; below tol·E this is a local minimum.
-                try:
-                    newton = -_block_solve(_block_cholesky(hd, ho, 0.0), g2)
-                    newton_decrement = -0.5 * float(np.sum(g2 * newton))
-                except np.linalg.LinAlgError:
-                    newton_decrement = None
+                # For H ≻ 0 and μ > 0, gᵀH⁻¹g ≥ gᵀ(H + μI)⁻¹g: if the damped decrement already
+                # exceeds tol·E the certificate cannot pass, and the unshifted factorisation (which
+                # fails in most iterations) is skipped. Same iterates and stop as attempting it.
+                newton_decrement = None
+                if pending is None or -0.5 * float(np.sum(g2 * pending)) < tol * energy * (1 + 1e-6):
+                    try:
+                        newton = -_block_solve(_block_cholesky(hd, ho, 0.0), g2)
+                        newton_decrement = -0.5 * float(np.sum(g2 * newton))
+                    except np.linalg.LinAlgError:
+                        newton_decrement = None
                 if newton_decrement is not None and newton_decrement < tol * energy:
                     trial = path.copy()
                     trial[1:-1] += newton.reshape(n - 1, k, d)
@@ -564,12 +592,15 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
                     break
             it += 1
             accepted = False
-            for _ in range(60):
-                try:
-                    step = -_block_solve(_block_cholesky(hd, ho, lam * scale), g2)
-                except np.linalg.LinAlgError:  # Hessian + damping not positive definite
-                    lam = max(lam * 2, 1e-12)
-                    continue
+            for _ in range(60 - tries):
+                if pending is not None:
+                    step, pending = pending, None
+                else:
+                    try:
+                        step = -_block_solve(_block_cholesky(hd, ho, lam * scale), g2)
+                    except np.linalg.LinAlgError:  # Hessian + damping not positive definite
+                        lam = max(lam * 2, 1e-12)
+                        continue
                 predicted = -float(np.sum(g2 * step)) - 0.5 * float(np.sum(step * _hess_vec(hd, ho, step)))
                 trial = path.copy()
                 trial[1:-1] += step.reshape(n - 1, k, d)
