@@ -55,6 +55,10 @@ NOTEBOOKS: dict[str, dict] = {
                               "expects": {"fig06/": 8}},
     "sec3e_extrinsic_warp": {"params": {}, "quick": {"n_steps": 4, "max_iter": 5, "grid_size": 48},
                              "data": ["mpeg7/fish-1.gif"], "expects": {"sec3e/": 3}},
+    "alpha_discretisation": {
+        "params": {}, "quick": {"n_pairs": 2, "n_steps_list": [2, 4, 8], "max_iter": 20},
+        "data": CC_FILES, "expects": {"alpha_discretisation/": 13},
+    },
     "table1_pairwise": {
         "params": {"n_steps": 8, "max_iter": 200, "fisher_rao_max_iter": 200, "tol": 1e-6},
         "quick": {"n_steps": 2, "max_iter": 3, "fisher_rao_max_iter": 3, "diffeomorphism_max_iter": 3},

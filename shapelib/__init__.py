@@ -7,13 +7,16 @@ Where each equation lives:
 * eq. (5), the GMM shape density, and closed-form L² quantities: :mod:`shapelib.gmm`
 * eq. (6) Fisher–Rao and eq. (22) α-order metrics: :mod:`shapelib.metrics`
   (quadrature rules: :mod:`shapelib.quadrature`)
-* eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.geodesic`
+* eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.geodesic`;
+  certified distance brackets ``lower ≤ d ≤ upper`` to a relative width: :mod:`shapelib.bracket`
+* σ against the landmarks' scale: :mod:`shapelib.scale`
 * comparison distances: :mod:`shapelib.procrustes`, :mod:`shapelib.splines`,
   :mod:`shapelib.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
 * §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
 """
 
+from .bracket import DistanceBracket, distance_bracket
 from .diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
 from .distances import distance, pair_record, pairwise_distances
 from .geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
@@ -37,6 +40,8 @@ __all__ = [
     "centroid_size",
     "diffeomorphism_warp",
     "distance",
+    "distance_bracket",
+    "DistanceBracket",
     "extrinsic_warp",
     "fisher_rao_lower_bound",
     "fisher_rao_metric",

@@ -68,7 +68,7 @@ from scipy.linalg.lapack import dpotrf
 from threadpoolctl import ThreadpoolController
 
 from . import _kernels
-from ._validate import as_shape_pair, check_positive, check_sigma2
+from ._validate import as_shape_pair, check_dimension, check_positive, check_scale, check_sigma2
 from .gmm import l2_distance
 from .metrics import (
     _alpha_qform_hessian,
@@ -129,9 +129,11 @@ class GeodesicResult:
     log : dict
         Energy per iteration, damping, timings, the metric's settings; ``hessian`` ("exact"
         or "model"), ``stopped_by`` ("newton_decrement", "energy_window", "no_decrease",
-        "max_iter" or "trivial") and the last ``newton_decrement`` (exact Hessian only, None
-        where it was not positive definite, or not computed because the damped decrement, a
-        lower bound on it, was already above ``tol · E``).
+        "max_iter", "target_energy", "trivial", or "underflow" — not converged, with the
+        ``reason`` — when σ is so small that the landmarks' Gaussians do not interact) and the
+        last ``newton_decrement`` (exact Hessian only, None where it was not positive definite,
+        or not computed because the damped decrement, a lower bound on it, was already above
+        ``tol · E``).
     """
 
     path: np.ndarray
@@ -458,6 +460,39 @@ def fisher_rao_lower_bound(u, v, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
 # ---------------------------------------------------------------------------------------------
 
 
+def _check_entry(u, v, s2, *, metric, stacklevel):
+    """Checks shared by :func:`geodesic` and :func:`shapelib.bracket.distance_bracket` at entry:
+    landmark dimension 2 or 3 and σ against the landmarks' scale (:mod:`shapelib.scale`).
+    ``stacklevel`` counts from here (3: the caller of the entry point)."""
+    if metric not in METRICS:
+        raise ValueError(f"metric must be one of {METRICS}; got {metric!r}")
+    check_dimension(u, name="u")
+    return check_scale(np.stack([u, v]), s2, stacklevel=stacklevel + 1)
+
+
+def _underflow(result, ratio):
+    """Why a "converged" result is not, or None.
+
+    A solver that stops before its first step on a path of several landmarks far longer than the
+    bound, with σ below :data:`shapelib.scale.SIGMA_RATIO_MIN` landmark spacings, has not found a
+    geodesic: the Gaussians of different landmarks do not interact (their overlaps underflow), so
+    the gradient that would bend the path is zero to machine precision. Same for an energy that
+    underflows to zero between distinct shapes.
+    """
+    from .scale import SIGMA_RATIO_MIN
+
+    if not result.converged or result.n_iter > 0 or result.log.get("stopped_by") == "trivial":
+        return None
+    if not result.energy > 0:
+        return (f"the path energy underflows to {result.energy!r} between distinct shapes "
+                f"(sigma = {np.sqrt(result.sigma2):.3g} is {ratio:.3g} landmark spacings)")
+    if ratio < SIGMA_RATIO_MIN and result.path.shape[1] > 1 and result.length > 2 * result.lower_bound:
+        return (f"the solver stopped before its first step with length {result.length:.4g}, "
+                f"{result.length / result.lower_bound:.3g} times the lower bound {result.lower_bound:.4g}, "
+                f"because the gradient underflows (norm {result.grad_norm:.2e}): sigma = {np.sqrt(result.sigma2):.3g} "
+                f"is {ratio:.3g} landmark spacings, so the Gaussians of different landmarks do not interact")
+
+
 def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: float = 1e-6,
              max_iter: int = 500, window: int = 5, init=None, grid_spacing: float = DEFAULT_SPACING,
              grid_margin: float = DEFAULT_MARGIN, hessian: str = "exact", warn: bool = True) -> GeodesicResult:
@@ -504,13 +539,24 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
     """
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
+    ratio = _check_entry(u, v, s2, metric=metric, stacklevel=3)
     model = _model(metric, s2, grid_spacing, grid_margin)
-    return minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
-                         warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
+    result = minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
+                           warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
+    reason = _underflow(result, ratio)
+    if reason is not None:
+        result.converged = False
+        result.log["stopped_by"] = "underflow"
+        result.log["reason"] = reason
+        if warn:
+            warnings.warn(f"{metric} geodesic not converged: {reason}. Bring the shapes to a scale that fits "
+                          f"sigma2 (shapelib.scale.to_centroid_size) or choose a larger sigma2.",
+                          GeodesicWarning, stacklevel=2)
+    return result
 
 
 def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, length_scale, sigma2=None,
-                  hessian=None, stacklevel=2) -> GeodesicResult:
+                  hessian=None, stacklevel=2, target_energy=None) -> GeodesicResult:
     """Minimise the piecewise-linear path energy of any metric ``model`` between ``u`` and ``v``.
 
     ``model`` provides ``prepare(points)``, ``qform``/``qform_grad`` (``vᵀ g(θ) v`` and its
@@ -518,6 +564,10 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
     ``settings`` — see :class:`_AlphaModel`; models with ``qform_hessian`` get exact Newton
     steps unless ``hessian="model"``. The α-order, Fisher–Rao and landmark-diffeomorphism
     (:mod:`shapelib.diffeomorphism`) metrics all go through here.
+
+    ``target_energy``: stop as soon as the energy is at or below it (``stopped_by ==
+    "target_energy"``, counted as converged) — :func:`shapelib.bracket.distance_bracket` passes
+    ``(lower · (1 + rtol))²``, since ``length ≤ √E``.
     """
     if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 1:
         raise ValueError(f"n_steps must be a positive integer; got {n_steps!r}")
@@ -548,12 +598,22 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
         rel_change = 0.0
         it = 0
         kind = "exact" if hessian in (None, "exact") and hasattr(model, "qform_hessian") else "model"
-        energy, grad, hess = _energy(model, path, gradient=not converged, hessian=None if converged else kind)
+        trivial = converged
+        energy, grad, hess = None, None, None
+        if target_energy is not None and not converged:  # the start may do
+            energy = _energy(model, path, gradient=False)[0]
+            converged = energy <= target_energy
+        if energy is None or not converged:
+            energy, grad, hess = _energy(model, path, gradient=not converged, hessian=None if converged else kind)
         energies.append(energy)
-        stopped_by = "trivial" if converged else "max_iter"
+        stopped_by = ("target_energy" if target_energy is not None and not trivial else "trivial") if converged \
+            else "max_iter"
         newton_decrement = None
         lam = 1e-3  # damping, relative to the mean diagonal of the Hessian
         while not converged and it < max_iter:
+            if target_energy is not None and energy <= target_energy:
+                converged, stopped_by = True, "target_energy"
+                break
             hd, ho = hess
             g2 = grad.reshape(n - 1, -1)
             scale = float(np.mean(np.einsum("tii->t", hd))) / hd.shape[1]
@@ -619,7 +679,9 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
                 break
             rel_change = actual / energy
             path = trial
-            energy, grad, hess = _energy(model, path, hessian=kind)
+            # no Hessian once the target is met: the loop stops before using it
+            done = target_energy is not None and e_trial <= target_energy
+            energy, grad, hess = _energy(model, path, hessian=None if done else kind)
             energies.append(energy)
             dampings.append(lam)
             if len(energies) > window and (energies[-1 - window] - energy) < tol * energy:

@@ -147,17 +147,13 @@ def save_figure(fig, output_dir, name: str, *, dpi: int = 120) -> Path:
     return path
 
 
-#: Centroid size at which Table I's distances appear to have been computed (see table1_pairwise).
-PAPER_CENTROID_SIZE = 20.0
+from .scale import PAPER_CENTROID_SIZE, to_centroid_size  # noqa: E402  (the one place for the study's scale)
 
 
 def paper_scale(shapes, *, size: float = PAPER_CENTROID_SIZE) -> np.ndarray:
     """Shapes as the study compares them: generalised-Procrustes aligned (rotations only),
     centred, each scaled to centroid size ``size``."""
-    from .procrustes import generalized_procrustes
-
-    aligned, _ = generalized_procrustes(shapes, scaling=False)
-    return aligned * size
+    return to_centroid_size(shapes, size)
 
 
 def _geodesic_task(args):

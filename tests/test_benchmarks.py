@@ -64,3 +64,25 @@ def test_dense_hessian_matches_the_block_product(rng):
     xv = rng.normal(size=(3, 4))
     np.testing.assert_allclose(bench.dense_hessian(diag, upper) @ xv.ravel(), geo._hess_vec(diag, upper, xv).ravel(),
                                atol=1e-12)
+
+
+def _load_bench(name):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@requires_data
+def test_bench_bracket_quick_run_reports_certified_brackets(tmp_path):
+    bench = _load_bench("bench_bracket")
+    report = bench.main(["--quick", "--json", str(tmp_path / "out.json")])
+    assert (tmp_path / "out.json").is_file()
+    assert set(report["cases"]) == {c[0] for c in bench.CASES}
+    for name, case in report["cases"].items():
+        assert case["pairs_per_second"] > 0 and case["lower_le_upper"], name
+        for b in case["brackets"]:
+            assert b["lower"] <= b["upper"]
+            assert (b["rel_gap"] <= report["rtol"]) == b["converged"], name
+    # at sigma2 = 0.5 both metrics close the bracket on these pairs
+    assert report["cases"]["alpha_s2_0.5"]["converged"] == report["cases"]["alpha_s2_0.5"]["pairs"]
