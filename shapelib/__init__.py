@@ -29,6 +29,7 @@ from .procrustes import (
     procrustes_align,
     procrustes_distance,
 )
+from .scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
 from .splines import hausdorff_distance, tps_bending_energy, wendland_bending_energy
 from .warp import extrinsic_warp
 
@@ -52,6 +53,7 @@ __all__ = [
     "GeodesicWarning",
     "gmm_density",
     "hausdorff_distance",
+    "landmark_spacing",
     "l2_distance",
     "landmark_diffeomorphism",
     "pair_record",
@@ -60,6 +62,9 @@ __all__ = [
     "preshape",
     "procrustes_align",
     "procrustes_distance",
+    "ScaleWarning",
+    "sigma_ratio",
+    "to_centroid_size",
     "tps_bending_energy",
     "wendland_bending_energy",
 ]
