@@ -641,8 +641,10 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token)
                 except (OSError, TimeoutError) as exc:
                     raise ValueError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from exc
             else:
-                cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=40)
+                with warnings.catch_warnings():  # the scheduler's HTTP port moves if 8787 is taken
+                    warnings.filterwarnings("ignore", message="Port .* is already in use")
+                    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                           dashboard_address=None, silence_logs=40)
                 own_client = Client(cluster)
             client = own_client
         # keep a bounded number of blocks in flight (the shapes of each travel with its task)

@@ -95,3 +95,33 @@ def test_unknown_metric_parameter_or_rtol_is_named(shapes):
         pair_record(u, v, metric="tps", rtol=1e-3)
     with pytest.raises(ValueError, match="unknown metric"):
         pairwise_distances(np.stack([u, v]), metric="cosine")
+
+
+@pytest.mark.filterwarnings("ignore::shapelib.geodesic.GeodesicWarning")  # a stalled bracket says so; checked below
+def test_rtol_gives_the_certified_bracket(shapes):
+    from shapelib import l2_distance
+    from shapelib.distances import pair_record
+
+    u, v = shapes[:2]
+    rec = pair_record(u, v, metric="alpha", sigma2=0.5, rtol=1e-3)
+    assert rec["lower"] == pytest.approx(l2_distance(u, v, 0.5), rel=1e-12)
+    assert rec["lower"] <= rec["upper"] == rec["value"]
+    assert rec["converged"] == (rec["upper"] / rec["lower"] - 1 <= 1e-3)
+    assert rec["n_iter"] > 0 and rec["seconds"] > 0
+    assert distance(u, v, metric="alpha", sigma2=0.5, rtol=1e-3) == pytest.approx(rec["value"], rel=1e-12)
+    with pytest.raises(ValueError, match="has no parameter"):
+        pair_record(u, v, metric="alpha", sigma2=0.5, rtol=1e-3, bogus=1)
+
+
+def test_pairwise_with_rtol_records_it_in_the_store(shapes, tmp_path):
+    from shapelib.pairwise import compute_pairwise
+
+    x = shapes[:3]
+    r = compute_pairwise(x, metric="alpha", sigma2=0.5, rtol=1e-2, n_jobs=1, store=tmp_path / "D.zarr",
+                         progress=False)
+    assert r.params["rtol"] == 1e-2 and np.all(r.lower <= r.upper)
+    bound = pairwise_distances(x, metric="alpha_bound", sigma2=0.5, n_jobs=1, progress=False)
+    np.testing.assert_allclose(r.lower, bound, rtol=1e-12, atol=1e-15)
+    with pytest.raises(ValueError, match="rtol 0.01, not 0.001"):
+        compute_pairwise(x, metric="alpha", sigma2=0.5, rtol=1e-3, n_jobs=1, store=tmp_path / "D.zarr",
+                         progress=False)

@@ -1,0 +1,156 @@
+#!/usr/bin/env python
+"""Throughput of the pairwise engine on ADHD-200 shapes (issue 12, "Benchmark").
+
+For each metric, a random subset of the 647 ADHD-200 corpus callosum contours (50 landmarks,
+generalised-Procrustes aligned and scaled to centroid size 20 as in the study:
+:func:`shapelib.study.paper_scale`) is run through :func:`shapelib.pairwise.compute_pairwise`
+with 1 worker (in this process, as ``n_jobs=1`` does) and on a ``LocalCluster`` of 2 (or
+``--workers``) single-threaded processes started once beforehand (its start-up is reported
+separately, not charged to any metric). Reported per metric and worker count: pairs, wall seconds,
+pairs/s, and the scaling efficiency ``rate_w / (w · rate_1)``; then the projected wall-clock of the
+full 647-shape matrices (208,981 pairs) of the α and Fisher–Rao geodesic distances on N workers,
+from the mean measured seconds per pair and the measured 2-worker efficiency.
+
+The geodesic metrics use the certified bracket (``rtol``, :func:`shapelib.bracket.distance_bracket`)
+when :mod:`shapelib.bracket` is installed, else the plain geodesic (``tol`` 1e-6): the report says which.
+Not a test: numbers depend on the machine and its load (``/proc/loadavg`` is recorded).
+
+    python benchmarks/bench_pairwise.py [--sigma2 0.5] [--workers 1 2] [--json out.json] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from shapelib.datasets import load_adhd200  # noqa: E402
+from shapelib.pairwise import compute_pairwise  # noqa: E402
+from shapelib.study import paper_scale  # noqa: E402
+
+#: shapes per metric (full run): a few seconds to a few minutes of work each on one core
+SIZES = {"procrustes": 80, "tps": 60, "hausdorff": 80, "alpha_bound": 80, "fisher_rao_bound": 40,
+         "alpha": 6, "fisher_rao": 4}
+QUICK_SIZES = {"procrustes": 8, "tps": 6, "hausdorff": 8, "alpha_bound": 8, "fisher_rao_bound": 4,
+               "alpha": 3, "fisher_rao": 2}
+FULL_N = 647
+PROJECT_WORKERS = (1, 2, 8, 32, 128)
+
+
+def loadavg() -> str:
+    try:
+        return Path("/proc/loadavg").read_text().split(" ", 3)[:3].__str__()
+    except OSError:
+        return "unknown"
+
+
+def metric_params(metric: str, args, bracket: bool) -> dict:
+    if metric in ("alpha", "fisher_rao"):
+        kw = {"sigma2": args.sigma2}
+        if bracket:
+            kw["rtol"] = args.rtol
+        if args.quick:  # a smoke test of the machinery, not a distance anyone should use
+            kw.update({"n_steps": 4, "max_n_steps": 4, "level_iter": 2, "rtol": 0.5} if bracket
+                      else {"n_steps": 4, "max_iter": 3})
+        return kw
+    if metric in ("alpha_bound", "fisher_rao_bound"):
+        return {"sigma2": args.sigma2}
+    return {}
+
+
+def run(x, metric, params, *, workers, client):
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # non-converged pairs are counted below instead
+        if workers == 1:
+            r = compute_pairwise(x, metric=metric, n_jobs=1, progress=False, **params)
+        else:
+            r = compute_pairwise(x, metric=metric, client=client, progress=False, **params)
+    wall = time.perf_counter() - t0
+    frame = r.to_frame()
+    return {"pairs": len(frame), "wall_seconds": wall, "pairs_per_second": len(frame) / wall,
+            "mean_seconds_per_pair": float(frame.seconds.mean()), "block_size": r.log["block_size"],
+            "blocks": r.log["blocks_total"], "nonconverged": len(r.nonconverged_pairs())}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sigma2", type=float, default=0.5)
+    ap.add_argument("--rtol", type=float, default=1e-3)
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--metrics", nargs="+", default=list(SIZES), choices=list(SIZES))
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--quick", action="store_true", help="tiny subsets, n_steps=4 (smoke test)")
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args(argv)
+    bracket = importlib.util.find_spec("shapelib.bracket") is not None
+    sizes = QUICK_SIZES if args.quick else SIZES
+    contours, _ = load_adhd200()
+    x_all = paper_scale(contours)
+    order = np.random.default_rng(args.seed).permutation(len(x_all))
+    report = {"machine_cores": os.cpu_count(), "loadavg_start": loadavg(), "sigma2": args.sigma2,
+              "geodesics": f"bracket rtol={args.rtol}" if bracket else "plain geodesic (tol 1e-6)",
+              "quick": args.quick, "metrics": {}}
+    print(f"ADHD-200, centroid size 20, sigma2={args.sigma2}; geodesics: {report['geodesics']}; "
+          f"load {report['loadavg_start']}")
+    clusters = {}
+    try:
+        from distributed import Client, LocalCluster
+
+        for w in args.workers:
+            if w > 1:
+                t0 = time.perf_counter()
+                cluster = LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None,
+                                       silence_logs=40)
+                client = Client(cluster)
+                client.run(lambda: __import__("shapelib.pairwise"))  # workers import shapelib once, up front
+                clusters[w] = (cluster, client)
+                report[f"cluster_startup_seconds_{w}"] = time.perf_counter() - t0
+                print(f"LocalCluster({w}) started in {report[f'cluster_startup_seconds_{w}']:.1f} s")
+        for metric in args.metrics:
+            x = x_all[order[: sizes[metric]]]
+            params = metric_params(metric, args, bracket)
+            out = {"n_shapes": len(x), "params": params}
+            for w in args.workers:
+                out[w] = run(x, metric, params, workers=w, client=clusters.get(w, (None, None))[1])
+            base = out[args.workers[0]]["pairs_per_second"] / args.workers[0]
+            for w in args.workers:
+                out[w]["efficiency"] = out[w]["pairs_per_second"] / (w * base)
+            report["metrics"][metric] = out
+            print(f"{metric:>17} ({len(x):3d} shapes): " + "  ".join(
+                f"{w} worker(s): {out[w]['pairs']} pairs {out[w]['wall_seconds']:7.2f} s "
+                f"{out[w]['pairs_per_second']:9.2f} pairs/s eff {out[w]['efficiency']:.2f}" for w in args.workers))
+    finally:
+        for cluster, client in clusters.values():
+            client.close()
+            cluster.close()
+    full_pairs = FULL_N * (FULL_N - 1) // 2
+    report["projection"] = {}
+    for metric in ("alpha", "fisher_rao"):
+        if metric not in report["metrics"]:
+            continue
+        out = report["metrics"][metric]
+        per_pair = out[args.workers[0]]["mean_seconds_per_pair"]
+        eff = min(1.0, out[max(args.workers)]["efficiency"]) if len(args.workers) > 1 else 1.0
+        proj = {n: full_pairs * per_pair / (n * (eff if n > 1 else 1.0)) / 3600 for n in PROJECT_WORKERS}
+        report["projection"][metric] = {"seconds_per_pair": per_pair, "efficiency_used": eff, "hours": proj}
+        print(f"full {FULL_N}-shape {metric} matrix ({full_pairs} pairs, {per_pair:.2f} s/pair, efficiency "
+              f"{eff:.2f}): " + ", ".join(f"{n} workers {h:.1f} h" for n, h in proj.items()))
+    report["loadavg_end"] = loadavg()
+    print(f"load at the end {report['loadavg_end']}")
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1, default=str))
+    return report
+
+
+if __name__ == "__main__":
+    main()
