@@ -35,6 +35,7 @@ from ._validate import as_shape_pair, check_positive, check_sigma2
 from .geodesic import GeodesicWarning, _model, fisher_rao_lower_bound, minimise_path
 from .gmm import l2_distance
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
+from .scale import SIGMA_RATIO_MIN
 
 __all__ = ["DistanceBracket", "distance_bracket", "lower_bound"]
 
@@ -201,7 +202,7 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
 
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
-    _check_entry(u, v, s2, metric=metric, stacklevel=3)
+    ratio = _check_entry(u, v, s2, metric=metric, stacklevel=3)
     rtol = check_positive(rtol, name="rtol")
     n = _positive_int(n_steps, "n_steps")
     max_n = _positive_int(max_n_steps, "max_n_steps")
@@ -213,7 +214,8 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
     model = _model(metric, s2, grid_spacing, grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter,
-               "level_tol": level_tol, "min_shrink": float(min_shrink), "hessian": hessian, **model.settings()}
+               "level_tol": level_tol, "min_shrink": float(min_shrink), "hessian": hessian, "sigma_ratio": ratio,
+               **model.settings()}
 
     if np.array_equal(u, v):
         path = np.stack([u] * (n + 1))
@@ -257,9 +259,12 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
             f"{metric} distance bracket stopped ({stopped_by}) at relative gap {gap:.2e} > rtol {rtol:.1e} "
             f"(n_steps {n}, {n_iter} iterations): the distance is certified only to lie in "
             f"[{lower:.6g}, {upper:.6g}]" + (
+                "; raise max_n_steps to refine further" if stopped_by == "max_n_steps" else
+                f"; sigma is {ratio:.3g} landmark spacings, so the Gaussians of different landmarks do not "
+                f"interact and the gradient that would shorten the path underflows: bring the shapes to a "
+                f"scale that fits sigma2 (shapelib.scale.to_centroid_size)" if ratio < SIGMA_RATIO_MIN else
                 "; the gap no longer shrinks with n_steps, so the geodesic is itself longer than the "
-                "closed-form bound (typical at small sigma2)" if stopped_by == "stalled" else
-                "; raise max_n_steps to refine further"),
+                "closed-form bound (typical at small sigma2)"),
             GeodesicWarning, stacklevel=2)
     return DistanceBracket(lower=lower, upper=float(upper), rel_gap=float(gap), energy=float(energy), path=path,
                            metric=metric, sigma2=s2, n_steps=n, n_iter=n_iter, converged=converged,

@@ -481,11 +481,13 @@ def _underflow(result, ratio):
     """
     from .scale import SIGMA_RATIO_MIN
 
-    if not result.converged or result.n_iter > 0 or result.log.get("stopped_by") == "trivial":
+    if not result.converged or result.log.get("stopped_by") == "trivial":
         return None
     if not result.energy > 0:
         return (f"the path energy underflows to {result.energy!r} between distinct shapes "
                 f"(sigma = {np.sqrt(result.sigma2):.3g} is {ratio:.3g} landmark spacings)")
+    if result.n_iter > 0:
+        return None
     if ratio < SIGMA_RATIO_MIN and result.path.shape[1] > 1 and result.length > 2 * result.lower_bound:
         return (f"the solver stopped before its first step with length {result.length:.4g}, "
                 f"{result.length / result.lower_bound:.3g} times the lower bound {result.lower_bound:.4g}, "

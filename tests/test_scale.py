@@ -85,6 +85,20 @@ def test_underflowing_gradient_is_not_convergence():
             r = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=4)
     assert not r.converged and r.n_iter == 0 and r.log["stopped_by"] == "underflow"
     assert "do not interact" in r.log["reason"] and r.length > 2 * r.lower_bound
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ScaleWarning)
+        with pytest.warns(GeodesicWarning, match=r"stalled.*do not interact.*to_centroid_size"):
+            b = distance_bracket(u, v, metric="alpha", sigma2=0.5)
+    assert not b.converged and b.rel_gap > 1.0 and b.lower <= b.upper
+
+
+def test_underflowing_energy_is_not_convergence():
+    u = square_lattice(2, 1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ScaleWarning)  # sigma far above the shape: warned too
+        with pytest.warns(GeodesicWarning, match=r"path energy underflows to 0.0 between distinct shapes"):
+            r = geodesic(u, u * 1.2, metric="alpha", sigma2=1e200, n_steps=4)
+    assert not r.converged and r.log["stopped_by"] == "underflow"
 
 
 def test_fisher_rao_grid_is_refused_before_it_is_built():
