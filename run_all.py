@@ -6,6 +6,7 @@ Usage::
     python run_all.py                 # full parameters, all notebooks, in parallel
     python run_all.py --quick         # the quick parameters CI uses
     python run_all.py --only table1_pairwise --force
+    python run_all.py --only fig04_line_bending -p sigma2=0.02 -p n_steps=16
     python run_all.py --list
 
 Each notebook (``notebooks/<name>.py``, jupytext percent format, one cell tagged
@@ -14,18 +15,35 @@ and moved to ``results/<name>/`` only when it succeeds, so a failed or interrupt
 leaves a half-written folder nor destroys the previous results. A notebook whose inputs
 (its source, the ``shapelib`` sources, its parameters, the checksums of its data files) are
 unchanged since its last successful run is skipped unless ``--force``.
+
+``-p name=value`` (repeatable) sets a parameter of every selected notebook that declares it;
+the value is read as a Python literal (``ast.literal_eval``; text that is not a literal is a
+string) and must have the type of the notebook's default. The parameters actually used (the
+notebook's defaults with every override applied) are recorded in ``values.json`` (meta
+``parameters``) and in ``.inputs.json``.
+
+Ctrl-C (SIGINT) or SIGTERM stops every process the run started (the notebook kernels, which
+papermill starts in their own process groups, and their worker processes), removes the
+temporary folders and leaves the previous results as they were; the exit code is 128 + the
+signal number.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import concurrent.futures as cf
+import datetime
 import hashlib
 import json
 import os
+import platform
+import queue
 import shutil
+import signal
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -82,15 +100,113 @@ class NotebookError(RuntimeError):
     """A notebook failed; the message names the failing cell."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived while notebooks were running; ``signum`` says which."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+#: Set while a run is being stopped: notebooks that have not started yet are not started.
+_STOPPING = threading.Event()
+#: Temporary folders of the notebooks executing right now (removed when a run is stopped).
+_RUNNING_TMP: set[Path] = set()
+_TMP_LOCK = threading.Lock()
+
+
+class _Source(str):
+    """Source text of a parameter default that is not a Python literal (e.g. a function call)."""
+
+
 def _sha256_bytes(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def notebook_parameters(name: str, *, quick: bool) -> dict:
+# ---------------------------------------------------------------------------------------------
+# parameters
+
+def _declared_parameters(nb, name: str = "notebook") -> dict:
+    """``{name: default}`` of the assignments in the cell tagged ``parameters``.
+
+    Literal defaults are evaluated (``ast.literal_eval``); others are kept as their source text
+    (a :class:`_Source`), which is recorded but never type-checked.
+    """
+    for cell in nb.cells:
+        if "parameters" in cell.get("metadata", {}).get("tags", []):
+            declared = {}
+            for node in ast.parse(cell.source).body:
+                if isinstance(node, ast.Assign):
+                    targets, value = node.targets, node.value
+                elif isinstance(node, ast.AnnAssign) and node.value is not None:
+                    targets, value = [node.target], node.value
+                else:
+                    continue
+                try:
+                    default = ast.literal_eval(value)
+                except (ValueError, TypeError, SyntaxError):
+                    default = _Source(ast.get_source_segment(cell.source, value))
+                declared.update({t.id: default for t in targets if isinstance(t, ast.Name)})
+            return declared
+    raise NotebookError(f"{name}: no cell tagged 'parameters'")
+
+
+def declared_parameters(name: str) -> dict:
+    """The parameters ``notebooks/<name>.py`` declares, with their defaults."""
+    import jupytext
+
+    return _declared_parameters(jupytext.read(NOTEBOOK_DIR / f"{name}.py"), name)
+
+
+def _same_kind(value, default) -> bool:
+    if isinstance(default, bool) or isinstance(value, bool):
+        return isinstance(value, bool) and isinstance(default, bool)
+    if isinstance(default, float):
+        return isinstance(value, (int, float))
+    if isinstance(default, (list, tuple)):
+        return isinstance(value, (list, tuple))
+    return isinstance(value, type(default))
+
+
+def check_parameters(name: str, params: dict, declared: dict) -> None:
+    """ValueError if ``params`` names a parameter ``name`` does not declare, or a value whose type
+    differs from the declared default's (an int is accepted for a float)."""
+    unknown = sorted(set(params) - set(declared))
+    if unknown:
+        raise ValueError(f"{name}: unknown parameter(s) {unknown}; the notebook declares {sorted(declared)}")
+    for key, value in params.items():
+        default = declared[key]
+        if default is None or isinstance(default, _Source):
+            continue
+        if not _same_kind(value, default):
+            raise ValueError(
+                f"{name}: parameter {key!r} must be a {type(default).__name__} like its default {default!r}; "
+                f"got {value!r} ({type(value).__name__})"
+            )
+
+
+def parse_parameter(text: str) -> tuple[str, object]:
+    """``"sigma2=0.5"`` -> ``("sigma2", 0.5)``: the value is a Python literal, else a string."""
+    key, sep, raw = text.partition("=")
+    key, raw = key.strip(), raw.strip()
+    if not sep or not key.isidentifier():
+        raise ValueError(f"-p {text!r}: expected name=value, e.g. -p sigma2=0.5")
+    try:
+        return key, ast.literal_eval(raw)
+    except (ValueError, TypeError, SyntaxError, MemoryError, RecursionError):
+        return key, raw
+
+
+def notebook_parameters(name: str, *, quick: bool, overrides: dict | None = None) -> dict:
+    """The parameters run_all passes to ``name``: the registry's, its quick ones if ``quick``, then
+    those of ``overrides`` the notebook declares."""
     spec = NOTEBOOKS[name]
     params = dict(spec["params"])
     if quick:
         params.update(spec["quick"])
+    if overrides:
+        declared = declared_parameters(name)
+        params.update({k: v for k, v in overrides.items() if k in declared})
     return params
 
 
@@ -108,28 +224,44 @@ def input_fingerprint(name: str, params: dict) -> str:
     return h.hexdigest()
 
 
-def _declared_parameters(nb) -> set[str]:
-    """Names assigned in the cell tagged ``parameters``."""
-    import ast
+# ---------------------------------------------------------------------------------------------
+# executing one notebook
 
-    for cell in nb.cells:
-        if "parameters" in cell.get("metadata", {}).get("tags", []):
-            tree = ast.parse(cell.source)
-            names = set()
-            for node in tree.body:
-                targets = node.targets if isinstance(node, ast.Assign) else [getattr(node, "target", None)]
-                names |= {t.id for t in targets if isinstance(t, ast.Name)}
-            return names
-    raise NotebookError("no cell tagged 'parameters'")
+def _kernel_options() -> dict:
+    """Options for papermill's kernel client (nbclient).
+
+    * ``--matplotlib=inline``: the kernel draws with matplotlib's inline backend, so the executed
+      notebook shows its figures, whatever ``MPLBACKEND`` the caller exported (CI sets Agg);
+      ``shapelib.study.save_figure`` still writes every figure as a PNG file.
+    * ``KernelManager.transport_encryption = "auto"``: the kernel manager provisions CurveZMQ keys
+      for the kernel's local TCP sockets. Without them ipykernel (>= 7.4) warns "Kernel is running
+      over TCP without encryption" at every start. Where pyzmq lacks CurveZMQ, the kernel talks
+      over IPC (Unix sockets) instead, which the warning also accepts.
+    """
+    import zmq
+    from traitlets.config import Config
+
+    config = Config()
+    if zmq.has("curve"):
+        config.KernelManager.transport_encryption = "auto"
+    else:
+        config.KernelManager.transport = "ipc"
+    return {"config": config, "extra_arguments": ["--matplotlib=inline"]}
 
 
-def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: bool = False) -> None:
+def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: bool = False,
+                     progress: bool | dict = False) -> dict:
     """Run ``notebooks/<name>.py`` with ``params``; outputs (incl. the executed notebook) go to ``output_dir``.
+
+    ``progress`` is papermill's ``progress_bar`` (a tqdm bar over the cells; a dict gives tqdm
+    options). Returns the parameters the notebook ran with: its declared defaults with ``params``
+    applied (``output_dir`` left out).
 
     Raises
     ------
     ValueError
-        If ``params`` names a parameter the notebook does not declare.
+        If ``params`` names a parameter the notebook does not declare, or a value of another type
+        than the declared default.
     NotebookError
         If a cell raises; the message names the cell.
     """
@@ -138,10 +270,10 @@ def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: b
     import papermill as pm
 
     nb = jupytext.read(NOTEBOOK_DIR / f"{name}.py")
-    declared = _declared_parameters(nb)
-    unknown = sorted(set(params) - declared)
-    if unknown:
-        raise ValueError(f"{name}: unknown parameter(s) {unknown}; the notebook declares {sorted(declared)}")
+    declared = _declared_parameters(nb, name)
+    check_parameters(name, params, declared)
+    used = {k: (str(v) if isinstance(v, _Source) else v) for k, v in declared.items() if k != "output_dir"}
+    used.update({k: v for k, v in params.items() if k != "output_dir"})
     nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
     nb.metadata["language_info"] = {"name": "python"}
     output_dir.mkdir(parents=True, exist_ok=True)
@@ -151,7 +283,8 @@ def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: b
     try:
         pm.execute_notebook(
             str(src), str(out), parameters={**params, "output_dir": str(output_dir)},
-            kernel_name="python3", cwd=str(ROOT), progress_bar=False, log_output=log_output,
+            kernel_name="python3", cwd=str(ROOT), progress_bar=progress, log_output=log_output,
+            **_kernel_options(),
         )
     except pm.PapermillExecutionError as exc:
         raise NotebookError(
@@ -159,11 +292,24 @@ def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: b
         ) from None
     finally:
         src.unlink(missing_ok=True)
+    return used
 
 
-def run_one(name: str, *, quick: bool, force: bool, results_dir: Path = RESULTS_DIR) -> tuple[str, str, float, str]:
-    """Run one notebook atomically into ``results_dir/<name>``. Returns (name, status, seconds, message)."""
-    params = notebook_parameters(name, quick=quick)
+def _machine() -> dict:
+    return {"cpus": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version(),
+            "loadavg_1min": round(os.getloadavg()[0], 2)}
+
+
+def run_one(name: str, *, quick: bool, force: bool, results_dir: Path = RESULTS_DIR, overrides: dict | None = None,
+            progress: bool | dict = False, on_start=None, jobs: int = 1) -> tuple[str, str, float, str]:
+    """Run one notebook atomically into ``results_dir/<name>``. Returns (name, status, seconds, message).
+
+    ``status`` is ``"ok"``, ``"skipped"`` (inputs unchanged), ``"FAILED"`` or ``"interrupted"``
+    (the run is being stopped). ``overrides`` are ``-p`` parameters (those the notebook does not
+    declare are ignored); ``on_start(name)`` is called when the notebook starts executing;
+    ``jobs`` (how many notebooks run side by side) is recorded with the timing.
+    """
+    params = notebook_parameters(name, quick=quick, overrides=overrides)
     fingerprint = input_fingerprint(name, params)
     final = results_dir / name
     info_path = final / ".inputs.json"
@@ -173,17 +319,28 @@ def run_one(name: str, *, quick: bool, force: bool, results_dir: Path = RESULTS_
                 return name, "skipped", 0.0, "inputs unchanged"
         except json.JSONDecodeError:
             pass
+    if _STOPPING.is_set():
+        return name, "interrupted", 0.0, "not started"
     results_dir.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-", dir=results_dir))
+    with _TMP_LOCK:
+        _RUNNING_TMP.add(tmp)
     t0 = time.perf_counter()
     try:
-        execute_notebook(name, params, tmp)
+        if on_start is not None:
+            on_start(name)
+        used = execute_notebook(name, params, tmp, progress=progress)
         seconds = time.perf_counter() - t0
         if not (tmp / "values.json").exists():
             raise NotebookError(f"{name}: finished without writing values.json")
+        from shapelib.study import record_values
+
+        record_values(tmp, {}, meta={"parameters": used})
         (tmp / ".inputs.json").write_text(json.dumps(
-            {"fingerprint": fingerprint, "params": params, "mode": "quick" if quick else "full",
-             "seconds": round(seconds, 2)}, indent=1, sort_keys=True) + "\n")
+            {"fingerprint": fingerprint, "params": used, "overrides": params, "mode": "quick" if quick else "full",
+             "seconds": round(seconds, 2), "jobs": jobs, "machine": _machine(),
+             "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")},
+            indent=1, sort_keys=True) + "\n")
         # swap into place: the old folder is only removed once the new one is in place
         old = None
         if final.exists():
@@ -198,7 +355,88 @@ def run_one(name: str, *, quick: bool, force: bool, results_dir: Path = RESULTS_
         shutil.rmtree(tmp, ignore_errors=True)
         if isinstance(exc, (KeyboardInterrupt, SystemExit)):
             raise
+        if _STOPPING.is_set():
+            return name, "interrupted", time.perf_counter() - t0, "stopped by a signal"
         return name, "FAILED", time.perf_counter() - t0, str(exc)
+    finally:
+        with _TMP_LOCK:
+            _RUNNING_TMP.discard(tmp)
+
+
+# ---------------------------------------------------------------------------------------------
+# stopping
+
+def stop_child_processes(*, grace: float = 5.0) -> int:
+    """Stop every process this one started, with all their descendants; return how many there were.
+
+    papermill's kernels run in their own process groups (jupyter_client starts them in a new
+    session), so a terminal's Ctrl-C reaches neither them nor their workers (process pools, Dask
+    LocalCluster processes). Each such group is signalled as a whole, which also reaches workers
+    re-parented after their parent died, and so is every descendant psutil lists: SIGTERM, then
+    SIGKILL for whatever still runs after ``grace`` seconds.
+    """
+    import psutil
+
+    procs = psutil.Process().children(recursive=True)
+    own_group = os.getpgrp()
+    groups = set()
+    for p in procs:
+        try:
+            group = os.getpgid(p.pid)
+        except ProcessLookupError:
+            continue
+        if group != own_group:
+            groups.add(group)
+
+    def send(sig, targets):
+        for group in groups:
+            try:
+                os.killpg(group, sig)
+            except (ProcessLookupError, PermissionError):
+                pass
+        for p in targets:
+            try:
+                p.send_signal(sig)
+            except psutil.NoSuchProcess:
+                pass
+
+    def running(p):
+        try:
+            return p.status() != psutil.STATUS_ZOMBIE
+        except psutil.NoSuchProcess:
+            return False
+
+    def wait(targets):
+        deadline = time.monotonic() + grace
+        while targets and time.monotonic() < deadline:
+            targets = [p for p in targets if running(p)]
+            time.sleep(0.05 if targets else 0)
+        return targets
+
+    if not procs:
+        return 0
+    send(signal.SIGTERM, procs)
+    alive = wait(procs)
+    send(signal.SIGKILL, alive)  # the groups too: members that were not our descendants any more
+    wait(alive)
+    return len(procs)
+
+
+def _stop_run(pool: cf.ThreadPoolExecutor, futures) -> None:
+    """Cancel the notebooks not started, stop the running ones' processes, remove their folders."""
+    _STOPPING.set()
+    pool.shutdown(wait=False, cancel_futures=True)
+    running = [f for f in futures if not f.done()]
+    while True:
+        stop_child_processes()  # again on every pass: a thread may have been starting a kernel
+        _, pending = cf.wait(running, timeout=1.0)
+        running = list(pending)
+        if not running:
+            break
+    with _TMP_LOCK:
+        leftovers = list(_RUNNING_TMP)
+    for tmp in leftovers:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _clean_stale(results_dir: Path) -> None:
@@ -206,30 +444,115 @@ def _clean_stale(results_dir: Path) -> None:
         shutil.rmtree(p, ignore_errors=True)
 
 
-def run_all(names, *, quick: bool, force: bool, jobs: int, results_dir: Path = RESULTS_DIR) -> int:
-    """Run ``names`` (in parallel), print one line per notebook, write the report. Returns an exit code."""
+# ---------------------------------------------------------------------------------------------
+# progress
+
+class _Progress:
+    """What a run shows while it works.
+
+    On a terminal: a tqdm bar over the notebooks and, for every running notebook, papermill's tqdm
+    bar over its cells. Otherwise (a CI log): a line when a notebook starts and, every
+    ``heartbeat`` seconds, a line naming the notebooks still running, with no carriage returns.
+    Disabled: only the line per finished notebook.
+    """
+
+    def __init__(self, total: int, *, enabled: bool, jobs: int, heartbeat: float = 60.0, stream=None):
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = enabled and self.stream.isatty()
+        self.heartbeat = heartbeat if enabled and not self.tty else None
+        self.started: dict[str, float] = {}
+        self.slots: queue.Queue = queue.Queue()
+        for i in range(max(1, jobs)):
+            self.slots.put(i + 1)
+        self.bar = None
+        if self.tty:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc="notebooks", unit="nb", position=0, file=self.stream, dynamic_ncols=True)
+
+    def run(self, name: str, **kwargs):
+        """Call :func:`run_one` for ``name`` in a worker thread, with a cell bar in a free row."""
+        slot = self.slots.get()
+        try:
+            progress = ({"desc": name, "position": slot, "leave": False, "file": self.stream, "dynamic_ncols": True}
+                        if self.tty else False)
+            return run_one(name, progress=progress, on_start=self._started, **kwargs)
+        finally:
+            self.started.pop(name, None)
+            self.slots.put(slot)
+
+    def _started(self, name: str) -> None:
+        self.started[name] = time.monotonic()
+        if self.enabled and not self.tty:
+            print(f"started {name}", file=self.stream, flush=True)
+
+    def finished(self, line: str) -> None:
+        if self.bar is not None:
+            self.bar.write(line, file=sys.stdout)
+            self.bar.update(1)
+        else:
+            print(line, flush=True)
+
+    def still_running(self) -> None:
+        now = time.monotonic()
+        running = ", ".join(f"{n} ({(now - t) / 60:.0f} min)" for n, t in sorted(self.started.items()))
+        if running:
+            print(f"still running: {running}", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
+def run_all(names, *, quick: bool, force: bool, jobs: int, results_dir: Path = RESULTS_DIR,
+            overrides: dict | None = None, progress: bool = False) -> int:
+    """Run ``names`` (in parallel), print one line per notebook, write the report. Returns an exit code.
+
+    On KeyboardInterrupt (Ctrl-C; :class:`Interrupted` for SIGTERM, see :func:`main`) every process
+    the run started is stopped and the temporary folders are removed before it propagates.
+    """
     from shapelib.report import write_report
 
     results_dir.mkdir(parents=True, exist_ok=True)
     _clean_stale(results_dir)
+    _STOPPING.clear()
     failures = []
-    done = 0
-    with cf.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        futures = [pool.submit(run_one, n, quick=quick, force=force, results_dir=results_dir) for n in names]
-        try:
-            for fut in cf.as_completed(futures):
+    done_count = 0
+    show = _Progress(len(names), enabled=progress, jobs=jobs)
+    pool = cf.ThreadPoolExecutor(max_workers=max(1, jobs))
+    futures = [pool.submit(show.run, n, quick=quick, force=force, results_dir=results_dir, overrides=overrides,
+                           jobs=jobs) for n in names]
+    try:
+        pending = set(futures)
+        while pending:
+            done, pending = cf.wait(pending, timeout=show.heartbeat, return_when=cf.FIRST_COMPLETED)
+            if not done:
+                show.still_running()
+            for fut in done:
                 name, status, seconds, msg = fut.result()
-                done += 1
-                line = f"[{done}/{len(names)}] {name:<28} {status:<8} {seconds:7.1f} s"
-                print(line + (f"  {msg}" if msg and status == "FAILED" else ""), flush=True)
+                done_count += 1
+                line = f"[{done_count}/{len(names)}] {name:<28} {status:<8} {seconds:7.1f} s"
+                show.finished(line + (f"  {msg}" if msg and status == "FAILED" else ""))
                 if status == "FAILED":
                     failures.append((name, msg))
-        except KeyboardInterrupt:
-            for f in futures:
-                f.cancel()
-            print("interrupted: finished notebooks are in place, the others keep their previous results", file=sys.stderr)
-            raise
-    report = write_report(results_dir, REFERENCE_DIR)
+    except KeyboardInterrupt:
+        show.close()
+        print("stopping: ending the notebook kernels and their workers ...", file=sys.stderr, flush=True)
+        in_main = threading.current_thread() is threading.main_thread()
+        previous = {s: signal.signal(s, _still_stopping) for s in (signal.SIGINT, signal.SIGTERM)} if in_main else {}
+        try:
+            _stop_run(pool, futures)
+        finally:
+            for s, handler in previous.items():
+                signal.signal(s, handler)
+        print("interrupted: finished notebooks are in place, the others keep their previous results", file=sys.stderr)
+        raise
+    finally:
+        show.close()
+        pool.shutdown(wait=True)
+    report = write_report(results_dir, REFERENCE_DIR, failures=failures)
     print(f"report: {report.relative_to(ROOT) if report.is_relative_to(ROOT) else report}")
     if failures:
         print(f"{len(failures)} notebook(s) failed:", file=sys.stderr)
@@ -239,18 +562,96 @@ def run_all(names, *, quick: bool, force: bool, jobs: int, results_dir: Path = R
     return 0
 
 
+# ---------------------------------------------------------------------------------------------
+# README run times
+
+README = ROOT / "README.md"
+TIMINGS_BEGIN = "<!-- run-times: generated by `python run_all.py --readme-timings` from results/*/.inputs.json; do not edit by hand -->"
+TIMINGS_END = "<!-- /run-times -->"
+
+
+def timings_markdown(results_dir: Path = RESULTS_DIR) -> str:
+    """README's run-time paragraph, from the records REPORT.md's run table shows (``.inputs.json``).
+
+    Raises
+    ------
+    ValueError
+        Unless every notebook has a successful full-parameter run in ``results_dir``.
+    """
+    runs = {}
+    for name in NOTEBOOKS:
+        path = results_dir / name / ".inputs.json"
+        info = json.loads(path.read_text()) if path.is_file() else {}
+        if info.get("mode") != "full" or "seconds" not in info:
+            raise ValueError(f"{name}: no full run recorded in {path}; run `python run_all.py` first")
+        runs[name] = info
+    total = sum(i["seconds"] for i in runs.values())
+    slowest = max(runs, key=lambda n: runs[n]["seconds"])
+    last = max(runs.values(), key=lambda i: i.get("finished", ""))
+    m = last.get("machine", {})
+    jobs = sorted({i.get("jobs", 1) for i in runs.values()})
+    loads = [i["machine"]["loadavg_1min"] for i in runs.values() if "loadavg_1min" in i.get("machine", {})]
+    lines = [
+        f"Last full run (`python run_all.py`, finished {last.get('finished', '?')}, {m.get('cpus', '?')} CPUs "
+        f"{m.get('machine', '')}, Python {m.get('python', '?')}, {' or '.join(map(str, jobs))} notebook(s) at a time, "
+        f"1-min load average {min(loads, default=float('nan')):.1f}–{max(loads, default=float('nan')):.1f} when they ended): "
+        f"{total / 60:.1f} min of notebook time in all, the slowest `{slowest}` {runs[slowest]['seconds'] / 60:.1f} min.",
+        "",
+        "| notebook | minutes |",
+        "|---|---|",
+    ]
+    lines += [f"| `{n}` | {runs[n]['seconds'] / 60:.1f} |" for n in sorted(runs, key=lambda n: -runs[n]["seconds"])]
+    return "\n".join(lines)
+
+
+def update_readme_timings(results_dir: Path = RESULTS_DIR, readme: Path = README) -> Path:
+    """Replace the run-time block of ``readme`` (between its markers) with :func:`timings_markdown`."""
+    text = readme.read_text()
+    if text.count(TIMINGS_BEGIN) != 1 or text.count(TIMINGS_END) != 1:
+        raise ValueError(f"{readme}: expected one {TIMINGS_BEGIN!r} ... {TIMINGS_END!r} block")
+    head, rest = text.split(TIMINGS_BEGIN)
+    _, tail = rest.split(TIMINGS_END)
+    readme.write_text(f"{head}{TIMINGS_BEGIN}\n{timings_markdown(results_dir)}\n{TIMINGS_END}{tail}")
+    return readme
+
+
+# ---------------------------------------------------------------------------------------------
+# command line
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signum)
+
+
+def _still_stopping(signum, frame):
+    print("still stopping, please wait", file=sys.stderr, flush=True)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="use each notebook's quick (CI) parameters")
     parser.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1, help="notebooks run in parallel")
     parser.add_argument("--only", action="append", metavar="NAME", help="run only this notebook (repeatable)")
+    parser.add_argument("-p", "--parameter", action="append", default=[], metavar="NAME=VALUE",
+                        help="set a parameter of every selected notebook that declares it (repeatable; "
+                             "VALUE is a Python literal, e.g. -p sigma2=0.5 -p 'sigma2s=[0.1, 0.5]')")
     parser.add_argument("--force", action="store_true", help="re-run notebooks whose inputs are unchanged")
-    parser.add_argument("--list", action="store_true", help="list the notebooks and exit")
+    parser.add_argument("--list", action="store_true", help="list the notebooks (and their parameters) and exit")
     parser.add_argument("--results-dir", type=Path, default=RESULTS_DIR, help="where results go (default: results/)")
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True,
+                        help="show progress: bars on a terminal, a line per minute in a log (default: on)")
+    parser.add_argument("--readme-timings", action="store_true",
+                        help="write the run times of the last full run (results/*/.inputs.json) into README.md and exit")
     args = parser.parse_args(argv)
+    if args.readme_timings:
+        try:
+            print(f"updated {update_readme_timings(args.results_dir.resolve())}")
+        except ValueError as exc:
+            parser.error(str(exc))
+        return 0
     if args.list:
         for name in NOTEBOOKS:
-            print(name)
+            declared = declared_parameters(name)
+            print(name + "  " + " ".join(f"{k}={v!s}" for k, v in declared.items() if k != "output_dir"))
         return 0
     names = list(NOTEBOOKS)
     if args.only:
@@ -258,7 +659,32 @@ def main(argv=None) -> int:
         if unknown:
             parser.error(f"unknown notebook(s) {unknown}; choose from {list(NOTEBOOKS)}")
         names = [n for n in names if n in args.only]
-    return run_all(names, quick=args.quick, force=args.force, jobs=args.jobs, results_dir=args.results_dir.resolve())
+    overrides = {}
+    try:
+        for text in args.parameter:
+            key, value = parse_parameter(text)
+            if key == "output_dir":
+                raise ValueError("-p output_dir: run_all.py chooses it (use --results-dir)")
+            overrides[key] = value
+        declared = {n: declared_parameters(n) for n in names}
+        for key, value in overrides.items():
+            users = [n for n in names if key in declared[n]]
+            if not users:
+                raise ValueError(f"-p {key}: no selected notebook declares {key!r} "
+                                 f"(declared: {', '.join(f'{n}: {sorted(d)}' for n, d in declared.items())})")
+            for n in users:
+                check_parameters(n, {key: value}, declared[n])
+    except ValueError as exc:
+        parser.error(str(exc))
+    previous = {s: signal.signal(s, _raise_interrupted) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return run_all(names, quick=args.quick, force=args.force, jobs=args.jobs,
+                       results_dir=args.results_dir.resolve(), overrides=overrides, progress=args.progress)
+    except KeyboardInterrupt as exc:
+        return 128 + getattr(exc, "signum", signal.SIGINT)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
 if __name__ == "__main__":

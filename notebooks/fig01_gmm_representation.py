@@ -9,16 +9,14 @@
 # the fish σ² values suggest).
 
 # %% tags=["parameters"]
-output_dir = "results/fig01_gmm_representation"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("fig01_gmm_representation")  # run_all.py passes its own
 cc_sigma2s = [0.1, 0.5, 1.5]
 fish_sigma2s = [0.001, 0.01, 0.025]
 fish_name = "fish-1"
 resolution = 300
 
 # %%
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 

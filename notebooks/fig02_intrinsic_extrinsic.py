@@ -7,14 +7,12 @@
 # resolution image; the MPEG-7 silhouettes are smaller, so there are fewer dense points.
 
 # %% tags=["parameters"]
-output_dir = "results/fig02_intrinsic_extrinsic"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("fig02_intrinsic_extrinsic")  # run_all.py passes its own
 fish_name = "fish-1"
 n_landmarks = 233
 
 # %%
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 

@@ -15,16 +15,14 @@
 # determined; the certificate (length vs. lower bound) is printed below.
 
 # %% tags=["parameters"]
-output_dir = "results/fig04_line_bending"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("fig04_line_bending")  # run_all.py passes its own
 sigma2 = 0.01
 hinge_degrees = 30.0
 n_steps = 12
 max_iter = 150
 
 # %%
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 

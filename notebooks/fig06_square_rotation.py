@@ -7,15 +7,13 @@
 # square of side 2.
 
 # %% tags=["parameters"]
-output_dir = "results/fig06_square_rotation"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("fig06_square_rotation")  # run_all.py passes its own
 sigma2 = 0.5
 n_steps = 24
 max_iter = 300
 
 # %%
-import matplotlib
-
-matplotlib.use("Agg")
 import numpy as np
 
 from shapelib import geodesic

@@ -13,7 +13,8 @@
 # (c, f) the TPS-RPM fish template and its deformed copy (level 2), an outline (98).
 
 # %% tags=["parameters"]
-output_dir = "results/fig07_fish_deformations"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("fig07_fish_deformations")  # run_all.py passes its own
 sigma2s = [0.5, 0.25, 0.25]
 n_steps = 9
 max_iter = 100
@@ -21,9 +22,6 @@ diffeomorphism_lam = 10.0
 diffeomorphism_kernel_width = 1.0
 
 # %%
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 

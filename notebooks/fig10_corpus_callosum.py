@@ -8,12 +8,10 @@
 # available, so their panels are left empty here.
 
 # %% tags=["parameters"]
-output_dir = "results/fig10_corpus_callosum"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("fig10_corpus_callosum")  # run_all.py passes its own
 
 # %%
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 

@@ -12,7 +12,8 @@
 # is stopped after `max_iter` iterations); the dense points are carried by the smoothed flow.
 
 # %% tags=["parameters"]
-output_dir = "results/sec3e_extrinsic_warp"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("sec3e_extrinsic_warp")  # run_all.py passes its own
 fish_name = "fish-1"
 n_landmarks = 60
 sigma2 = 0.005
@@ -23,9 +24,6 @@ lam = 1e-5
 grid_size = 96
 
 # %%
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 

@@ -11,7 +11,8 @@
 # here are the best we found; the markdown cells and the report's notes say how well each fits.
 
 # %% tags=["parameters"]
-output_dir = "results/table1_pairwise"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("table1_pairwise")  # run_all.py passes its own
 sigma2s = [0.1, 0.5, 1.5]
 info_metrics = ["alpha", "fisher_rao"]
 n_steps = 8

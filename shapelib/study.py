@@ -16,9 +16,35 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["record_values", "record_verdict", "load_values", "save_figure", "pair_key", "VALUES_FILE", "VERDICTS"]
+__all__ = ["record_values", "record_verdict", "load_values", "save_figure", "pair_key", "default_output_dir", "VALUES_FILE", "VERDICTS"]
 
 VALUES_FILE = "values.json"
+
+
+def project_root(start=None) -> Path | None:
+    """The study checkout at or above ``start`` (default: the working directory), or None.
+
+    A checkout is recognised by its ``run_all.py`` beside a ``notebooks/`` folder.
+    """
+    here = Path(start or Path.cwd()).resolve()
+    for folder in (here, *here.parents):
+        if (folder / "run_all.py").is_file() and (folder / "notebooks").is_dir():
+            return folder
+    return None
+
+
+def default_output_dir(name: str, *, start=None) -> Path:
+    """Where notebook ``name`` writes when run by hand: ``<checkout>/results/<name>``.
+
+    The checkout is found from the working directory upwards (:func:`project_root`), so a
+    notebook opened in Jupyter from ``notebooks/`` writes to the same top-level ``results/``
+    as ``run_all.py``; outside a checkout, ``./results/<name>``. ``run_all.py`` passes its own
+    ``output_dir`` instead.
+    """
+    if not name or Path(name).name != name:
+        raise ValueError(f"name must be a notebook name without folders; got {name!r}")
+    root = project_root(start)
+    return (root if root is not None else Path(start or Path.cwd()).resolve()) / "results" / name
 
 
 def pair_key(item: str, column: str, i: int, j: int) -> str:

@@ -14,13 +14,26 @@ if not os.environ.get("SHAPELIB_DATA_DIR") and (SHARED / "data").is_dir():
 
 sys.path.insert(0, str(ROOT))
 
+#: Fetched once per session before the first test that needs the raw data: a probe, so that
+#: when the data can be had neither from SHAPELIB_DATA_DIR nor by download every such test
+#: fails with the same one-line reason instead of a traceback each.
+PROBE_FILE = "cdfhc/cdfhc_data2D_CC.mat"
 
-def _data_available() -> bool:
-    d = os.environ.get("SHAPELIB_DATA_DIR")
-    return bool(d) and (Path(d) / "cdfhc" / "cdfhc_data2D_CC.mat").is_file()
+
+@pytest.fixture(scope="session")
+def raw_data():
+    """The raw data, obtained the way the notebooks obtain them (``shapelib.datasets.fetch``):
+    from ``SHAPELIB_DATA_DIR`` when set, else downloaded with pooch into the user cache. If
+    neither works the test fails (never skips) and says why."""
+    from shapelib.datasets import DataError, fetch
+
+    try:
+        return fetch(PROBE_FILE)
+    except DataError as exc:
+        pytest.fail(f"raw data unavailable: {exc}", pytrace=False)
 
 
-requires_data = pytest.mark.skipif(not _data_available(), reason="SHAPELIB_DATA_DIR with the raw data is not set")
+requires_data = pytest.mark.usefixtures("raw_data")
 
 
 @pytest.fixture

@@ -23,4 +23,10 @@ def test_notebook_runs_quick_and_records_expected_values(name, tmp_path):
         assert len(got) == count, (prefix, sorted(got))
         if prefix.startswith("table1/"):
             assert got <= REFERENCE_KEYS
-    assert list(tmp_path.glob(f"{name}/*.png")) or name.startswith("table")
+    pngs = list(tmp_path.glob(f"{name}/*.png"))
+    assert pngs or name.startswith("table")
+    # figures are saved as files and shown inline in the executed notebook
+    nb = json.loads((tmp_path / name / f"{name}.ipynb").read_text())
+    shown = [o for c in nb["cells"] for o in c.get("outputs", []) if "image/png" in o.get("data", {})]
+    assert len(shown) >= len(pngs), f"{len(pngs)} PNG files, {len(shown)} figures shown in the notebook"
+    assert data["meta"]["parameters"] == json.loads((tmp_path / name / ".inputs.json").read_text())["params"]

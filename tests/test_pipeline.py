@@ -1,4 +1,5 @@
-"""run_all.py: atomic results, skipping unchanged inputs, failures that name the cell, kills."""
+"""run_all.py: atomic results, skipping unchanged inputs, failures that name the cell, parameters,
+progress, signals that stop every child process."""
 import json
 import os
 import signal
@@ -7,6 +8,7 @@ import sys
 import textwrap
 import time
 
+import psutil
 import pytest
 
 import run_all
@@ -21,6 +23,23 @@ GOOD = textwrap.dedent('''\
     # %%
     import time
     from shapelib.study import record_values
+    time.sleep(sleep)
+    record_values(output_dir, {"toy/value": value})
+''')
+#: a notebook with worker processes, as the study's notebooks have (process pools, Dask)
+WORKERS = textwrap.dedent('''\
+    # %% tags=["parameters"]
+    output_dir = "x"
+    value = 1.0
+    sleep = 0.0
+    workers = 0
+
+    # %%
+    import concurrent.futures as cf
+    import time
+    from shapelib.study import record_values
+    pool = cf.ProcessPoolExecutor(max_workers=workers) if workers else None
+    busy = [pool.submit(time.sleep, sleep) for _ in range(workers)] if workers else []
     time.sleep(sleep)
     record_values(output_dir, {"toy/value": value})
 ''')
@@ -79,6 +98,10 @@ def test_run_all_exit_code_and_report(toy, monkeypatch):
     assert (results / "REPORT.md").exists()
     (nbdir / "toy.py").write_text(BROKEN)
     assert run_all.run_all(["toy"], quick=False, force=True, jobs=1, results_dir=results) == 1
+    report = (results / "REPORT.md").read_text()
+    assert "## Failed notebooks" in report
+    row = next(line for line in report.splitlines() if line.startswith("| toy |"))
+    assert "cell 2" in row and "RuntimeError: boom" in row  # cell 1 is papermill's injected parameters
 
 
 def test_killed_run_leaves_previous_results_intact(toy):
@@ -105,3 +128,169 @@ def test_killed_run_leaves_previous_results_intact(toy):
     # the next run clears the leftovers of the killed one
     assert run_all.run_all(["toy"], quick=False, force=False, jobs=1, results_dir=results) == 0
     assert not list(results.glob(".tmp-*"))
+
+
+def _snapshot(folder):
+    return {p.name: p.read_bytes() for p in folder.iterdir()}
+
+
+def _running(proc):
+    try:
+        return proc.status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig):
+    """A real run_all.py process, a notebook busy in two worker processes, a real signal: Ctrl-C as a
+    terminal sends it (SIGINT to the foreground process group) or ``kill`` (SIGTERM to the pid)."""
+    nbdir, results = toy
+    (nbdir / "toy.py").write_text(WORKERS)
+    assert run_all.run_one("toy", quick=False, force=False, results_dir=results)[1] == "ok"
+    before = _snapshot(results / "toy")
+    script = textwrap.dedent(f'''
+        import sys; sys.path.insert(0, {str(ROOT)!r})
+        from pathlib import Path
+        import run_all
+        run_all.NOTEBOOK_DIR = Path({str(nbdir)!r})
+        run_all.NOTEBOOKS.clear()
+        run_all.NOTEBOOKS["toy"] = {{"params": {{"value": 9.0, "sleep": 300.0, "workers": 2}}, "quick": {{}},
+                                    "data": [], "expects": {{}}}}
+        sys.exit(run_all.main(["--force", "-j", "1", "--no-progress", "--results-dir", {str(results)!r}]))
+    ''')
+    proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    try:
+        parent = psutil.Process(proc.pid)
+        deadline = time.time() + 90
+        children = []
+        while time.time() < deadline:  # the kernel and its two workers are up
+            children = parent.children(recursive=True)
+            kernels = [c for c in children if c.ppid() == proc.pid]
+            if kernels and len(kernels[0].children()) >= 2:
+                break
+            time.sleep(0.2)
+        assert len(children) >= 3, children
+        assert list(results.glob(".tmp-toy-*"))
+        if sig == signal.SIGINT:
+            os.killpg(proc.pid, sig)
+        else:
+            os.kill(proc.pid, sig)
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 128 + sig, out.decode()
+    assert not [c for c in children if _running(c)], out.decode()
+    assert not list(results.glob(".tmp-*"))
+    assert _snapshot(results / "toy") == before
+    assert values(results) == {"toy/value": 2.0}
+
+
+def test_parameters_are_typed_validated_recorded_and_key_the_cache(toy):
+    nbdir, results = toy
+    assert run_all.parse_parameter("value=5") == ("value", 5)
+    assert run_all.parse_parameter(" names = ['a', 'b'] ") == ("names", ["a", "b"])
+    assert run_all.parse_parameter("fish_name=fish-2") == ("fish_name", "fish-2")  # not a literal: text
+    with pytest.raises(ValueError, match="expected name=value"):
+        run_all.parse_parameter("value")
+    declared = run_all.declared_parameters("toy")
+    assert declared == {"output_dir": "x", "value": 1.0, "sleep": 0.0}
+    with pytest.raises(ValueError, match=r"'value' must be a float like its default 1\.0; got 'abc'"):
+        run_all.check_parameters("toy", {"value": "abc"}, declared)
+    with pytest.raises(ValueError, match="must be a float"):
+        run_all.check_parameters("toy", {"value": True}, declared)
+
+    assert run_all.run_one("toy", quick=False, force=False, results_dir=results, overrides={"value": 5})[1] == "ok"
+    assert values(results) == {"toy/value": 5}
+    used = {"value": 5, "sleep": 0.0}
+    assert json.loads((results / "toy" / "values.json").read_text())["meta"]["parameters"] == used
+    inputs = json.loads((results / "toy" / ".inputs.json").read_text())
+    assert inputs["params"] == used and inputs["overrides"] == {"value": 5}
+    assert run_all.run_one("toy", quick=False, force=False, results_dir=results, overrides={"value": 5})[1] == "skipped"
+    assert run_all.run_one("toy", quick=False, force=False, results_dir=results, overrides={"value": 6})[1] == "ok"
+    # an override for a parameter this notebook does not declare is not passed to it
+    assert run_all.notebook_parameters("toy", quick=False, overrides={"n_steps": 3}) == {"value": 2.0}
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-p", "value=abc"], "'value' must be a float"),
+    (["-p", "bogus=1"], "no selected notebook declares 'bogus'"),
+    (["-p", "output_dir=elsewhere"], "run_all.py chooses it"),
+    (["-p", "value"], "expected name=value"),
+])
+def test_bad_parameters_are_refused_before_anything_runs(toy, capsys, args, message):
+    nbdir, results = toy
+    with pytest.raises(SystemExit) as exc:
+        run_all.main(["--only", "toy", "--results-dir", str(results), *args])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not results.exists()
+
+
+def test_progress_in_a_log_has_lines_not_carriage_returns(toy, capfd):
+    nbdir, results = toy
+    assert run_all.run_all(["toy"], quick=False, force=True, jobs=1, results_dir=results, progress=True) == 0
+    out, err = capfd.readouterr()
+    assert "started toy" in err and "[1/1] toy" in out
+    assert "\r" not in out + err
+
+
+def test_executed_notebook_shows_its_figure_and_saves_it(toy, monkeypatch):
+    """The kernel draws inline even when the caller exported another backend (CI exports Agg)."""
+    nbdir, results = toy
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    (nbdir / "toy.py").write_text(GOOD + textwrap.dedent('''
+        # %%
+        import matplotlib.pyplot as plt
+        from shapelib.study import save_figure
+        fig, ax = plt.subplots()
+        ax.plot([0, 1], [value, 0])
+        save_figure(fig, output_dir, "toy")
+    '''))
+    assert run_all.run_one("toy", quick=False, force=True, results_dir=results)[1] == "ok"
+    nb = json.loads((results / "toy" / "toy.ipynb").read_text())
+    assert any("image/png" in o.get("data", {}) for c in nb["cells"] for o in c.get("outputs", []))
+    assert (results / "toy" / "toy.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_default_output_dir_is_the_top_level_results_wherever_the_notebook_runs(tmp_path, monkeypatch):
+    from shapelib.study import default_output_dir
+
+    monkeypatch.chdir(ROOT / "notebooks")
+    assert default_output_dir("fig02_intrinsic_extrinsic") == ROOT / "results" / "fig02_intrinsic_extrinsic"
+    monkeypatch.chdir(tmp_path)  # outside a checkout
+    assert default_output_dir("x") == tmp_path / "results" / "x"
+    assert default_output_dir("x", start=ROOT / "shapelib") == ROOT / "results" / "x"
+    with pytest.raises(ValueError, match="without folders"):
+        default_output_dir("../x")
+    for name in run_all.NOTEBOOKS:  # every study notebook uses it
+        assert run_all.declared_parameters(name)["output_dir"] == f'default_output_dir("{name}")'
+
+
+def test_readme_timings_come_from_the_run_records(tmp_path):
+    results = tmp_path / "results"
+    names = list(run_all.NOTEBOOKS)
+    for i, name in enumerate(names):
+        (results / name).mkdir(parents=True)
+        (results / name / ".inputs.json").write_text(json.dumps(
+            {"mode": "full", "seconds": 60.0 * (i + 1), "jobs": 2, "finished": f"2026-11-23T12:{i:02d}:00+00:00",
+             "machine": {"cpus": 2, "machine": "x86_64", "python": "3.11.7", "loadavg_1min": 1.0 + i}}))
+    readme = tmp_path / "README.md"
+    original = (ROOT / "README.md").read_text()
+    readme.write_text(original)
+    run_all.update_readme_timings(results, readme)
+    text = readme.read_text()
+    total_min = sum(range(1, len(names) + 1))
+    assert f"{total_min:.1f} min of notebook time in all" in text
+    assert f"the slowest `{names[-1]}` {len(names):.1f} min" in text
+    assert f"| `{names[0]}` | 1.0 |" in text
+    # only the block between the markers changed
+    assert text.split(run_all.TIMINGS_BEGIN)[0] == original.split(run_all.TIMINGS_BEGIN)[0]
+    assert text.split(run_all.TIMINGS_END)[1] == original.split(run_all.TIMINGS_END)[1]
+    # a quick run is no full run
+    (results / names[0] / ".inputs.json").write_text(json.dumps({"mode": "quick", "seconds": 1.0}))
+    with pytest.raises(ValueError, match=f"{names[0]}: no full run"):
+        run_all.update_readme_timings(results, readme)
