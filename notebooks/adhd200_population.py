@@ -13,7 +13,8 @@
 # with a number below is generated from the computed values.
 
 # %% tags=["parameters"]
-output_dir = "results/adhd200_population"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("adhd200_population")  # run_all.py passes its own
 n_shapes = 647  # shapes in the all-pairs matrices (a stratified sample when < 647)
 n_subset = 30  # shapes in the geodesic subset (stratified by diagnosis and sex)
 sigma_ratio = 2.6  # σ in units of the mean nearest-landmark spacing at centroid size 20
@@ -33,9 +34,6 @@ import json
 import time
 import warnings
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd

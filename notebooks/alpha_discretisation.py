@@ -26,7 +26,8 @@
 # the gaps to n → ∞ (Richardson, order estimated from the last three levels).
 
 # %% tags=["parameters"]
-output_dir = "results/alpha_discretisation"
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("alpha_discretisation")  # run_all.py passes its own
 sigma2 = 0.1
 n_steps_list = [4, 8, 16, 32, 64]
 n_pairs = 21
@@ -40,9 +41,6 @@ import time
 import warnings
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
