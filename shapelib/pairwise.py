@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import itertools
 import json
 import math
 import os
@@ -533,6 +534,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if store is not None and (Path(store) / "zarr.json").exists():
         st = _Store.open(store)
         _check_same(st, want, block_size_given=block_size)
+        st.read()  # damage in the done blocks is named now, not after hours of new work
     local = client is None and scheduler is None
     n_workers = _n_cores() if n_jobs in (None, -1) else int(n_jobs)
     seconds_per_pair = None
@@ -657,7 +659,7 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token)
             inflight[fut.key] = (fut, (a, b))
             return fut
 
-        futures = as_completed([submit(*t) for t, _ in zip(pending, range(limit))])
+        futures = as_completed([submit(*t) for t in itertools.islice(pending, limit)])
         for fut in futures:
             out = fut.result()
             _, (a, b) = inflight.pop(fut.key)

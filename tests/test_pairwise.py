@@ -164,12 +164,19 @@ def test_corrupt_or_truncated_store_is_named(shapes, tmp_path, damage):
         chunk.write_bytes(data[:10] + bytes([data[10] ^ 0xFF]) + data[11:])
     else:
         chunk.unlink()
-    for call in (lambda: open_store(path),
-                 lambda: compute_pairwise(shapes, metric="tps", n_jobs=1, store=path, progress=False)):
+    zarr.open_array(str(path / "done"), mode="r+")[1, 1] = False  # one block left to do on resume
+    resumed = []
+
+    def resume():
+        resumed.append(compute_pairwise(shapes, metric="tps", n_jobs=1, store=path, progress=False))
+
+    for call in (lambda: open_store(path), resume):
         with pytest.raises(ValueError) as err:
             call()
         msg = str(err.value)
         assert str(path) in msg and "'upper'" in msg and "upper/c/0/0" in msg, msg
+    assert not resumed
+    assert zarr.open_array(str(path / "done"), mode="r")[1, 1] == False  # noqa: E712 - refused before any work
 
 
 def test_damaged_metadata_and_done_mask_are_named(shapes, tmp_path):
@@ -188,15 +195,17 @@ def test_damaged_metadata_and_done_mask_are_named(shapes, tmp_path):
         open_store(path)
 
 
-def test_local_cluster_equals_serial_and_leaves_no_process(shapes, tmp_path):
+def test_local_cluster_equals_serial_and_leaves_no_process(rng, tmp_path):
     import psutil
 
-    x = shapes[:6]
-    serial = compute_pairwise(x, metric="alpha", sigma2=0.5, n_steps=4, n_jobs=1, block_size=2, progress=False)
+    base = np.array([[0.0, 0.0], [1.0, 0.1], [2.0, 0.0], [1.0, -0.9], [0.5, 0.6]])
+    x = np.stack([base + 0.15 * rng.normal(size=base.shape) for _ in range(14)])
+    # 105 one-pair blocks: more than the engine keeps in flight at once (64), so submission refills
+    serial = compute_pairwise(x, metric="alpha", sigma2=0.5, n_steps=4, n_jobs=1, block_size=1, progress=False)
     before = {p.pid for p in psutil.Process().children(recursive=True)}
-    par = compute_pairwise(x, metric="alpha", sigma2=0.5, n_steps=4, n_jobs=2, block_size=2, progress=False,
+    par = compute_pairwise(x, metric="alpha", sigma2=0.5, n_steps=4, n_jobs=2, block_size=1, progress=False,
                            store=tmp_path / "D.zarr")
-    assert par.log["mode"] == "LocalCluster(2 processes)" and par.log["blocks_computed"] == 6
+    assert par.log["mode"] == "LocalCluster(2 processes)" and par.log["blocks_computed"] == 105
     for name in ("matrix", "lower", "upper", "energy", "converged", "n_iter"):
         np.testing.assert_array_equal(getattr(par, name), getattr(serial, name), err_msg=name)
     # (Python's multiprocessing resource tracker is one per parent process and not the cluster's)
