@@ -241,3 +241,160 @@ def alpha_path_hessian(path, s2, tau, tw, csign):
                     if t <= n - 2:
                         diag[t, a, i, a, j] += dacc[a, 2, i, j] + csign[2] * g0
     return diag, upper
+
+
+# ---------------------------------------------------------------------------------------------
+# Fisher–Rao (eq. 6) by quadrature: the element-wise work over (grid node, landmark), fused
+# ---------------------------------------------------------------------------------------------
+
+
+@njit(cache=True, fastmath=False)
+def fr_psidot(x, theta, vel, coef):
+    """``ψ̇_m = Σ_a coef_ma (r_ma·V_a)`` (M,) at the grid nodes ``x`` (M, d), ``r_ma = x_m − φ_a``
+    (see ``metrics._fr_psidot``)."""
+    m_nodes, d = x.shape
+    k = theta.shape[0]
+    tv = np.empty(k)
+    for a in range(k):
+        s = 0.0
+        for i in range(d):
+            s += theta[a, i] * vel[a, i]
+        tv[a] = s
+    out = np.empty(m_nodes)
+    for m in range(m_nodes):
+        s = 0.0
+        for a in range(k):
+            rv = -tv[a]
+            for i in range(d):
+                rv += x[m, i] * vel[a, i]
+            s += coef[m, a] * rv
+        out[m] = s
+    return out
+
+
+@njit(cache=True, fastmath=False)
+def fr_qform_grad(x, weight, theta, vel, s2, psi, coef):
+    """``Q = ∫ ψ̇²``, ``∂Q/∂θ`` (K, d) and ``∂Q/∂v`` (K, d) for one shape on the grid nodes ``x``
+    with trapezoid weight ``weight`` (see ``metrics._fr_qform_grad``). Loops over landmarks
+    innermost on (d, K) arrays, so that they vectorise."""
+    m_nodes, d = x.shape
+    k = theta.shape[0]
+    th = np.ascontiguousarray(theta.T)
+    v = np.ascontiguousarray(vel.T)
+    tv = np.zeros(k)
+    for i in range(d):
+        for a in range(k):
+            tv[a] += th[i, a] * v[i, a]
+    g_th = np.zeros((d, k))
+    g_v = np.zeros((d, k))
+    rv = np.empty(k)
+    pc = np.empty(k)
+    q = 0.0
+    inv_s2 = 1.0 / s2
+    for m in range(m_nodes):
+        for a in range(k):
+            rv[a] = -tv[a]
+        for i in range(d):
+            xi = x[m, i]
+            for a in range(k):
+                rv[a] += xi * v[i, a]
+        pd = 0.0
+        for a in range(k):
+            pd += coef[m, a] * rv[a]
+        q += pd * pd
+        ratio = pd / psi[m]
+        for a in range(k):
+            pc[a] = pd * coef[m, a]
+        for i in range(d):
+            xi = x[m, i]
+            for a in range(k):
+                ri = xi - th[i, a]
+                g_v[i, a] += pc[a] * ri
+                g_th[i, a] += pc[a] * ((rv[a] * inv_s2 - ratio) * ri - v[i, a])
+    d_theta = np.empty((k, d))
+    d_vel = np.empty((k, d))
+    for a in range(k):
+        for i in range(d):
+            d_vel[a, i] = 2.0 * weight * g_v[i, a]
+            d_theta[a, i] = 2.0 * weight * g_th[i, a]
+    return weight * q, d_theta, d_vel
+
+
+@njit(cache=True, fastmath=False)
+def fr_hessian_parts(x, theta, vel, s2, psi, coef):
+    """The element-wise parts of ``metrics._fr_qform_hessian`` for one shape, in one pass over the
+    grid nodes ``x``: the rows ``√p [γ − uβ, β]`` of the Gram factor in the
+    (M', 2, d, K) order, and the block-diagonal terms ``Σ_m (2u ∂²s − u² ∂²p)`` and
+    ``Σ_m 2u ∂²p`` per landmark, (K, d, d) each, before the factor ``σ² w``. Loops over
+    landmarks innermost, so that they vectorise."""
+    d = x.shape[1]
+    k = theta.shape[0]
+    mk = x.shape[0]
+    inv_s2 = 1.0 / s2
+    th = np.ascontiguousarray(theta.T)
+    v = np.ascontiguousarray(vel.T)
+    tv = np.zeros(k)
+    for i in range(d):
+        for a in range(k):
+            tv[a] += th[i, a] * v[i, a]
+    e = np.empty((mk, 2, d, k))
+    rv = np.empty(k)
+    aa = np.empty(k)
+    bb = np.empty(k)
+    r = np.empty((d, k))
+    # moments: Σ a, Σ b, Σ a rv, Σ a r_i, Σ a r_i r_j, Σ b r_i r_j, Σ a rv r_i r_j
+    s_a = np.zeros(k)
+    s_b = np.zeros(k)
+    s_arv = np.zeros(k)
+    s_ar = np.zeros((d, k))
+    s_arr = np.zeros((d, d, k))
+    s_brr = np.zeros((d, d, k))
+    s_arvrr = np.zeros((d, d, k))
+    for m in range(mk):
+        for a in range(k):
+            rv[a] = -tv[a]
+        for i in range(d):
+            xi = x[m, i]
+            for a in range(k):
+                r[i, a] = xi - th[i, a]
+                rv[a] += xi * v[i, a]
+        pd = 0.0
+        for a in range(k):
+            pd += coef[m, a] * rv[a]
+        u = 2.0 * pd / psi[m]
+        bfac = pd * pd / psi[m]
+        for a in range(k):
+            aa[a] = pd * coef[m, a]
+            bb[a] = bfac * coef[m, a]
+            s_a[a] += aa[a]
+            s_b[a] += bb[a]
+            s_arv[a] += aa[a] * rv[a]
+        for i in range(d):
+            for a in range(k):
+                c = coef[m, a]
+                b1 = c * r[i, a]
+                e[m, 1, i, a] = b1
+                e[m, 0, i, a] = c * (r[i, a] * rv[a] * inv_s2 - v[i, a]) - u * b1
+                s_ar[i, a] += aa[a] * r[i, a]
+            for j in range(i, d):
+                for a in range(k):
+                    rr = r[i, a] * r[j, a]
+                    s_arr[i, j, a] += aa[a] * rr
+                    s_brr[i, j, a] += bb[a] * rr
+                    s_arvrr[i, j, a] += aa[a] * rv[a] * rr
+    s4 = s2 * s2
+    dtt = np.empty((k, d, d))
+    dtv = np.empty((k, d, d))
+    for a in range(k):
+        for i in range(d):
+            for j in range(i, d):
+                eye = 1.0 if i == j else 0.0
+                d2p_a = s_arr[i, j, a] / s4 - eye * s_a[a] / s2
+                d2p_b = s_brr[i, j, a] / s4 - eye * s_b[a] / s2
+                d2s = (s_arvrr[i, j, a] / (s4 * s2)
+                       - (eye * s_arv[a] + v[j, a] * s_ar[i, a] + v[i, a] * s_ar[j, a]) / s4)
+                dtt[a, i, j] = d2s - d2p_b
+                dtt[a, j, i] = dtt[a, i, j]
+                dtv[a, i, j] = d2p_a
+                dtv[a, j, i] = d2p_a
+    return e, dtt, dtv

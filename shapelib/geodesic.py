@@ -73,9 +73,10 @@ from .gmm import l2_distance
 from .metrics import (
     _alpha_qform_hessian,
     _alpha_tensor_batch,
-    _fr_qform,
-    _fr_qform_grad,
-    _fr_qform_hessian,
+    _fr_qform_compiled,
+    _fr_qform_grad_compiled,
+    _fr_qform_grad_hessian_compiled,
+    _fr_qform_hessian_compiled,
     _fr_tensor_batch,
     _psi_coef,
 )
@@ -229,16 +230,19 @@ class _FisherRaoModel:
         return make_grid(points, self.s2, spacing=self.spacing, margin=self.margin)
 
     def qform_grad(self, theta, vel, grid):
-        return _fr_qform_grad(theta, vel, self.s2, grid)
+        return _fr_qform_grad_compiled(theta, vel, self.s2, grid)
 
     def qform(self, theta, vel, grid):
-        return _fr_qform(theta, vel, self.s2, grid)
+        return _fr_qform_compiled(theta, vel, self.s2, grid)
 
     def tensors(self, theta, grid):
         return _fr_tensor_batch(theta, self.s2, grid)
 
     def qform_hessian(self, theta, vel, grid):
-        return _fr_qform_hessian(theta, vel, self.s2, grid)
+        return _fr_qform_hessian_compiled(theta, vel, self.s2, grid)
+
+    def qform_grad_hessian(self, theta, vel, grid):
+        return _fr_qform_grad_hessian_compiled(theta, vel, self.s2, grid)
 
     def lower_bound(self, u, v):
         grid = self.prepare(np.stack([u, v]))
@@ -290,7 +294,11 @@ def _energy(model, path, *, gradient=True, hessian=None):
     if not gradient:
         q = model.qform(flat_t, flat_v, ctx).reshape(n, nq)
         return float(np.sum(q * _GL3_WEIGHTS) / n), None, None
-    q, dq_t, dq_v = model.qform_grad(flat_t, flat_v, ctx)
+    node_hessian = None
+    if hessian == "exact" and hasattr(model, "qform_grad_hessian"):  # shares work between the two
+        q, dq_t, dq_v, node_hessian = model.qform_grad_hessian(flat_t, flat_v, ctx)
+    else:
+        q, dq_t, dq_v = model.qform_grad(flat_t, flat_v, ctx)
     energy = float(np.sum(q.reshape(n, nq) * _GL3_WEIGHTS) / n)
     w = _GL3_WEIGHTS[None, :, None, None]
     tau = _GL3_NODES[None, :, None, None]
@@ -309,7 +317,7 @@ def _energy(model, path, *, gradient=True, hessian=None):
         if hasattr(model, "path_hessian"):
             blocks = model.path_hessian(path, ctx)
         else:
-            blocks = _exact_path_hessian(model, flat_t, flat_v, ctx, n)
+            blocks = _exact_path_hessian(model, flat_t, flat_v, ctx, n, node_hessian)
     elif hessian is not None:
         raise ValueError(f"unknown hessian {hessian!r}")
     return energy, grad, blocks
@@ -332,14 +340,16 @@ def _path_hessian_weights(n):
     return coef
 
 
-def _exact_path_hessian(model, theta, vel, ctx, n):
+def _exact_path_hessian(model, theta, vel, ctx, n, node_hessian=None):
     """Exact Hessian of the piecewise-linear path energy from the Hessian of ``Q = vᵀg(θ)v``.
 
     Returns ``(diag, upper)`` as :func:`_energy`; the segment blocks are combined with the
     weights of :func:`_path_hessian_weights` (models with a compiled ``path_hessian`` do the
-    same in one pass).
+    same in one pass). ``node_hessian``: ``model.qform_hessian(theta, vel, ctx)`` if already computed.
     """
-    a, b, c = (x.reshape(n, len(_GL3_NODES), *x.shape[1:]) for x in model.qform_hessian(theta, vel, ctx))
+    if node_hessian is None:
+        node_hessian = model.qform_hessian(theta, vel, ctx)
+    a, b, c = (x.reshape(n, len(_GL3_NODES), *x.shape[1:]) for x in node_hessian)
     bt = b.transpose(0, 1, 3, 2)
     coef = _path_hessian_weights(n)
     h00, h01, h11 = (np.einsum("k,tkij->tij", cx[:, 0], a) + np.einsum("k,tkij->tij", cx[:, 1], b)

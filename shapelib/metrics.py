@@ -440,6 +440,77 @@ def _fr_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
     return q_tt, q_tv, q_vv
 
 
+# Compiled versions used by the geodesic solver (same formulas as above, fused per node and
+# landmark in shapelib._kernels; tests/test_kernels.py checks them against the numpy ones).
+
+def _fr_qform_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
+    """:func:`_fr_qform` with ``ψ̇`` fused (:func:`shapelib._kernels.fr_psidot`)."""
+    x = grid.nodes
+    out = np.empty(len(theta))
+    for n, (t, v) in enumerate(zip(theta, vel)):
+        coef = _psi_coef(t, s2, grid)[1]
+        out[n] = grid.integrate(_kernels.fr_psidot(x, t, v, coef) ** 2)
+    return out
+
+
+def _fr_qform_grad_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
+    """:func:`_fr_qform_grad`, fused per node and landmark (:func:`shapelib._kernels.fr_qform_grad`)."""
+    m = len(theta)
+    q = np.empty(m)
+    d_theta = np.empty_like(theta)
+    d_vel = np.empty_like(theta)
+    for n in range(m):
+        psi, coef = _psi_coef(theta[n], s2, grid)
+        q[n], d_theta[n], d_vel[n] = _kernels.fr_qform_grad(grid.nodes, grid.weight, theta[n], vel[n], s2, psi, coef)
+    return q, d_theta, d_vel
+
+
+def _fr_hessian_one(theta, vel, s2, grid, psi, coef, q_tt, q_tv, q_vv):
+    """Second derivatives of Q for one shape into ``q_tt, q_tv, q_vv`` (each (K d, K d)), from
+    :func:`shapelib._kernels.fr_hessian_parts` and one Gram product by BLAS."""
+    k, d = theta.shape
+    q = k * d
+    w = grid.weight
+    e, dtt, dtv = _kernels.fr_hessian_parts(grid.nodes, theta, vel, s2, psi, coef)
+    flat = e.reshape(len(e), 2 * q)
+    gram = (flat.T @ flat).reshape(2, d, k, 2, d, k)  # columns in the kernel's (2, d, K) order
+    for out, (r, c) in ((q_tt, (0, 0)), (q_tv, (0, 1)), (q_vv, (1, 1))):  # to the (K, d) order of θ
+        np.multiply(gram[r, :, :, c], 2 * w, out=out.reshape(k, d, k, d).transpose(1, 0, 3, 2))
+    idx = np.arange(k)
+    tt = q_tt.reshape(k, d, k, d)
+    tv = q_tv.reshape(k, d, k, d)
+    for i in range(d):
+        for j in range(d):
+            tt[idx, i, idx, j] += 2 * s2 * w * dtt[:, i, j]
+            tv[idx, i, idx, j] += 2 * s2 * w * dtv[:, i, j]
+
+
+def _fr_qform_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
+    """:func:`_fr_qform_hessian`: the element-wise work fused (:func:`shapelib._kernels.fr_hessian_parts`),
+    the Gram product by BLAS."""
+    m, k, d = theta.shape
+    q_tt, q_tv, q_vv = np.empty((3, m, k * d, k * d))
+    for n in range(m):
+        psi, coef = _psi_coef(theta[n], s2, grid)
+        _fr_hessian_one(theta[n], vel[n], s2, grid, psi, coef, q_tt[n], q_tv[n], q_vv[n])
+    return q_tt, q_tv, q_vv
+
+
+def _fr_qform_grad_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
+    """:func:`_fr_qform_grad_compiled` and :func:`_fr_qform_hessian_compiled` together, with one
+    evaluation of ``ψ`` and ``coef`` (:func:`_psi_coef`) per shape."""
+    m, k, d = theta.shape
+    q = np.empty(m)
+    d_theta = np.empty_like(theta)
+    d_vel = np.empty_like(theta)
+    q_tt, q_tv, q_vv = np.empty((3, m, k * d, k * d))
+    for n in range(m):
+        psi, coef = _psi_coef(theta[n], s2, grid)
+        q[n], d_theta[n], d_vel[n] = _kernels.fr_qform_grad(grid.nodes, grid.weight, theta[n], vel[n], s2, psi, coef)
+        _fr_hessian_one(theta[n], vel[n], s2, grid, psi, coef, q_tt[n], q_tv[n], q_vv[n])
+    return q, d_theta, d_vel, (q_tt, q_tv, q_vv)
+
+
 def _fr_tensor_batch(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     """Fisher–Rao metric tensors for a batch of shapes (m, K, d) on a common grid -> (m, K d, K d)."""
     return np.stack([grid.weight * _fr_gram(t, s2, grid) for t in theta])

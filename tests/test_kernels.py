@@ -46,3 +46,34 @@ def test_alpha_path_hessian_degenerate_paths():
     assert diag.shape == (0, 6, 6) and upper.shape == (0, 6, 6)
     _, _, (diag, upper) = _energy(_AlphaModel(0.5), np.linspace(np.zeros((3, 2)), np.ones((3, 2)), 3), hessian="exact")
     assert diag.shape == (1, 6, 6) and upper.shape == (0, 6, 6) and np.allclose(diag[0], diag[0].T)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_fisher_rao_compiled_match_numpy(rng, d):
+    """Fused Fisher–Rao quadratic form, gradient and second derivatives == the numpy versions of
+    shapelib.metrics on the same grid (which the finite-difference tests check)."""
+    from shapelib.metrics import (
+        _fr_qform,
+        _fr_qform_compiled,
+        _fr_qform_grad,
+        _fr_qform_grad_compiled,
+        _fr_qform_grad_hessian_compiled,
+        _fr_qform_hessian,
+        _fr_qform_hessian_compiled,
+    )
+    from shapelib.quadrature import make_grid
+
+    theta, vel = rng.normal(size=(2, 3, 5, d))
+    s2 = 0.4
+    grid = make_grid(theta, s2, margin=6)
+    tol = 1e-10  # sums over ~10⁴ nodes with cancellation, in another order than numpy's: ~1e-12 apart
+    assert _rel(_fr_qform_compiled(theta, vel, s2, grid), _fr_qform(theta, vel, s2, grid)) < 1e-12
+    grad = _fr_qform_grad(theta, vel, s2, grid)
+    hess = _fr_qform_hessian(theta, vel, s2, grid)
+    for got, ref in zip(_fr_qform_grad_compiled(theta, vel, s2, grid), grad):
+        assert _rel(got, ref) < tol
+    for got, ref in zip(_fr_qform_hessian_compiled(theta, vel, s2, grid), hess):
+        assert _rel(got, ref) < tol
+    *g2, h2 = _fr_qform_grad_hessian_compiled(theta, vel, s2, grid)
+    for got, ref in zip(list(g2) + list(h2), list(grad) + list(hess)):
+        assert _rel(got, ref) < tol
