@@ -398,3 +398,43 @@ def fr_hessian_parts(x, theta, vel, s2, psi, coef):
                 dtv[a, i, j] = d2p_a
                 dtv[a, j, i] = d2p_a
     return e, dtt, dtv
+
+
+@njit(cache=True, fastmath=False)
+def psi_coef_grid(factors, offsets, shape, top, log_norm, s2):
+    """``ψ = 2√p`` (M,) and ``coef`` (M, K) on a tensor grid from the per-axis Gaussian factors
+    (see ``metrics._psi_coef``): ``factors[offsets[i] + j]`` is axis i's factor (K,) at its node
+    j, ``top`` (M,) the log of the per-node scale. Also returns the nodes where every component
+    underflows (``far``), which the caller recomputes in log space."""
+    d = shape.shape[0]
+    k = factors.shape[1]
+    m_nodes = top.shape[0]
+    psi = np.empty(m_nodes)
+    coef = np.empty((m_nodes, k))
+    far = np.zeros(m_nodes, dtype=np.bool_)
+    idx = np.empty(d, dtype=np.int64)
+    log_k = math.log(k)
+    for m in range(m_nodes):
+        rem = m
+        for ax in range(d - 1, -1, -1):  # C order: the last axis fastest
+            idx[ax] = rem % shape[ax]
+            rem //= shape[ax]
+        row = offsets[0] + idx[0]
+        for a in range(k):
+            coef[m, a] = 1.0 * factors[row, a]
+        for ax in range(1, d):
+            row = offsets[ax] + idx[ax]
+            for a in range(k):
+                coef[m, a] *= factors[row, a]
+        total = 0.0
+        for a in range(k):
+            total += coef[m, a]
+        if total < 1e-200:  # every component below 1e-200 of its per-axis peaks
+            far[m] = True
+            total = 1.0
+        log_p = math.log(total) + top[m] + log_norm - log_k
+        psi[m] = 2.0 * math.exp(0.5 * log_p)
+        scale = math.exp(top[m] + log_norm - 0.5 * log_p) / (k * s2)
+        for a in range(k):
+            coef[m, a] *= scale
+    return psi, coef, far

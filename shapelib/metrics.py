@@ -128,30 +128,28 @@ def _psi_coef(theta: np.ndarray, s2: float, grid: Grid):
     ``∂ψ/∂φ_a (x_m) = coef_ma r_ma`` with ``r_ma = x_m − φ_a``. On a tensor grid the Gaussians
     factorise over coordinates, ``exp(−|x − φ_a|²/2σ²) = Π_i exp(−(x_i − φ_ai)²/2σ²)``, so only
     ``Σ_i n_i K`` exponentials are needed instead of ``M K`` (each factor scaled by its largest
-    value per node coordinate, so it lies in (0, 1]). Nodes where the product underflows (far
-    from every landmark) are recomputed in log space by :func:`_psi_coef_nodes`.
+    value per node coordinate, so it lies in (0, 1]); the products, ``ψ`` and ``coef`` are one
+    compiled pass over the nodes (:func:`shapelib._kernels.psi_coef_grid`). Nodes where the
+    product underflows (far from every landmark) are recomputed in log space by
+    :func:`_psi_coef_nodes`.
     """
     k, d = theta.shape
     if len(grid.axes) != d:
         return _psi_coef_nodes(theta, s2, grid.nodes)
-    e = np.ones((1,) * d + (k,))
+    factors = []
     top = np.zeros((1,) * d)
     for i, ax in enumerate(grid.axes):
         expo = -((ax[:, None] - theta[None, :, i]) ** 2) / (2 * s2)  # (n_i, K)
         shift = expo.max(axis=1)
+        factors.append(np.exp(expo - shift[:, None]))
         shape = [1] * d
         shape[i] = len(ax)
-        e = e * np.exp(expo - shift[:, None]).reshape(shape + [k])
         top = top + shift.reshape(shape)
-    e = e.reshape(-1, k)
-    top = top.reshape(-1)
-    total = e.sum(axis=1)
-    far = total < 1e-200  # every component is below 1e-200 of its per-axis peaks: redo in log space
-    total[far] = 1.0
     log_norm = -0.5 * d * np.log(2 * np.pi * s2)
-    log_p = np.log(total) + top + log_norm - np.log(k)
-    psi = 2.0 * np.exp(0.5 * log_p)
-    coef = e * (np.exp(top + log_norm - 0.5 * log_p) / (k * s2))[:, None]
+    # the products over axes, ψ and coef in one compiled pass (shapelib._kernels.psi_coef_grid)
+    sizes = np.array([len(ax) for ax in grid.axes], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    psi, coef, far = _kernels.psi_coef_grid(np.concatenate(factors), offsets, sizes, top.reshape(-1), log_norm, s2)
     if np.any(far):
         psi[far], coef[far] = _psi_coef_nodes(theta, s2, grid.nodes[far])
     return psi, coef
