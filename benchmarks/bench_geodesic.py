@@ -15,7 +15,7 @@ Times, on the corpus callosum pair of the speed targets (paper shapes 1 and 2; K
 
 For each row: wall and CPU seconds, iterations, how it stopped, energy, length / lower bound − 1,
 and where an iteration's time goes (energy + gradient + exact Hessian, block Cholesky and
-solves, trial energies, the rest; wall time), measured by timing the solver's own functions
+solves, trial energies, the rest; CPU time), measured by timing the solver's own functions
 during the run. The load average is printed beside every row: the development machine has 2 cores shared
 with other jobs, where wall time is not reproducible (CPU time is steadier, not immune).
 The first geodesic of a process loads the compiled kernels (``shapelib._kernels``) from numba's
@@ -68,34 +68,36 @@ def loadavg() -> str:
 
 @contextmanager
 def timing_solver_parts():
-    """Wrap the solver's functions and accumulate their wall time: yields the totals dict."""
+    """Wrap the solver's functions and accumulate their CPU time (``time.process_time``: steadier
+    than wall time on a shared machine; equal to it for this single-threaded solver on a quiet
+    one): yields the totals dict."""
     totals = {"energy_grad_hessian": 0.0, "trial_energy": 0.0, "cholesky": 0.0, "solve": 0.0,
               "n_energy_grad_hessian": 0, "n_trial_energy": 0, "n_cholesky": 0}
     orig = G._energy, G._block_cholesky, G._block_solve
 
     def energy(model, path, *, gradient=True, hessian=None):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         try:
             return orig[0](model, path, gradient=gradient, hessian=hessian)
         finally:
             key = "energy_grad_hessian" if gradient else "trial_energy"
-            totals[key] += time.perf_counter() - t0
+            totals[key] += time.process_time() - t0
             totals["n_" + key] += 1
 
     def cholesky(diag, upper, shift):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         try:
             return orig[1](diag, upper, shift)
         finally:
-            totals["cholesky"] += time.perf_counter() - t0
+            totals["cholesky"] += time.process_time() - t0
             totals["n_cholesky"] += 1
 
     def solve(factors, rhs):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         try:
             return orig[2](factors, rhs)
         finally:
-            totals["solve"] += time.perf_counter() - t0
+            totals["solve"] += time.process_time() - t0
 
     G._energy, G._block_cholesky, G._block_solve = energy, cholesky, solve
     try:
@@ -109,20 +111,20 @@ def run_row(u, v, metric, tol, *, sigma2, n_steps, grid_spacing, max_iter):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         load = loadavg()
-        with timing_solver_parts() as parts:  # a few perf_counter calls per solver call
+        with timing_solver_parts() as parts:  # a few process_time calls per solver call
             w0, c0 = time.perf_counter(), time.process_time()
             r = G.geodesic(u, v, **kwargs)
             wall, cpu = time.perf_counter() - w0, time.process_time() - c0
     it = max(r.n_iter, 1)
     accounted = parts["energy_grad_hessian"] + parts["trial_energy"] + parts["cholesky"] + parts["solve"]
     per_it = {k: parts[k] / it * 1e3 for k in ("energy_grad_hessian", "trial_energy", "cholesky", "solve")}
-    per_it["rest"] = (wall - accounted) / it * 1e3
+    per_it["rest"] = (cpu - accounted) / it * 1e3
     return {
         "metric": metric, "tol": tol, "seconds": wall, "cpu_seconds": cpu, "loadavg": load,
         "iterations": r.n_iter, "converged": r.converged, "stopped_by": r.log["stopped_by"],
         "energy": r.energy, "length": r.length, "lower_bound": r.lower_bound,
         "length_over_bound_minus_1": r.length / r.lower_bound - 1,
-        "per_iteration_ms": per_it, "calls": {k: parts[k] for k in parts if k.startswith("n_")},
+        "per_iteration_cpu_ms": per_it, "calls": {k: parts[k] for k in parts if k.startswith("n_")},
     }
 
 
@@ -184,13 +186,14 @@ def main(argv=None):
     u, v = x[list(ids).index(1)], x[list(ids).index(2)]
     report = {"sigma2": args.sigma2, "n_steps": args.n_steps, "K": len(u), "grid_spacing": args.grid_spacing,
               "cpus": os.cpu_count(), "rows": {}}
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for metric in ("alpha", "fisher_rao"):
             G.geodesic(u[:3], v[:3], metric=metric, sigma2=args.sigma2, n_steps=3)
-    report["first_call_seconds"] = time.perf_counter() - t0
-    print(f"first call (compiled kernels loaded or compiled, both metrics): {report['first_call_seconds']:.2f} s")
+    report["first_call_seconds"], report["first_call_cpu_seconds"] = time.perf_counter() - t0, time.process_time() - c0
+    print(f"first call (compiled kernels loaded from cache, or compiled after installation; both metrics): "
+          f"{report['first_call_seconds']:.2f} s wall, {report['first_call_cpu_seconds']:.2f} s CPU [load {loadavg()}]")
     print(f"CC 1–2, K = {len(u)}, σ² = {args.sigma2}, n_steps = {args.n_steps}, FR grid spacing {args.grid_spacing}σ")
     for name in args.rows:
         metric, tol, target = ROWS[name]
@@ -198,11 +201,11 @@ def main(argv=None):
                       max_iter=args.max_iter)
         row["target_seconds"] = target
         report["rows"][name] = row
-        p = row["per_iteration_ms"]
+        p = row["per_iteration_cpu_ms"]
         print(f"{name:>13}: {row['seconds']:7.2f} s wall, {row['cpu_seconds']:7.2f} s CPU (target ≤ {target:g} s), "
               f"{row['iterations']:3d} it, stopped by {row['stopped_by']}, E = {row['energy']:.10e}, "
               f"length/bound − 1 = {row['length_over_bound_minus_1']:.2e}  [load {row['loadavg']}]")
-        print(f"{'':>15}per iteration: energy+gradient+Hessian {p['energy_grad_hessian']:.1f} ms, "
+        print(f"{'':>15}per iteration (CPU): energy+gradient+Hessian {p['energy_grad_hessian']:.1f} ms, "
               f"Cholesky {p['cholesky']:.1f} ms ({row['calls']['n_cholesky'] / max(row['iterations'], 1):.1f} per it), "
               f"solves {p['solve']:.1f} ms, trial energies {p['trial_energy']:.1f} ms, rest {p['rest']:.1f} ms")
     if args.tensor_comparison:
