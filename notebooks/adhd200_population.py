@@ -25,7 +25,7 @@ permutations = 999
 n_neighbors = 5
 seed = 0
 n_jobs = None  # pairwise engine: None = let it measure and choose (in-process or one worker per core)
-rtol = None  # certified relative tolerance of the geodesic brackets (None: fixed solver iterations)
+rtol = 1e-3  # certified relative tolerance of the geodesic brackets (None: fixed solver iterations)
 store_dir = None  # zarr stores of the matrices (a killed run resumes from them); None: no store
 
 # %%
