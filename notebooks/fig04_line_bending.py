@@ -42,7 +42,6 @@ for r in results.values():
 
 # %%
 fig, axes = plot_metric_panels(results, figsize=(11, 4.2))
-axes[1].legend(loc="lower right", fontsize=8)
 save_figure(fig, output_dir, "fig04_line_bending")
 
 # %%
@@ -52,7 +51,7 @@ for j, style in [(mid + 2, "o"), (mid + 3, "s")]:
     p = results["alpha"].path[:, j]
     ax.plot(straight[:, j, 0], straight[:, j, 1], "--" + style, color="0.6", ms=4, mfc="white")
     ax.plot(p[:, 0], p[:, 1], "-" + style, color="k", ms=4, label=f"landmark {j + 1} (geodesic)")
-ax.set_title("α-order: intermediate positions of the 2nd and 3rd landmarks from the middle\n(dashed: uniform straight-line initialisation)")
+ax.set_title("α-order: the 2nd and 3rd landmarks from the middle\n(dashed: uniform straight-line initialisation)", fontsize=10)
 ax.set_aspect("equal")
 ax.legend(fontsize=8)
 fig.tight_layout()

@@ -23,12 +23,20 @@ def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
 
 def plot_metric_panels(results: dict, *, figsize=(10, 4.5), lw: float = 1.0):
     """Figs. 4 and 6 layout: (a) Fisher–Rao and (b) α-order trajectories side by side, each over
-    the dashed straight-line initialisation. ``results`` maps metric name to GeodesicResult."""
-    import matplotlib.pyplot as plt
+    the dashed straight-line initialisation. ``results`` maps metric name to GeodesicResult.
 
-    fig, axes = plt.subplots(1, 2, figsize=figsize)
+    One legend for both panels sits below them, outside the axes, so that it never covers a
+    trajectory or a landmark.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    fig, axes = plt.subplots(1, 2, figsize=figsize, layout="constrained")
     for ax, (m, title) in zip(axes, [("fisher_rao", "(a) Fisher–Rao"), ("alpha", "(b) α-order entropy")]):
         plot_trajectories(ax, results[m].path, lw=lw)
         ax.set_title(f"{title}, σ² = {results[m].sigma2}")
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    handles = [Line2D([], [], color="k", lw=lw), Line2D([], [], ls="--", color="0.6", lw=0.8), *handles]
+    labels = ["geodesic trajectory", "straight-line initialisation", *labels]
+    fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8, frameon=False)
     return fig, axes

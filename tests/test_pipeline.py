@@ -267,7 +267,10 @@ def test_default_output_dir_is_the_top_level_results_wherever_the_notebook_runs(
     with pytest.raises(ValueError, match="without folders"):
         default_output_dir("../x")
     for name in run_all.NOTEBOOKS:  # every study notebook uses it
-        assert run_all.declared_parameters(name)["output_dir"] == f'default_output_dir("{name}")'
+        assert run_all.declared_parameters(name)["output_dir"] == f'default_output_dir("{name}")', (
+            f"notebooks/{name}.py: its parameters cell should set "
+            f"`output_dir = default_output_dir(\"{name}\")` (from shapelib.study), so that run by hand from "
+            "notebooks/ it writes to the top-level results/")
 
 
 def test_readme_timings_come_from_the_run_records(tmp_path):
