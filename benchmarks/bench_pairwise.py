@@ -6,7 +6,9 @@ generalised-Procrustes aligned and scaled to centroid size 20 as in the study:
 :func:`shapelib.study.paper_scale`) is run through :func:`shapelib.pairwise.compute_pairwise`
 with 1 worker (in this process, as ``n_jobs=1`` does) and on a ``LocalCluster`` of 2 (or
 ``--workers``) single-threaded processes started once beforehand (its start-up is reported
-separately, not charged to any metric). Reported per metric and worker count: pairs, wall seconds,
+separately, not charged to any metric); before timing a metric, one pair is computed in this process
+and on every worker (numba compilation and other first-call costs are reported as ``warmup_seconds``,
+not charged to the rate). Reported per metric and worker count: pairs, wall seconds,
 pairs/s, and the scaling efficiency ``rate_w / (w · rate_1)``; then the projected wall-clock of the
 full 647-shape matrices (208,981 pairs) of the α and Fisher–Rao geodesic distances on N workers,
 from the mean measured seconds per pair and the measured 2-worker efficiency.
@@ -34,6 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from shapelib.datasets import load_adhd200  # noqa: E402
+from shapelib.distances import pair_record  # noqa: E402
 from shapelib.pairwise import compute_pairwise  # noqa: E402
 from shapelib.study import paper_scale  # noqa: E402
 
@@ -65,6 +68,24 @@ def metric_params(metric: str, args, bracket: bool) -> dict:
     if metric in ("alpha_bound", "fisher_rao_bound"):
         return {"sigma2": args.sigma2}
     return {}
+
+
+def warm_up(x, metric, params, clients) -> float:
+    """One pair in this process and on every worker before timing: the first call of a process pays
+    one-off costs (numba compiles the α kernels, imports) that a long run amortises."""
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pair_record(x[0], x[1], metric=metric, **params)
+        for client in clients:
+            client.run(_quiet_pair, x[0], x[1], metric=metric, **params)
+    return time.perf_counter() - t0
+
+
+def _quiet_pair(u, v, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pair_record(u, v, **kw)
 
 
 def run(x, metric, params, *, workers, client):
@@ -109,8 +130,10 @@ def main(argv=None):
         for w in args.workers:
             if w > 1:
                 t0 = time.perf_counter()
-                cluster = LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None,
-                                       silence_logs=40)
+                with warnings.catch_warnings():  # the scheduler's HTTP port moves if 8787 is taken
+                    warnings.filterwarnings("ignore", message="Port .* is already in use")
+                    cluster = LocalCluster(n_workers=w, threads_per_worker=1, processes=True,
+                                           dashboard_address=None, silence_logs=40)
                 client = Client(cluster)
                 client.run(lambda: __import__("shapelib.pairwise"))  # workers import shapelib once, up front
                 clusters[w] = (cluster, client)
@@ -119,14 +142,15 @@ def main(argv=None):
         for metric in args.metrics:
             x = x_all[order[: sizes[metric]]]
             params = metric_params(metric, args, bracket)
-            out = {"n_shapes": len(x), "params": params}
+            out = {"n_shapes": len(x), "params": params,
+                   "warmup_seconds": warm_up(x, metric, params, [c for _, c in clusters.values()])}
             for w in args.workers:
                 out[w] = run(x, metric, params, workers=w, client=clusters.get(w, (None, None))[1])
             base = out[args.workers[0]]["pairs_per_second"] / args.workers[0]
             for w in args.workers:
                 out[w]["efficiency"] = out[w]["pairs_per_second"] / (w * base)
             report["metrics"][metric] = out
-            print(f"{metric:>17} ({len(x):3d} shapes): " + "  ".join(
+            print(f"{metric:>17} ({len(x):3d} shapes, warm-up {out['warmup_seconds']:.1f} s): " + "  ".join(
                 f"{w} worker(s): {out[w]['pairs']} pairs {out[w]['wall_seconds']:7.2f} s "
                 f"{out[w]['pairs_per_second']:9.2f} pairs/s eff {out[w]['efficiency']:.2f}" for w in args.workers))
     finally:
