@@ -31,6 +31,24 @@ def _overlap_norm(s2, k, d):
     return 1.0 / ((4.0 * math.pi * s2) ** (0.5 * d) * k * k)
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def _pair_dots(theta, vel, a, b, delta):
+    """For landmarks a, b of one shape (``theta, vel`` (K, d)): writes ``Δ = φ_a − φ_b`` to
+    ``delta`` and returns ``|Δ|², V_a·V_b, Δ·V_a, Δ·V_b``."""
+    rr = 0.0
+    vv = 0.0
+    dva = 0.0
+    dvb = 0.0
+    for i in range(delta.shape[0]):
+        x = theta[a, i] - theta[b, i]
+        delta[i] = x
+        rr += x * x
+        vv += vel[a, i] * vel[b, i]
+        dva += x * vel[a, i]
+        dvb += x * vel[b, i]
+    return rr, vv, dva, dvb
+
+
 @njit(cache=True, fastmath=False)
 def alpha_qform(theta, vel, s2):
     """``Q = vᵀ g_α(θ) v`` for ``theta, vel`` of shape (m, K, d) -> (m,) (see ``metrics._alpha_qform``)."""
@@ -38,25 +56,18 @@ def alpha_qform(theta, vel, s2):
     norm = _overlap_norm(s2, k, d)
     s4 = 4.0 * s2 * s2
     out = np.empty(m)
+    delta = np.empty(d)
     for n in range(m):
         diag = 0.0
         off = 0.0
+        th, ve = theta[n], vel[n]
         for a in range(k):
             vva = 0.0
             for i in range(d):
                 vva += vel[n, a, i] * vel[n, a, i]
             diag += vva
             for b in range(a + 1, k):
-                r2 = 0.0
-                vv = 0.0
-                dva = 0.0
-                dvb = 0.0
-                for i in range(d):
-                    x = theta[n, a, i] - theta[n, b, i]
-                    r2 += x * x
-                    vv += vel[n, a, i] * vel[n, b, i]
-                    dva += x * vel[n, a, i]
-                    dvb += x * vel[n, b, i]
+                r2, vv, dva, dvb = _pair_dots(th, ve, a, b, delta)
                 off += math.exp(-r2 / (4.0 * s2)) * (vv / (2.0 * s2) - dva * dvb / s4)
         out[n] = norm * (diag / (2.0 * s2) + 2.0 * off)
     return out
@@ -83,17 +94,7 @@ def alpha_qform_grad(theta, vel, s2):
                 d_vel[n, a, i] += 2.0 * norm * vel[n, a, i] * r2  # the a = b term
             diag += vva
             for b in range(a + 1, k):
-                rr = 0.0
-                vv = 0.0
-                dva = 0.0
-                dvb = 0.0
-                for i in range(d):
-                    x = theta[n, a, i] - theta[n, b, i]
-                    delta[i] = x
-                    rr += x * x
-                    vv += vel[n, a, i] * vel[n, b, i]
-                    dva += x * vel[n, a, i]
-                    dvb += x * vel[n, b, i]
+                rr, vv, dva, dvb = _pair_dots(theta[n], vel[n], a, b, delta)
                 c = norm * math.exp(-rr / (4.0 * s2))
                 cb = c * (vv * r2 - dva * dvb * r4)
                 off += cb
@@ -157,17 +158,7 @@ def alpha_path_hessian(path, s2, tau, tw, csign):
             for b in range(a + 1, k):
                 acc[:] = 0.0
                 for q in range(nq):
-                    rr = 0.0
-                    vv = 0.0
-                    dva = 0.0
-                    dvb = 0.0
-                    for i in range(d):
-                        x = th[q, a, i] - th[q, b, i]
-                        delta[i] = x
-                        rr += x * x
-                        vv += vel[a, i] * vel[b, i]
-                        dva += x * vel[a, i]
-                        dvb += x * vel[b, i]
+                    rr, vv, dva, dvb = _pair_dots(th[q], vel, a, b, delta)
                     c = norm * math.exp(-rr / (4.0 * s2))
                     h = vv * r2 - dva * dvb * r4
                     for i in range(d):
@@ -273,18 +264,27 @@ def fr_psidot(x, theta, vel, coef):
 
 
 @njit(cache=True, fastmath=False)
-def fr_qform_grad(x, weight, theta, vel, s2, psi, coef):
-    """``Q = ∫ ψ̇²``, ``∂Q/∂θ`` (K, d) and ``∂Q/∂v`` (K, d) for one shape on the grid nodes ``x``
-    with trapezoid weight ``weight`` (see ``metrics._fr_qform_grad``). Loops over landmarks
-    innermost on (d, K) arrays, so that they vectorise."""
-    m_nodes, d = x.shape
-    k = theta.shape[0]
+def _landmarks_by_coordinate(theta, vel):
+    """``θ`` and ``V`` as (d, K) arrays (landmarks innermost, so that loops over them vectorise)
+    and ``φ_a·V_a`` (K,): ``r_ma·V_a = x_m·V_a − φ_a·V_a``."""
+    k, d = theta.shape
     th = np.ascontiguousarray(theta.T)
     v = np.ascontiguousarray(vel.T)
     tv = np.zeros(k)
     for i in range(d):
         for a in range(k):
             tv[a] += th[i, a] * v[i, a]
+    return th, v, tv
+
+
+@njit(cache=True, fastmath=False)
+def fr_qform_grad(x, weight, theta, vel, s2, psi, coef):
+    """``Q = ∫ ψ̇²``, ``∂Q/∂θ`` (K, d) and ``∂Q/∂v`` (K, d) for one shape on the grid nodes ``x``
+    with trapezoid weight ``weight`` (see ``metrics._fr_qform_grad``). Loops over landmarks
+    innermost on (d, K) arrays, so that they vectorise."""
+    m_nodes, d = x.shape
+    k = theta.shape[0]
+    th, v, tv = _landmarks_by_coordinate(theta, vel)
     g_th = np.zeros((d, k))
     g_v = np.zeros((d, k))
     rv = np.empty(k)
@@ -331,12 +331,7 @@ def fr_hessian_parts(x, theta, vel, s2, psi, coef):
     k = theta.shape[0]
     mk = x.shape[0]
     inv_s2 = 1.0 / s2
-    th = np.ascontiguousarray(theta.T)
-    v = np.ascontiguousarray(vel.T)
-    tv = np.zeros(k)
-    for i in range(d):
-        for a in range(k):
-            tv[a] += th[i, a] * v[i, a]
+    th, v, tv = _landmarks_by_coordinate(theta, vel)
     e = np.empty((mk, 2, d, k))
     rv = np.empty(k)
     aa = np.empty(k)
