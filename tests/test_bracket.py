@@ -44,10 +44,12 @@ def test_lower_bounds_match_single_gaussian_closed_forms(s2):
         2 * np.arccos(np.exp(-dd / (8 * s2))), rel=1e-6)
 
 
-@pytest.mark.parametrize("metric", METRICS)
-def test_bracket_is_certified_and_contains_a_converged_fine_geodesic(pair, metric):
+@pytest.mark.parametrize("metric, hessian", [("alpha", None), ("fisher_rao", None), ("alpha", "model"),
+                                             ("fisher_rao", "exact")])
+def test_bracket_is_certified_and_contains_a_converged_fine_geodesic(pair, metric, hessian):
     u, v = pair
-    b = distance_bracket(u, v, metric=metric, sigma2=0.5, rtol=1e-3)
+    b = distance_bracket(u, v, metric=metric, sigma2=0.5, rtol=1e-3, hessian=hessian)
+    assert b.log["hessian"] == (hessian or {"alpha": "exact", "fisher_rao": "model"}[metric])
     assert isinstance(b, DistanceBracket)
     assert b.converged and b.stopped_by == "rtol"
     assert 0 < b.lower <= b.upper and b.rel_gap == pytest.approx(b.upper / b.lower - 1, rel=1e-12)
@@ -142,6 +144,7 @@ def test_straight_line_good_enough_costs_no_iteration(pair):
     ({"n_steps": 16, "max_n_steps": 8}, "max_n_steps must be >= n_steps"),
     ({"level_iter": 1.5}, "level_iter"),
     ({"min_shrink": 1.0}, "min_shrink"),
+    ({"hessian": "newton"}, "hessian must be"),
     ({"sigma2": -1.0}, "sigma2"),
 ])
 def test_errors(pair, kwargs, match):
