@@ -45,7 +45,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from shapelib import distance_bracket, geodesic
-from shapelib.bracket import lower_bound
+from shapelib.bracket import lower_bound, refine_path
 from shapelib.datasets import load_corpus_callosum
 from shapelib.study import pair_key, paper_scale, record_values, save_figure
 
@@ -61,9 +61,7 @@ def refine(u, v):
     lengths, iters, path = [], [], None
     for n in ns:
         if path is not None:  # the same curve with a point inserted in every segment
-            fine = np.empty((n + 1,) + path.shape[1:])
-            fine[0::2], fine[1::2] = path, 0.5 * (path[:-1] + path[1:])
-            path = fine
+            path = refine_path(path)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             r = geodesic(u, v, metric="alpha", sigma2=sigma2, n_steps=n, tol=tol, max_iter=max_iter, init=path)

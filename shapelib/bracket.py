@@ -37,7 +37,7 @@ from .gmm import l2_distance
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from .scale import SIGMA_RATIO_MIN
 
-__all__ = ["DistanceBracket", "distance_bracket", "lower_bound"]
+__all__ = ["DistanceBracket", "distance_bracket", "lower_bound", "refine_path"]
 
 METRICS = ("alpha", "fisher_rao")
 STOPPED_BY = ("rtol", "stalled", "trivial", "max_n_steps")
@@ -129,6 +129,18 @@ def lower_bound(u, v, *, metric: str, sigma2, grid_spacing: float = DEFAULT_SPAC
     if metric == "alpha":
         return l2_distance(u, v, sigma2)
     return fisher_rao_lower_bound(u, v, sigma2=sigma2, grid_spacing=grid_spacing, grid_margin=grid_margin)
+
+
+def refine_path(path) -> np.ndarray:
+    """The same piecewise-linear curve with a point inserted in every segment: ``(2n + 1, K, d)``
+    from ``(n + 1, K, d)``. Its length and energy equal the input's (up to the time quadrature),
+    so a solve at ``2n`` warm-started from it never starts above the solve at ``n``."""
+    path = np.asarray(path, dtype=np.float64)
+    if path.ndim != 3 or len(path) < 2:
+        raise ValueError(f"path must have shape (n + 1, K, d) with n >= 1; got {path.shape}")
+    fine = np.empty((2 * len(path) - 1,) + path.shape[1:])
+    fine[0::2], fine[1::2] = path, 0.5 * (path[:-1] + path[1:])
+    return fine
 
 
 def _aitken(gaps):
@@ -260,10 +272,7 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
             stopped_by = "max_n_steps"
             break
         prev_gap = gap
-        # warm start: the same piecewise-linear curve with a point inserted in every segment
-        mid = 0.5 * (path[:-1] + path[1:])
-        path = np.empty((2 * n + 1,) + path.shape[1:])
-        path[0::2], path[1::2] = r.path, mid
+        path = refine_path(r.path)  # warm start
         n *= 2
     converged = stopped_by == "rtol"
     if not converged and warn:

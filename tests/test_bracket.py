@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import shapelib
-from shapelib.bracket import DistanceBracket, distance_bracket, lower_bound
+from shapelib.bracket import DistanceBracket, distance_bracket, lower_bound, refine_path
 from shapelib.geodesic import GeodesicWarning, geodesic
 
 METRICS = ["alpha", "fisher_rao"]
@@ -155,6 +155,17 @@ def test_errors(pair, kwargs, match):
     if set(kwargs) <= {"metric", "sigma2"}:
         with pytest.raises(ValueError, match=match):
             lower_bound(u, v, **args)
+
+
+def test_refine_path_keeps_the_curve_and_its_length(far_pair):
+    u, v = far_pair
+    path = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=4).path
+    fine = refine_path(path)
+    assert fine.shape == (9,) + u.shape and np.array_equal(fine[::2], path)
+    assert shapelib.path_length(fine, metric="alpha", sigma2=0.5) == pytest.approx(
+        shapelib.path_length(path, metric="alpha", sigma2=0.5), rel=1e-9)
+    with pytest.raises(ValueError, match="path must have shape"):
+        refine_path(path[0])
 
 
 def test_exported():
