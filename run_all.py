@@ -86,9 +86,8 @@ NOTEBOOKS: dict[str, dict] = {
             "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")} | {"fig11/": 28, "speed/": 2, "constant/table1/": 7},
     },
     "adhd200_population": {
-        "params": {},
-        "quick": {"n_shapes": 40, "n_subset": 8, "geodesic_n_steps": 2, "geodesic_max_iter": 1, "permutations": 199,
-                  "rtol": None},
+        "params": {"rtol": 1e-3},
+        "quick": {"n_shapes": 40, "n_subset": 8, "geodesic_n_steps": 2, "geodesic_max_iter": 1, "permutations": 199},
         "data": ["adhd200/ADHD-200.Rdata", "adhd200/clinical_info.csv"],
         "expects": {"adhd200/permanova/": 108, "adhd200/knn/": 36, "adhd200/mantel/": 62, "adhd200/mds/": 14,
                     "adhd200/bracket/": 6, "adhd200/correspondence/": 4, "adhd200/scale/": 4},

@@ -25,7 +25,7 @@ permutations = 999
 n_neighbors = 5
 seed = 0
 n_jobs = None  # pairwise engine: None = let it measure and choose (in-process or one worker per core)
-rtol = 1e-3  # certified relative tolerance of the geodesic brackets (None: fixed solver iterations)
+rtol = None  # certified relative tolerance of the geodesic brackets (None: fixed solver iterations; full run: 1e-3)
 store_dir = None  # zarr stores of the matrices (a killed run resumes from them); None: no store
 
 # %%
@@ -323,6 +323,8 @@ for ax, (scope, metric) in zip(axes.ravel(), panels):
     mds_rows.append({"scope": scope, "metric": metric, "axis1": explained[0], "axis2": explained[1]})
     values[f"adhd200/mds/{scope}/{metric}/explained_1"] = float(explained[0])
     values[f"adhd200/mds/{scope}/{metric}/explained_2"] = float(explained[1])
+for ax in axes.ravel()[len(panels):]:
+    ax.axis("off")
 axes[0, 0].legend(fontsize=7, markerscale=2)
 fig.tight_layout()
 save_figure(fig, output_dir, "mds_by_diagnosis")
