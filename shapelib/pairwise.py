@@ -278,7 +278,9 @@ class _Store:
         self.n, self.b = attrs["N"], attrs["block_size"]
         self.symmetric = attrs["symmetric"]
         self.nb = _n_blocks(self.n, self.b)
-        self.arrays = {name: group[name] for name in (*ARRAYS, "done")}
+        # every chunk is written, also one equal to the fill value (e.g. the all-NaN ``energy`` of a
+        # non-path metric): a done block's chunk files must exist, which is how truncation is detected
+        self.arrays = {name: group[name].with_config({"write_empty_chunks": True}) for name in (*ARRAYS, "done")}
 
     @property
     def where(self) -> str:

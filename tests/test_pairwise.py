@@ -212,3 +212,18 @@ def test_local_cluster_equals_serial_and_leaves_no_process(rng, tmp_path):
     after = {p.pid for p in psutil.Process().children(recursive=True) if p.is_running()
              and p.status() != psutil.STATUS_ZOMBIE and "resource_tracker" not in " ".join(p.cmdline())}
     assert after <= before, "the LocalCluster left worker processes behind"
+
+
+def test_store_of_a_non_path_metric_spanning_several_chunks_reopens(rng, tmp_path):
+    # its ``energy`` array stays all NaN (the fill value); zarr skips writing such chunks unless
+    # told otherwise, and a done block whose chunk file is missing reads as truncated
+    from shapelib.pairwise import CHUNK_SIDE
+
+    x = rng.normal(size=(CHUNK_SIDE + 20, 6, 2))
+    path = tmp_path / "h.zarr"
+    first = pairwise_distances(x, metric="hausdorff", n_jobs=1, store=path, block_size=16, progress=False,
+                               return_result=True)
+    again = open_store(path)
+    assert again.computed[~np.eye(len(x), dtype=bool)].all()
+    np.testing.assert_array_equal(again.matrix, first.matrix)
+    assert np.isnan(again.energy[~np.eye(len(x), dtype=bool)]).all()  # not applicable, not 0
