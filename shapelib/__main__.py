@@ -1,0 +1,7 @@
+"""``python -m shapelib``: the command line (:mod:`shapelib.cli`)."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,505 @@
+"""The ``shapelib`` command line: landmark files in, aligned shapes, distance matrices and geodesics out.
+
+Subcommands (``shapelib <command> --help`` shows an example for each)::
+
+    shapelib info FILE
+    shapelib align FILE -o OUT [--size S]
+    shapelib distances FILE --metric M [--sigma2 S] [--rtol R] [--jobs N | --scheduler ADDRESS]
+                           [--store D.zarr] [--no-progress] -o D.csv
+    shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S -o path.csv [--plot P.png] [--animate A.gif]
+    shapelib study [--quick]
+
+Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
+input ends the command with one line ``shapelib: error: …`` on stderr (naming the file, specimen,
+landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import os
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+PROG = "shapelib"
+
+
+class CLIError(ValueError):
+    """A user-facing error: printed as one line, exit status 1."""
+
+
+# ---------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------
+
+
+def _read(args, *, missing="error"):
+    from . import io
+
+    kw = {"missing": missing}
+    fmt = io._format_of(args.file)
+    if fmt == "tps":
+        kw.update(scale=args.scale, negative="coordinates" if args.negative_coordinates else "missing")
+    elif args.scale or args.negative_coordinates:
+        flag = "--scale" if args.scale else "--negative-coordinates"
+        raise CLIError(f"{flag} applies to .tps files only; {args.file} is {fmt}")
+    if fmt in ("npy", "npz") and args.pkn:
+        kw["layout"] = "pkn"
+    elif args.pkn:
+        raise CLIError(f"--pkn applies to .npy/.npz files only; {args.file} is {fmt}")
+    return io.read_landmarks(args.file, **kw)
+
+
+def _output_path(path, *, suffixes, option):
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise CLIError(f"{option} {path}: expected a file ending in {' or '.join(suffixes)}")
+    if not p.parent.exists():
+        raise CLIError(f"{option} {path}: directory {p.parent} does not exist")
+    return p
+
+
+def _write_frame(frame, path, **kw):
+    from .io import _atomic_write
+
+    _atomic_write(Path(path), frame.to_csv(lineterminator="\n", **kw))
+
+
+def _parse_params(items):
+    """``KEY=VALUE`` pairs -> dict; values as Python literals (numbers, True, 'text'), else strings."""
+    params = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.isidentifier():
+            raise CLIError(f"--param {item!r}: expected KEY=VALUE, e.g. --param n_steps=16")
+        try:
+            params[key] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            params[key] = value
+    return params
+
+
+def _metric_params(args):
+    from .distances import check_metric_params
+
+    params = _parse_params(args.param)
+    for name in ("sigma2",):
+        value = getattr(args, name, None)
+        if value is not None:
+            if name in params:
+                raise CLIError(f"--{name} given twice (also as --param {name}=...)")
+            params[name] = value
+    try:
+        check_metric_params(args.metric, params, rtol=getattr(args, "rtol", None))
+    except ValueError as exc:
+        raise CLIError(f"--metric {args.metric}: {exc}") from None
+    return params
+
+
+def _index_of(specimens, ident, option):
+    ids = specimens["id"].astype(str)
+    hits = np.flatnonzero(ids.to_numpy() == str(ident))
+    if len(hits) == 0:
+        shown = ", ".join(ids.iloc[:8])
+        more = f", … ({len(ids)} in all)" if len(ids) > 8 else ""
+        raise CLIError(f"{option} {ident}: no specimen with that id in {specimens.attrs.get('path', 'the file')} "
+                       f"(ids: {shown}{more})")
+    if len(hits) > 1:
+        raise CLIError(f"{option} {ident}: {len(hits)} specimens have that id (rows {', '.join(str(h + 1) for h in hits)}); "
+                       "make the ids unique")
+    return int(hits[0])
+
+
+# ---------------------------------------------------------------------------------------------
+# subcommands
+# ---------------------------------------------------------------------------------------------
+
+
+def cmd_info(args) -> int:
+    from .procrustes import centroid_size
+
+    shapes, spec = _read(args, missing="nan")
+    n, k, d = shapes.shape
+    print(f"file        {args.file} ({spec.attrs.get('format')}"
+          + (f", {spec.attrs['layout']} layout" if "layout" in spec.attrs else "") + ")")
+    print(f"specimens   {n}")
+    print(f"landmarks   {k}")
+    print(f"dimension   {d}")
+    n_missing = int(spec["n_missing"].sum())
+    if n_missing:
+        bad = spec.loc[spec["n_missing"] > 0]
+        listed = ", ".join(f"{i} ({m})" for i, m in zip(bad["id"].iloc[:5], bad["n_missing"].iloc[:5]))
+        more = ", …" if len(bad) > 5 else ""
+        print(f"missing     {n_missing} landmark(s) in {len(bad)} specimen(s): {listed}{more}")
+        if spec.attrs.get("format") == "tps" and not args.negative_coordinates:
+            print("            (NA or negative coordinates, tpsDig's code for a missing landmark; if the "
+                  "coordinates are genuinely negative, e.g. aligned shapes, add --negative-coordinates)")
+    else:
+        print("missing     none")
+    if "scale" in spec:
+        has = int(spec["scale"].notna().sum())
+        state = "applied" if spec["scaled"].any() else "not applied (--scale applies it)"
+        print(f"SCALE=      {has} of {n} specimens" + (f", {state}" if has else ""))
+    if "n_curve_points" in spec and spec["n_curve_points"].any():
+        print(f"curves      {int(spec['n_curves'].max())} per specimen, {int(spec['n_curve_points'].max())} "
+              "semilandmarks (read apart; not used by the other commands)")
+    ok = ~np.isnan(shapes).any(axis=(1, 2))
+    if ok.any():
+        lo, hi = np.nanmin(shapes, axis=(0, 1)), np.nanmax(shapes, axis=(0, 1))
+        print("range       " + ", ".join(f"{a} {lo[i]:.6g} … {hi[i]:.6g}" for i, a in enumerate("xyz"[:d])))
+        sizes = [centroid_size(s) for s in shapes[ok]]
+        print(f"centroid    size {min(sizes):.6g} … {max(sizes):.6g}")
+    shown = ", ".join(spec["id"].astype(str).iloc[:8])
+    print(f"ids         {shown}" + (f", … ({n} in all)" if n > 8 else ""))
+    return 0
+
+
+def cmd_align(args) -> int:
+    from . import io
+    from .procrustes import generalized_procrustes
+
+    fmt = io._format_of(args.file)
+    out = Path(args.output)
+    try:
+        out_fmt = io._format_of(out)
+    except ValueError:
+        out_fmt = None
+    if out_fmt != fmt:
+        raise CLIError(f"-o {args.output}: align writes the input's format ({fmt}); name the output *.{fmt}")
+    _output_path(out, suffixes=(f".{fmt}",), option="-o")
+    if args.size is not None and not (np.isfinite(args.size) and args.size > 0):
+        raise CLIError(f"--size must be a positive number; got {args.size}")
+    shapes, spec = _read(args)
+    aligned, _ = generalized_procrustes(shapes, scaling=args.scaling)
+    aligned = aligned * (1.0 if args.size is None else args.size)
+    spec = spec.copy()
+    if "scaled" in spec:
+        spec["scaled"] = True  # SCALE= no longer describes aligned coordinates
+    kw = {}
+    if fmt == "csv" and spec.attrs.get("layout") == "long":
+        kw["layout"] = "long"
+    if fmt == "csv" and spec.attrs.get("landmarks"):
+        kw["landmarks"] = spec.attrs["landmarks"]
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*negative.*", category=UserWarning)
+        io.write_landmarks(out, aligned, spec, **kw)
+    print(f"aligned {len(aligned)} specimens (generalized Procrustes, {'full' if args.scaling else 'unit-size'} "
+          f"scaling, centroid size {args.size or 1:g}) -> {out}")
+    if fmt == "tps":
+        print(f"note: aligned coordinates are centred, so some are negative; tpsDig reads negative values as "
+              f"missing landmarks: read {out.name} with --negative-coordinates", file=sys.stderr)
+    return 0
+
+
+def cmd_distances(args) -> int:
+    import pandas as pd
+
+    from .distances import pairwise_distances
+
+    out = _output_path(args.output, suffixes=(".csv",), option="-o")
+    diag = _output_path(args.pairs, suffixes=(".csv",), option="--pairs") if args.pairs else None
+    params = _metric_params(args)
+    if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
+        raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")
+    shapes, spec = _read(args)
+    ids = spec["id"].astype(str).tolist()
+    if len(set(ids)) != len(ids):
+        dup = pd.Series(ids)[pd.Series(ids).duplicated()].iloc[0]
+        raise CLIError(f"{args.file}: specimen id {dup!r} occurs more than once; the matrix needs unique ids")
+    result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
+                                store=args.store, progress=not args.no_progress, rtol=args.rtol,
+                                return_result=True, **params)
+    frame = pd.DataFrame(result.matrix, index=pd.Index(ids, name="id"), columns=ids)
+    _write_frame(frame, out, float_format=lambda v: repr(float(v)))
+    bad = result.nonconverged_pairs()
+    if diag is not None:
+        pairs = result.to_frame()
+        for col in ("i", "j"):
+            if col in pairs:
+                pairs.insert(pairs.columns.get_loc(col) + 1, f"id_{col}", [ids[int(t)] for t in pairs[col]])
+        _write_frame(pairs, diag, index=False)
+    print(f"{args.metric}: {len(ids)} x {len(ids)} distance matrix -> {out}"
+          + (f" (store {args.store})" if args.store else ""))
+    if bad:
+        listed = ", ".join(f"{ids[i]}–{ids[j]}" for i, j in bad[:5]) + (", …" if len(bad) > 5 else "")
+        print(f"shapelib: warning: {len(bad)} pair(s) did not converge: {listed}"
+              + ("" if diag else " (--pairs FILE.csv writes every pair's diagnostics)"), file=sys.stderr)
+    return 0
+
+
+def cmd_geodesic(args) -> int:
+    import pandas as pd
+
+    from .distances import PATH_METRICS, path_result
+
+    if args.metric not in PATH_METRICS:
+        raise CLIError(f"--metric {args.metric}: geodesics exist for the path metrics {', '.join(PATH_METRICS)}")
+    out = _output_path(args.output, suffixes=(".csv",), option="-o")
+    plot = _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot") if args.plot else None
+    anim = _output_path(args.animate, suffixes=(".gif", ".mp4"), option="--animate") if args.animate else None
+    if args.n_steps < 1:
+        raise CLIError(f"--n-steps must be >= 1; got {args.n_steps}")
+    if anim is not None and anim.suffix.lower() == ".mp4":
+        import matplotlib.animation as manim
+
+        if not manim.writers.is_available("ffmpeg"):
+            raise CLIError(f"--animate {args.animate}: writing .mp4 needs ffmpeg, which is not installed; use a .gif")
+    params = _metric_params(args)
+    params["n_steps"] = args.n_steps
+    shapes, spec = _read(args)
+    i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
+    result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
+    n1, k, d = result.path.shape
+    t = np.repeat(np.linspace(0.0, 1.0, n1), k)
+    frame = pd.DataFrame({"step": np.repeat(np.arange(n1), k), "t": t, "landmark": np.tile(np.arange(1, k + 1), n1),
+                          **{a: result.path[:, :, c].ravel() for c, a in enumerate("xyz"[:d])}})
+    _write_frame(frame, out, index=False, float_format=lambda v: repr(float(v)))
+    print(f"{spec['id'].iloc[i]} -> {spec['id'].iloc[j]}: {result.summary()} -> {out}")
+    if (plot or anim) and d != 2:
+        raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
+    if plot:
+        _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}")
+        print(f"figure -> {plot}")
+    if anim:
+        _animate_path(result, anim, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
+                      fps=args.fps)
+        print(f"animation -> {anim}")
+    return 0
+
+
+def _plot_path(result, path, *, title):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .plotting import plot_trajectories
+
+    fig, ax = plt.subplots(figsize=(5, 5))
+    ax.plot(*_outline(result.path[0], True).T, "--", color="0.6", lw=0.8)
+    ax.plot(*_outline(result.path[-1], True).T, "-", color="0.6", lw=0.8)
+    plot_trajectories(ax, result.path)
+    ax.set_title(title)
+    fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
+    plt.close(fig)
+
+
+def animate_geodesic(result, *, title="", closed=True):
+    """A matplotlib :class:`~matplotlib.animation.FuncAnimation` of the shapes along ``result.path``
+    (a :class:`~shapelib.geodesic.GeodesicResult`), one frame per path point, forth and back;
+    ``closed`` draws each shape as a closed outline. Save it with ``anim.save(path, writer=...)``."""
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation
+
+    path = np.asarray(result.path)
+    frames = list(range(len(path))) + list(range(len(path) - 2, 0, -1))
+    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+    lo, hi = path.min(axis=(0, 1)), path.max(axis=(0, 1))
+    pad = 0.05 * float(np.max(hi - lo) or 1.0)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.plot(*_outline(path[0], closed).T, "--", color="0.7", lw=0.8)
+    ax.plot(*_outline(path[-1], closed).T, ":", color="0.7", lw=0.8)
+    (line,) = ax.plot([], [], "-o", color="k", ms=2.5, lw=1.2)
+    label = ax.set_title(title)
+
+    def draw(f):
+        line.set_data(*_outline(path[f], closed).T)
+        label.set_text(f"{title}  t = {f / (len(path) - 1):.2f}")
+        return (line,)
+
+    return FuncAnimation(fig, draw, frames=frames, blit=False)
+
+
+def _outline(shape, closed):
+    return np.vstack([shape, shape[:1]]) if closed else shape
+
+
+def _animate_path(result, path, *, title, fps):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FFMpegWriter, PillowWriter
+
+    anim = animate_geodesic(result, title=title)
+    writer = PillowWriter(fps=fps) if Path(path).suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
+    tmp = Path(path).with_name(f".{Path(path).stem}.tmp{Path(path).suffix}")
+    try:
+        anim.save(tmp, writer=writer)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+        plt.close(anim._fig)
+
+
+def find_run_all() -> Path | None:
+    """``run_all.py`` of the source checkout this package was imported from, or None."""
+    root = Path(__file__).resolve().parent.parent
+    script = root / "run_all.py"
+    return script if script.is_file() and (root / "notebooks").is_dir() else None
+
+
+def cmd_study(args) -> int:
+    script = find_run_all()
+    if script is None:
+        raise CLIError("`shapelib study` runs run_all.py from a source checkout, and this shapelib is installed "
+                       f"from {Path(__file__).resolve().parent} without one; clone the repository, `pip install -e .` "
+                       "there and run it from that checkout")
+    argv = [sys.executable, str(script)]
+    if args.quick:
+        argv.append("--quick")
+    if args.force:
+        argv.append("--force")
+    if args.list:
+        argv.append("--list")
+    for name in args.only or []:
+        argv += ["--only", name]
+    if args.jobs is not None:
+        argv += ["--jobs", str(args.jobs)]
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execv(sys.executable, argv)  # run_all.py's own signal handling sees Ctrl-C / SIGTERM directly
+
+
+# ---------------------------------------------------------------------------------------------
+# parser
+# ---------------------------------------------------------------------------------------------
+
+EXAMPLES = {
+    "info": "example:\n  shapelib info fish.tps",
+    "align": "examples:\n  shapelib align fish.tps -o aligned.tps --size 20\n  shapelib align fish.csv -o aligned.csv",
+    "distances": ("examples:\n  shapelib distances aligned.tps --negative-coordinates --metric procrustes -o procrustes.csv\n"
+                  "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 \\\n"
+                  "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
+                  "  shapelib distances fish.csv --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
+                  "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
+    "geodesic": ("example:\n  shapelib geodesic aligned.tps --negative-coordinates --from 0 --to 3 --metric fisher_rao \\\n"
+                 "      --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
+    "study": "examples:\n  shapelib study --quick\n  shapelib study --only table1_pairwise --force",
+}
+
+
+def _file_options(p):
+    p.add_argument("file", metavar="FILE", help="landmark file: .tps, .csv (wide or long), .npy or .npz")
+    g = p.add_argument_group("reading the file")
+    g.add_argument("--scale", action="store_true", help=".tps: multiply coordinates by each specimen's SCALE=")
+    g.add_argument("--negative-coordinates", action="store_true",
+                   help=".tps: negative values are coordinates (e.g. aligned shapes), not tpsDig's missing landmarks")
+    g.add_argument("--pkn", action="store_true", help=".npy/.npz: the array is geomorph's p x k x n layout")
+
+
+def _metric_options(p, *, required_sigma2=False):
+    p.add_argument("--metric", required=True, metavar="M",
+                   help="alpha, fisher_rao, diffeomorphism, procrustes, hausdorff, tps, wendland, alpha_bound, "
+                        "fisher_rao_bound")
+    p.add_argument("--sigma2", type=float, metavar="S", required=required_sigma2,
+                   help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
+    p.add_argument("--param", action="append", metavar="KEY=VALUE",
+                   help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    parser = argparse.ArgumentParser(
+        prog=PROG, description="Landmark shape analysis with information geometry (Peter & Rangarajan).",
+        epilog="examples:\n  shapelib info fish.tps\n  shapelib align fish.tps -o aligned.tps --size 20\n"
+               "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 -o alpha.csv\n"
+               "run `shapelib COMMAND --help` for each command's options.",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def add(name, help_):
+        return sub.add_parser(name, help=help_, description=help_, epilog=EXAMPLES[name],
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+
+    p = add("info", "specimens, landmarks, dimension, missing values, scale of a landmark file")
+    _file_options(p)
+    p.set_defaults(func=cmd_info)
+
+    p = add("align", "generalized Procrustes alignment, written in the input's format")
+    _file_options(p)
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="aligned shapes (same format as FILE)")
+    p.add_argument("--size", type=float, metavar="S",
+                   help="centroid size of the aligned shapes (default 1; the paper's study uses 20)")
+    p.add_argument("--scaling", action="store_true", help="full GPA: fit per-shape scales instead of unit size")
+    p.set_defaults(func=cmd_align)
+
+    p = add("distances", "the labelled distance matrix of every pair of specimens")
+    _file_options(p)
+    _metric_options(p)
+    p.add_argument("--rtol", type=float, metavar="R",
+                   help="alpha/fisher_rao: certified bracket, stop when upper/lower - 1 <= R")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--jobs", type=int, metavar="N", help="worker processes on this machine (default: chosen "
+                       "from the measured cost of one pair)")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
+    p.add_argument("--store", metavar="D.zarr", help="zarr store of finished blocks; rerun the command to resume")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--pairs", metavar="PAIRS.csv", help="also write every pair's diagnostics (bounds, convergence)")
+    p.add_argument("-o", "--output", required=True, metavar="D.csv",
+                   help="square matrix with specimen ids as header row and first column")
+    p.set_defaults(func=cmd_distances)
+
+    p = add("geodesic", "the geodesic between two specimens: intermediate shapes, figure, animation")
+    _file_options(p)
+    p.add_argument("--from", dest="source", required=True, metavar="ID", help="start specimen id")
+    p.add_argument("--to", dest="target", required=True, metavar="ID", help="end specimen id")
+    _metric_options(p)
+    p.add_argument("--n-steps", type=int, default=16, metavar="N", help="time steps of the path (default 16)")
+    p.add_argument("-o", "--output", required=True, metavar="path.csv",
+                   help="long table step, t, landmark, x, y[, z] of the path")
+    p.add_argument("--plot", metavar="path.png", help="landmark trajectories (Figs. 4 and 6 style)")
+    p.add_argument("--animate", metavar="path.gif", help="animation of the deforming shape (.gif; .mp4 with ffmpeg)")
+    p.add_argument("--fps", type=int, default=8, help="animation frames per second (default 8)")
+    p.set_defaults(func=cmd_geodesic)
+
+    p = add("study", "regenerate the study's figures and tables (run_all.py; needs a source checkout)")
+    p.add_argument("--quick", action="store_true", help="the quick parameters CI uses")
+    p.add_argument("--only", action="append", metavar="NAME", help="run only this notebook (repeatable)")
+    p.add_argument("--force", action="store_true", help="re-run notebooks whose inputs are unchanged")
+    p.add_argument("--list", action="store_true", help="list the notebooks")
+    p.add_argument("-j", "--jobs", type=int, metavar="N", help="notebooks run in parallel")
+    p.set_defaults(func=cmd_study)
+    return parser
+
+
+def _one_line_warnings(message, category, filename, lineno, file=None, line=None):
+    print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``shapelib`` console script and ``python -m shapelib``."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    warnings.showwarning = _one_line_warnings
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+    except (ValueError, OSError) as exc:
+        if os.environ.get("SHAPELIB_DEBUG"):
+            raise
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        if isinstance(exc, OSError) and not isinstance(exc, CLIError) and getattr(exc, "filename", None):
+            msg = f"{exc.filename}: {exc.strerror or msg}"
+        print(f"{PROG}: error: {msg}", file=sys.stderr)
+        return 1
+    except Exception as exc:  # a bug, not bad input: still one line, traceback on request
+        if os.environ.get("SHAPELIB_DEBUG"):
+            raise
+        print(f"{PROG}: internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "
+              "(set SHAPELIB_DEBUG=1 for the traceback, and please report it)", file=sys.stderr)
+        return 3
+
+
+if __name__ == "__main__":
+    sys.exit(main())

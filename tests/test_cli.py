@@ -1,0 +1,196 @@
+"""The ``shapelib`` command line, run as users run it (``python -m shapelib`` in a subprocess) on
+real .tps and .csv files, broken ones included: results checked against the library, errors are
+one line on stderr naming the file/specimen/landmark/parameter, never a traceback."""
+
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from shapelib import io
+from shapelib.procrustes import centroid_size, procrustes_distance
+from tests.conftest import ROOT
+
+
+def run(*args, cwd=None, check=None):
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    env.pop("SHAPELIB_DEBUG", None)
+    proc = subprocess.run([sys.executable, "-m", "shapelib", *map(str, args)], capture_output=True, text=True,
+                          env=env, cwd=cwd, timeout=300)
+    if check is not None:
+        assert proc.returncode == check, (proc.returncode, proc.stdout, proc.stderr)
+    return proc
+
+
+def one_line_error(proc, *fragments):
+    assert proc.returncode == 1, (proc.returncode, proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("shapelib: error:")]
+    assert len(lines) == 1, proc.stderr
+    for frag in fragments:
+        assert frag in lines[0], (frag, lines[0])
+    return lines[0]
+
+
+def _shapes(rng, n=4, k=9):
+    """Perturbed ellipses in pixel coordinates (positive, as tpsDig writes them)."""
+    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
+    base = np.column_stack([200 + 120 * np.cos(t), 150 + 60 * np.sin(t)])
+    return np.round(base + rng.normal(scale=8, size=(n, k, 2)), 2)
+
+
+@pytest.fixture
+def files(tmp_path, rng):
+    x = _shapes(rng)
+    ids = ["sp_a", "sp_b", "sp_c", "sp_d"]
+    # tpsDig layout, written by hand: LM=, rows, IMAGE=, ID=, SCALE=, CRLF line endings
+    blocks = []
+    for i, s in zip(ids, x):
+        rows = "\n".join(f"{a:.5f} {b:.5f}" for a, b in s)
+        blocks.append(f"LM={len(s)}\n{rows}\nIMAGE={i}.jpg\nID={i}\nSCALE=0.01\n")
+    tps = tmp_path / "fish.tps"
+    tps.write_bytes("\n".join(blocks).replace("\n", "\r\n").encode())
+    # wide CSV as a spreadsheet would have it
+    header = "id,group," + ",".join(f"x{k + 1},y{k + 1}" for k in range(x.shape[1]))
+    lines = [header] + [f"{i},{'AB'[n % 2]}," + ",".join(f"{v:g}" for v in s.ravel()) for n, (i, s) in enumerate(zip(ids, x))]
+    csv = tmp_path / "fish.csv"
+    csv.write_text("\n".join(lines) + "\n")
+    return {"x": x, "ids": ids, "tps": tps, "csv": csv, "dir": tmp_path}
+
+
+def test_help_shows_an_example_for_every_subcommand():
+    top = run("--help", check=0).stdout
+    for cmd in ("info", "align", "distances", "geodesic", "study"):
+        assert cmd in top
+        out = run(cmd, "--help", check=0).stdout
+        assert "example" in out and f"shapelib {cmd}" in out.split("example", 1)[1], cmd
+
+
+def test_usage_errors_exit_2():
+    proc = run("align", "x.tps")
+    assert proc.returncode == 2 and "-o/--output" in proc.stderr and "Traceback" not in proc.stderr
+    assert run().returncode == 2
+
+
+def test_info(files):
+    out = run("info", files["tps"], check=0).stdout
+    assert "specimens   4" in out and "landmarks   9" in out and "dimension   2" in out
+    assert "missing     none" in out and "SCALE=      4 of 4 specimens, not applied" in out and "sp_a, sp_b" in out
+    out = run("info", files["csv"], check=0).stdout
+    assert "specimens   4" in out and "(csv, wide layout)" in out
+    broken = files["dir"] / "miss.tps"
+    broken.write_text(files["tps"].read_text().replace(f"{files['x'][2, 4, 0]:.5f} {files['x'][2, 4, 1]:.5f}", "-1 -1"))
+    out = run("info", broken, check=0).stdout
+    assert "missing     1 landmark(s) in 1 specimen(s): sp_c (1)" in out
+
+
+def test_align_tps_and_csv(files):
+    out = files["dir"] / "aligned.tps"
+    proc = run("align", files["tps"], "-o", out, "--size", 20, check=0)
+    assert "--negative-coordinates" in proc.stderr
+    aligned, spec = io.read_tps(out, negative="coordinates")
+    assert spec["id"].tolist() == files["ids"]
+    x = files["x"]
+    for i in range(len(x)):
+        assert centroid_size(aligned[i]) == pytest.approx(20.0, rel=1e-12)
+        np.testing.assert_allclose(aligned[i].mean(axis=0), 0.0, atol=1e-12)
+        for j in range(i):  # alignment changes no shape: Procrustes distances are invariant
+            assert procrustes_distance(aligned[i], aligned[j]) == pytest.approx(procrustes_distance(x[i], x[j]), abs=1e-9)
+    # SCALE= no longer applies to aligned coordinates and is not written again
+    assert "SCALE=" not in out.read_text()
+    # CSV in, CSV out, metadata kept
+    out_csv = files["dir"] / "aligned.csv"
+    run("align", files["csv"], "-o", out_csv, check=0)
+    a2, spec2 = io.read_landmarks(out_csv)
+    assert spec2["group"].tolist() == ["A", "B", "A", "B"]
+    np.testing.assert_allclose(a2, aligned / 20.0, atol=1e-9)
+    one_line_error(run("align", files["tps"], "-o", files["dir"] / "aligned.csv"), "-o", "input's format (tps)")
+
+
+def test_geodesic_path_figure_and_animation(files):
+    al = files["dir"] / "al.tps"
+    run("align", files["tps"], "-o", al, "--size", 20, check=0)
+    path_csv, png, gif = (files["dir"] / n for n in ("path.csv", "path.png", "path.gif"))
+    proc = run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "sp_c", "--metric", "alpha",
+               "--sigma2", 0.5, "--n-steps", 4, "-o", path_csv, "--plot", png, "--animate", gif, check=0)
+    assert "sp_a -> sp_c: alpha: length" in proc.stdout
+    path = pd.read_csv(path_csv)
+    assert list(path.columns) == ["step", "t", "landmark", "x", "y"] and len(path) == 5 * 9
+    aligned, _ = io.read_tps(al, negative="coordinates")
+    ends = path.set_index(["step", "landmark"])[["x", "y"]]
+    np.testing.assert_array_equal(ends.loc[0].to_numpy(), aligned[0])
+    np.testing.assert_array_equal(ends.loc[4].to_numpy(), aligned[2])
+    from PIL import Image
+
+    assert Image.open(png).size[0] > 100
+    with Image.open(gif) as im:
+        assert im.n_frames == 2 * 5 - 2  # forth and back
+    one_line_error(run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "nope", "--metric", "alpha",
+                       "--sigma2", 0.5, "-o", path_csv), "--to nope", "no specimen with that id", "sp_a, sp_b")
+    one_line_error(run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "sp_b", "--metric",
+                       "procrustes", "-o", path_csv), "--metric procrustes", "path metrics")
+    one_line_error(run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "sp_b", "--metric", "alpha",
+                       "-o", path_csv), "--metric alpha", "sigma2")
+    one_line_error(run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "sp_b", "--metric", "alpha",
+                       "--sigma2", -1, "-o", path_csv), "sigma2")
+
+
+@pytest.mark.parametrize("kind, mutate, fragments", [
+    ("tps", lambda t: t.replace("LM=9", "LM=10", 1), ["fish.tps: line 11", "specimen #1", "LM=10"]),
+    ("tps", lambda t: re.sub(r"^(\d+)\.", r"\1x", t.split("\n", 1)[1], count=1).join([t.split("\n", 1)[0] + "\n", ""]),
+     ["fish.tps: line 2", "specimen #1", "point 1", "non-numeric"]),
+    ("tps", lambda t: "", ["fish.tps: no landmarks"]),
+    ("tps", lambda t: t.replace("\nSCALE=0.01", "\nSCALE=0.01\nLM=2\n1 1\n2 2\nID=extra", 1),
+     ["fish.tps: specimen #2 (ID=extra)", "has 2 landmarks but specimen #1 has 9"]),
+    ("csv", lambda t: t.replace("sp_c,A,", "sp_c,A,1,"), ["fish.csv: not a valid CSV file", "line 4"]),
+    ("csv", lambda t: t.rstrip("\n").rsplit(",", 1)[0] + "\n", ["fish.csv: line 5, specimen 'sp_d' (#4): landmark 9 is missing"]),
+    ("csv", lambda t: re.sub(r"^sp_b,B,[^,]+,", "sp_b,B,seven,", t, flags=re.M),
+     ["fish.csv: line 3, specimen 'sp_b', landmark 1", "non-numeric value 'seven'"]),
+    ("csv", lambda t: "", ["fish.csv: empty file"]),
+])
+def test_broken_files_give_one_line_errors(files, kind, mutate, fragments):
+    path = files[kind]
+    path.write_text(mutate(path.read_text().replace("\r\n", "\n")))
+    out = files["dir"] / f"out.{kind}"
+    one_line_error(run("align", path, "-o", out), *fragments)
+    assert not out.exists()  # nothing half-written
+
+
+def test_every_reading_command_fails_the_same_way(files):
+    broken = files["dir"] / "broken.tps"
+    broken.write_text(files["tps"].read_text().replace("LM=9", "LM=10", 1))
+    fragments = ["broken.tps: line 11", "specimen #1", "LM=10"]
+    one_line_error(run("info", broken), *fragments)
+    one_line_error(run("geodesic", broken, "--from", "sp_a", "--to", "sp_b", "--metric", "alpha", "--sigma2", 0.5,
+                       "-o", files["dir"] / "p.csv"), *fragments)
+    assert not (files["dir"] / "p.csv").exists()
+    # info reports missing landmarks where the other commands refuse them
+    missing = files["dir"] / "missing.csv"
+    missing.write_text(re.sub(r"^(sp_b,B,[^,]+),[^,]+,", r"\1,NA,", files["csv"].read_text(), flags=re.M))
+    assert "missing     1 landmark(s) in 1 specimen(s): sp_b (1)" in run("info", missing, check=0).stdout
+    one_line_error(run("geodesic", missing, "--from", "sp_a", "--to", "sp_b", "--metric", "alpha", "--sigma2", 0.5,
+                       "-o", files["dir"] / "p.csv"), "missing.csv: line 3, specimen 'sp_b' (#2): landmark 1 is missing")
+
+
+def test_missing_file_and_unknown_extension(files):
+    one_line_error(run("info", files["dir"] / "nothere.tps"), "nothere.tps: no such file")
+    one_line_error(run("info", files["dir"] / "data.xlsx"), "unknown landmark file extension '.xlsx'")
+    one_line_error(run("info", files["csv"], "--scale"), "--scale applies to .tps files only")
+
+
+def test_study_lists_notebooks_in_a_checkout_and_refuses_outside_one(tmp_path):
+    out = run("study", "--list", check=0).stdout.split()
+    assert "table1_pairwise" in out and "fig01_gmm_representation" in out
+    # an installed copy of the package without the repository around it
+    import shutil
+
+    shutil.copytree(ROOT / "shapelib", tmp_path / "site" / "shapelib", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PYTHONPATH": str(tmp_path / "site")}
+    proc = subprocess.run([sys.executable, "-m", "shapelib", "study", "--quick"], capture_output=True, text=True,
+                          env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert proc.stderr.startswith("shapelib: error: `shapelib study` runs run_all.py from a source checkout")
