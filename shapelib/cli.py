@@ -210,9 +210,13 @@ def cmd_distances(args) -> int:
     if len(set(ids)) != len(ids):
         dup = pd.Series(ids)[pd.Series(ids).duplicated()].iloc[0]
         raise CLIError(f"{args.file}: specimen id {dup!r} occurs more than once; the matrix needs unique ids")
+    if args.block_size is not None and args.block_size < 1:
+        raise CLIError(f"--block-size must be >= 1; got {args.block_size}")
+    if args.store and Path(args.store).exists() and not Path(args.store).is_dir():
+        raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
     result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
-                                store=args.store, progress=not args.no_progress, rtol=args.rtol,
-                                return_result=True, **params)
+                                store=args.store, block_size=args.block_size, progress=not args.no_progress,
+                                rtol=args.rtol, return_result=True, **params)
     frame = pd.DataFrame(result.matrix, index=pd.Index(ids, name="id"), columns=ids)
     _write_frame(frame, out, float_format=lambda v: repr(float(v)))
     bad = result.nonconverged_pairs()
@@ -222,8 +226,13 @@ def cmd_distances(args) -> int:
             if col in pairs:
                 pairs.insert(pairs.columns.get_loc(col) + 1, f"id_{col}", [ids[int(t)] for t in pairs[col]])
         _write_frame(pairs, diag, index=False)
+    log = result.log or {}
+    resumed = ""
+    if args.store and log.get("blocks_found_done"):
+        resumed = (f", resumed: {log['blocks_found_done']} of {log.get('blocks_total', '?')} blocks were already "
+                   "in the store")
     print(f"{args.metric}: {len(ids)} x {len(ids)} distance matrix -> {out}"
-          + (f" (store {args.store})" if args.store else ""))
+          + (f" (store {args.store}{resumed})" if args.store else ""))
     if bad:
         listed = ", ".join(f"{ids[i]}–{ids[j]}" for i, j in bad[:5]) + (", …" if len(bad) > 5 else "")
         print(f"shapelib: warning: {len(bad)} pair(s) did not converge: {listed}"
@@ -442,6 +451,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "from the measured cost of one pair)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
     p.add_argument("--store", metavar="D.zarr", help="zarr store of finished blocks; rerun the command to resume")
+    p.add_argument("--block-size", type=int, metavar="B",
+                   help="shapes per block side, the unit of work and of resuming (default: from the measured cost)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--pairs", metavar="PAIRS.csv", help="also write every pair's diagnostics (bounds, convergence)")
     p.add_argument("-o", "--output", required=True, metavar="D.csv",

@@ -63,10 +63,17 @@ def files(tmp_path, rng):
 
 
 def test_help_shows_an_example_for_every_subcommand():
+    from shapelib.cli import build_parser
+
     top = run("--help", check=0).stdout
-    for cmd in ("info", "align", "distances", "geodesic", "study"):
+    assert "examples:" in top
+    assert "example" in run("distances", "--help", check=0).stdout.split("options:")[-1]
+    parser = build_parser()
+    commands = parser._subparsers._group_actions[0].choices
+    assert set(commands) == {"info", "align", "distances", "geodesic", "study"}
+    for cmd, sub in commands.items():
         assert cmd in top
-        out = run(cmd, "--help", check=0).stdout
+        out = sub.format_help()
         assert "example" in out and f"shapelib {cmd}" in out.split("example", 1)[1], cmd
 
 
@@ -194,3 +201,78 @@ def test_study_lists_notebooks_in_a_checkout_and_refuses_outside_one(tmp_path):
                           env=env, cwd=tmp_path, timeout=120)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     assert proc.stderr.startswith("shapelib: error: `shapelib study` runs run_all.py from a source checkout")
+
+
+# ------------------------------------------------------------------------------------ distances
+
+
+def _matrix(path):
+    frame = pd.read_csv(path, index_col=0)
+    assert frame.index.name == "id" and list(frame.columns) == list(frame.index)
+    return frame
+
+
+def test_distances_labelled_matrix_equals_the_library(files):
+    from shapelib.splines import wendland_bending_energy
+
+    out = files["dir"] / "d.csv"
+    proc = run("distances", files["tps"], "--metric", "procrustes", "--jobs", 1, "--no-progress", "-o", out, check=0)
+    assert proc.stderr == ""  # no progress bar asked for
+    frame = _matrix(out)
+    assert frame.index.tolist() == files["ids"]
+    x = files["x"]
+    want = np.array([[procrustes_distance(a, b) if i != j else 0.0 for j, b in enumerate(x)] for i, a in enumerate(x)])
+    np.testing.assert_allclose(frame.to_numpy(), want, rtol=1e-13, atol=1e-15)
+    # asymmetric metric: [i, j] is the map from i onto j; extra options through --param
+    run("distances", files["csv"], "--metric", "wendland", "--param", "support=3.0", "--jobs", 1, "-o", out, check=0)
+    w = _matrix(out).to_numpy()
+    assert w[0, 1] == pytest.approx(wendland_bending_energy(x[0], x[1], support=3.0), rel=1e-12)
+    assert w[1, 0] == pytest.approx(wendland_bending_energy(x[1], x[0], support=3.0), rel=1e-12)
+    one_line_error(run("distances", files["tps"], "--metric", "alpah", "-o", out), "--metric alpah", "unknown metric")
+    one_line_error(run("distances", files["tps"], "--metric", "procrustes", "--param", "nope=1", "-o", out),
+                   "--metric procrustes", "nope")
+    one_line_error(run("distances", files["tps"], "--metric", "procrustes", "-o", files["dir"] / "d.txt"),
+                   "-o", "d.txt", ".csv")
+
+
+def test_distances_resume_after_interrupt_through_the_store(files):
+    """Fault injection with the real CLI: SIGINT mid-run, rerun with the same store, same matrix."""
+    import signal
+    import time
+
+    from shapelib.pairwise import open_store
+
+    al = files["dir"] / "al.tps"
+    run("align", files["tps"], "-o", al, "--size", 20, check=0)
+    store, out = files["dir"] / "alpha.zarr", files["dir"] / "alpha.csv"
+    args = ["distances", al, "--negative-coordinates", "--metric", "alpha", "--sigma2", 0.5, "--param", "n_steps=6",
+            "--jobs", 1, "--block-size", 1, "--store", store, "-o", out]
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-m", "shapelib", *map(str, args)], env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    n_done = 0
+    while time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+        try:
+            n_done = int(open_store(store).computed.sum())
+        except (ValueError, OSError):
+            continue
+        if n_done >= 2:
+            proc.send_signal(signal.SIGINT)
+            break
+    _, err = proc.communicate(timeout=60)
+    if n_done < 2 or proc.returncode == 0:
+        pytest.skip("the run finished before it could be interrupted")
+    assert proc.returncode == 130 and "shapelib: interrupted" in err and "Traceback" not in err, (proc.returncode, err)
+    assert not out.exists()  # no half-written matrix
+    partial = open_store(store)
+    assert 0 < partial.computed.sum() < 4 * 4 - 4
+    proc = run(*args, check=0)
+    assert "resumed:" in proc.stdout
+    resumed = _matrix(out).to_numpy()
+    # an independent, uninterrupted computation without a store
+    run(*args[:-4], "-o", files["dir"] / "fresh.csv", check=0)
+    np.testing.assert_allclose(resumed, _matrix(files["dir"] / "fresh.csv").to_numpy(), rtol=1e-10, atol=0)
+    # the same store with other parameters is refused, naming the store and what differs
+    one_line_error(run(*[a if a != 0.5 else 0.7 for a in args]), "alpha.zarr", "sigma2")
