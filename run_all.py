@@ -77,6 +77,13 @@ NOTEBOOKS: dict[str, dict] = {
         "params": {}, "quick": {"n_pairs": 2, "n_steps_list": [2, 4, 8], "max_iter": 20},
         "data": CC_FILES, "expects": {"alpha_discretisation/": 13},
     },
+    "tutorial_own_data": {
+        "params": {},
+        "quick": {"per_class": 2, "n_landmarks": 16, "n_steps": 4, "n_jobs": 1,
+                  "metrics": ["procrustes", "alpha", "fisher_rao_bound"]},
+        "data": [f"mpeg7/{c}-{i}.gif" for c in ("fish", "Heart", "Bone") for i in (1, 2, 3)],
+        "expects": {"tutorial/": 23},
+    },
     "table1_pairwise": {
         "params": {"n_steps": 8, "max_iter": 200, "fisher_rao_max_iter": 200, "tol": 1e-6},
         "quick": {"n_steps": 2, "max_iter": 3, "fisher_rao_max_iter": 3, "diffeomorphism_max_iter": 3},
