@@ -37,8 +37,7 @@ from IPython.display import Image, display
 from shapelib import io, pairwise_distances
 from shapelib.datasets import mpeg7_landmarks
 from shapelib.distances import path_result
-from shapelib.procrustes import centroid_size as size_of
-from shapelib.procrustes import generalized_procrustes
+from shapelib.scale import landmark_spacing, sigma_ratio, to_centroid_size
 from shapelib.study import record_values, save_figure
 
 out = Path(output_dir)
@@ -94,18 +93,17 @@ assert values["tutorial/tps_roundtrip_max_abs_diff"] == 0.0
 #
 # Generalized Procrustes analysis removes position, size and rotation. σ² is measured in the
 # units of the coordinates, so the shapes must be brought to a scale that fits it: the study
-# scales every aligned shape to centroid size 20 (`shapelib.study.paper_scale`), where σ = √0.5
-# is of the order of the spacing of neighbouring landmarks (printed below). In pixels, the same
-# σ² would be far below it: the mixture would be a set of isolated spikes.
+# scales every aligned shape to centroid size 20 (`shapelib.scale.to_centroid_size`), where σ = √0.5
+# is of the order of the spacing of neighbouring landmarks (`shapelib.scale.sigma_ratio`, printed
+# below). In pixels, the same σ² would be far below it: the mixture would be isolated spikes.
 
 # %%
-aligned, mean = generalized_procrustes(shapes, scaling=False)
-aligned = aligned * centroid_size
+aligned = to_centroid_size(shapes, size=centroid_size)  # generalized Procrustes, then centroid size
 io.write_landmarks(out / "aligned.csv", aligned, specimens[["id", "class"]])
-spacing = float(np.mean([np.sort(np.linalg.norm(s[:, None] - s[None], axis=2), axis=1)[:, 1].mean() for s in aligned]))
-values["tutorial/mean_landmark_spacing"] = spacing
-values["tutorial/sigma_over_spacing"] = float(np.sqrt(sigma2) / spacing)
-print(f"mean nearest-landmark spacing {spacing:.3g}; sigma / spacing = {np.sqrt(sigma2) / spacing:.2f}")
+values["tutorial/mean_landmark_spacing"] = landmark_spacing(aligned)
+values["tutorial/sigma_over_spacing"] = sigma_ratio(aligned, sigma2)
+print(f"pixels: sigma / spacing = {sigma_ratio(shapes, sigma2):.3f}; "
+      f"centroid size {centroid_size:g}: sigma / spacing = {sigma_ratio(aligned, sigma2):.2f}")
 
 colors = dict(zip(classes, plt.rcParams["axes.prop_cycle"].by_key()["color"]))
 fig, axes = plt.subplots(1, 2, figsize=(10, 4))

@@ -153,6 +153,12 @@ def cmd_info(args) -> int:
         print("range       " + ", ".join(f"{a} {lo[i]:.6g} … {hi[i]:.6g}" for i, a in enumerate("xyz"[:d])))
         sizes = [centroid_size(s) for s in shapes[ok]]
         print(f"centroid    size {min(sizes):.6g} … {max(sizes):.6g}")
+        if k >= 2:
+            from .scale import landmark_spacing
+
+            h = landmark_spacing(shapes[ok])
+            print(f"spacing     {h:.6g} mean nearest-landmark distance (sigma2 = {h * h:.3g} puts sigma at one "
+                  "spacing; align --size rescales)")
     shown = ", ".join(spec["id"].astype(str).iloc[:8])
     print(f"ids         {shown}" + (f", … ({n} in all)" if n > 8 else ""))
     return 0
