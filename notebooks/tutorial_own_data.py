@@ -15,11 +15,12 @@
 # The same steps on the command line are in the README ("Use it on your own data").
 
 # %% tags=["parameters"]
-output_dir = "results/tutorial_own_data"
-classes = ["fish", "Heart", "Bone"]       # MPEG-7 classes sampled into the example .tps file
+from shapelib.study import default_output_dir
+output_dir = default_output_dir("tutorial_own_data")  # run_all.py passes its own
+classes = ["fish", "Heart", "Bone"]         # MPEG-7 classes sampled into the example .tps file
 per_class = 3                               # specimens per class
 n_landmarks = 24                            # landmarks per outline
-centroid_size = 20.0                        # the study's scale (shapelib.study.PAPER_CENTROID_SIZE)
+centroid_size = 20.0                        # the study's scale (shapelib.scale.PAPER_CENTROID_SIZE)
 sigma2 = 0.5                                # σ² of the Gaussian mixture (eq. 5)
 metrics = ["procrustes", "alpha", "fisher_rao"]
 n_steps = 8                                 # time steps of each geodesic
