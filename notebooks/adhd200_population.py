@@ -38,10 +38,10 @@ import warnings
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from scipy.spatial import cKDTree
 
 from shapelib import pairwise_distances, procrustes_distance
 from shapelib.datasets import load_adhd200
+from shapelib.scale import landmark_spacing
 from shapelib.stats import classical_mds, knn_loo_accuracy, mantel_test, permanova
 from shapelib.study import PAPER_CENTROID_SIZE, paper_scale, record_values, save_figure
 
@@ -160,7 +160,7 @@ sel = stratified(np.arange(len(raw)), int(n_shapes), rng)
 sub_local = np.searchsorted(sel, stratified(sel, int(n_subset), rng))  # positions within sel
 shapes = paper_scale(shapes_raw[sel])  # GPA over the analysed shapes, centroid size 20
 lab = labels.iloc[sel].reset_index(drop=True)
-spacing = float(np.mean([cKDTree(s).query(s, k=2)[0][:, 1] for s in shapes]))
+spacing = landmark_spacing(shapes)  # mean nearest-landmark distance (shapelib.scale)
 sigma2 = float(f"{(sigma_ratio * spacing) ** 2:.2g}")
 values.update({"adhd200/scale/landmark_spacing": spacing, "adhd200/scale/sigma2": sigma2,
                "adhd200/scale/sigma_over_spacing": np.sqrt(sigma2) / spacing})
