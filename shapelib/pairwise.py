@@ -26,7 +26,8 @@ Block size
     pairs), and small enough that there are at least :data:`TASKS_PER_WORKER` tasks per worker.
     Measured per pair on ADHD-200 shapes (K = 50, centroid size 20, σ² = 0.5): Procrustes 0.2 ms,
     TPS 0.4 ms, Hausdorff 0.07 ms, α bound 0.2 ms, Fisher–Rao bound 5 ms, α geodesic ≈ 1.2 s,
-    Fisher–Rao geodesic ≈ 27 s — so the cheap metrics get blocks of ~60–160 shapes and the geodesics
+    Fisher–Rao geodesic ≈ 27 s (tol 1e-6), as certified brackets at ``rtol=1e-3`` α 0.03 s and
+    Fisher–Rao 1.5 s (``benchmarks/bench_pairwise.py``, 2-core VM under load) — so the cheap metrics get blocks of ~60–160 shapes and the geodesics
     one or two (a task of a few seconds: scheduling costs of ~ms per task vanish, a lost worker or a
     killed run costs a few seconds of work).
 
