@@ -180,31 +180,3 @@ def paper_scale(shapes, *, size: float = PAPER_CENTROID_SIZE) -> np.ndarray:
     """Shapes as the study compares them: generalised-Procrustes aligned (rotations only),
     centred, each scaled to centroid size ``size``."""
     return to_centroid_size(shapes, size)
-
-
-def _geodesic_task(args):
-    key, u, v, kwargs = args
-    import warnings
-
-    from .distances import path_result
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # convergence is recorded in the summary instead
-        r = path_result(u, v, **kwargs)
-    return key, {"energy": r.energy, "length": r.length, "lower_bound": r.lower_bound,
-                 "converged": r.converged, "n_iter": r.n_iter, "seconds": r.log["seconds"],
-                 "max_step_over_sigma": r.max_step_over_sigma}
-
-
-def run_geodesics(tasks, *, n_jobs: int = 1) -> dict:
-    """Solve many geodesics ``[(key, u, v, kwargs), ...]`` in parallel; ``{key: summary dict}``.
-
-    ``kwargs`` go to :func:`shapelib.distances.path_result` (``metric`` one of ``"alpha"``,
-    ``"fisher_rao"``, ``"diffeomorphism"``).
-    """
-    import concurrent.futures as cf
-
-    if n_jobs <= 1:
-        return dict(map(_geodesic_task, tasks))
-    with cf.ProcessPoolExecutor(max_workers=n_jobs) as pool:
-        return dict(pool.map(_geodesic_task, tasks, chunksize=1))
