@@ -25,6 +25,7 @@ diffeomorphism_lam = 10.0
 diffeomorphism_kernel_widths = [1.0, 4.0, 16.0]
 diffeomorphism_max_iter = 60
 straight_line_n_steps = 1
+geodesic_rtol = None
 
 # %%
 import itertools
@@ -100,7 +101,11 @@ for metric in info_metrics:
     cap = fisher_rao_max_iter if metric == "fisher_rao" else max_iter
     for s2 in sigma2s:
         base = dict(sigma2=s2, tol=tol)
-        jobs.append((f"{metric}_s2_{s2}", "geodesic", metric, base | dict(n_steps=n_steps, max_iter=cap)))
+        # the geodesic: certified local minimum (Newton decrement < tol·E) or, with geodesic_rtol, the
+        # certified distance bracket (shapelib.distance_bracket: path refined until upper/lower − 1 ≤ rtol)
+        jobs.append((f"{metric}_s2_{s2}", "geodesic", metric,
+                     base | dict(n_steps=n_steps, max_iter=cap) if geodesic_rtol is None
+                     else dict(sigma2=s2, rtol=geodesic_rtol, n_steps=n_steps)))
         jobs.append((f"{metric}_s2_{s2}", "straight_line", metric, base | dict(n_steps=straight_line_n_steps, max_iter=0)))
 for col, width in diffeo_cols.items():
     base = dict(lam=diffeomorphism_lam, kernel_width=width, tol=tol)
