@@ -396,8 +396,8 @@ def render_report(table: pd.DataFrame, notes: dict, runs: dict, *, rel_tol: floa
         counts = regression["status"].value_counts().to_dict()
         lines += ["## Regression checks", "",
                   "Our own earlier values (`data/reference/regression_*.csv`), not the paper's: they catch changes in our "
-                  "results and are never counted as paper comparisons. "
-                  + ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) + ".", "",
+                  "results and are never counted as paper comparisons. Statuses: "
+                  + ", ".join(f"{s} {n}" for s, n in sorted(counts.items())) + " (\"quick run\": not compared).", "",
                   "| key | stored | ours | rel. difference | rel. tolerance | status |", "|---|---|---|---|---|---|"]
         for _, r in regression.iterrows():
             lines.append(f"| {r['key']} | {_fmt(r['value'], '.6g')} | {_fmt(r['ours'], '.6g')} | {_fmt(r['rel_diff'], '.2e')} | "
