@@ -59,7 +59,7 @@ print(len(pairs), "pairs; paper scale: centroid size", PAPER_CENTROID_SIZE)
 # **Wendland.** Bending energy tr(Dᵀ K⁻¹ D) of the ψ₃,₁ spline, support radius 0.1 on the
 # GPA-aligned unit-size shapes, no affine part, lower paper id onto higher. The paper's support
 # radius and side conditions are not stated; of the supports 0.05–5 with and without an affine
-# part, this one gave the most nearly proportional column (ratio CV 8 %), but it does not
+# part, this one gave the most nearly proportional column (its ratio spread is in the report), but it does not
 # reproduce the paper (see the report).
 
 # %%
