@@ -54,45 +54,13 @@ def path_result(u, v, *, metric: str, **params):
     """The full :class:`~shapelib.geodesic.GeodesicResult` of a path metric (``"alpha"``,
     ``"fisher_rao"``: :func:`shapelib.geodesic`; ``"diffeomorphism"``:
     :func:`shapelib.landmark_diffeomorphism`) — what :func:`distance` reduces to its length."""
-    if metric == "diffeomorphism":
-        from .diffeomorphism import landmark_diffeomorphism
-
-        return landmark_diffeomorphism(u, v, **params)
     if metric not in PATH_METRICS:
         raise ValueError(f"{metric!r} is not a path metric; choose one of {PATH_METRICS}")
-    from .geodesic import geodesic
-
+    if metric == "diffeomorphism":
+        return _function(metric)(u, v, **params)
     if "sigma2" not in params:
         raise ValueError(f"metric {metric!r} needs sigma2=...")
-    return geodesic(u, v, metric=metric, **params)
-
-
-def _path_length(metric):
-    return lambda u, v, **kw: path_result(u, v, metric=metric, **kw).length
-
-
-def _procrustes(u, v, **kw):
-    from .procrustes import procrustes_distance
-
-    return procrustes_distance(u, v, **kw)
-
-
-def _hausdorff(u, v, **kw):
-    from .splines import hausdorff_distance
-
-    return hausdorff_distance(u, v, **kw)
-
-
-def _tps(u, v, **kw):
-    from .splines import tps_bending_energy
-
-    return tps_bending_energy(u, v, **kw)
-
-
-def _wendland(u, v, **kw):
-    from .splines import wendland_bending_energy
-
-    return wendland_bending_energy(u, v, **kw)
+    return _function(metric)(u, v, metric=metric, **params)
 
 
 def _alpha_bound(u, v, *, sigma2):
@@ -101,34 +69,9 @@ def _alpha_bound(u, v, *, sigma2):
     return l2_distance(u, v, sigma2)
 
 
-def _fisher_rao_bound(u, v, **kw):
-    from .geodesic import fisher_rao_lower_bound
-
-    return fisher_rao_lower_bound(u, v, **kw)
-
-
-METRICS = {
-    "alpha": _path_length("alpha"),
-    "fisher_rao": _path_length("fisher_rao"),
-    "diffeomorphism": _path_length("diffeomorphism"),
-    "alpha_bound": _alpha_bound,
-    "fisher_rao_bound": _fisher_rao_bound,
-    "procrustes": _procrustes,
-    "hausdorff": _hausdorff,
-    "tps": _tps,
-    "wendland": _wendland,
-}
-#: metrics with d(u, v) = d(v, u); the others are computed for both orders in pairwise_distances
-SYMMETRIC = {"alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound", "procrustes",
-             "hausdorff"}
-
-
-def _target(metric: str, rtol):
-    """The library function whose keyword options ``metric`` (with ``rtol``) accepts."""
-    if rtol is not None:
-        from .bracket import distance_bracket
-
-        return distance_bracket
+def _function(metric: str):
+    """The library function that computes ``metric`` (imported on first use): the one place that
+    names it; :data:`METRICS`, :func:`path_result` and the parameter check all go through here."""
     if metric in ("alpha", "fisher_rao"):
         from .geodesic import geodesic
 
@@ -148,6 +91,29 @@ def _target(metric: str, rtol):
 
     return {"procrustes": procrustes_distance, "hausdorff": hausdorff_distance,
             "tps": tps_bending_energy, "wendland": wendland_bending_energy}[metric]
+
+
+def _compute(metric: str):
+    """``(u, v, **params) -> float`` for ``metric``: a path metric's geodesic length, else its function."""
+    if metric in PATH_METRICS:
+        return lambda u, v, **kw: path_result(u, v, metric=metric, **kw).length
+    return lambda u, v, **kw: _function(metric)(u, v, **kw)
+
+
+METRICS = {m: _compute(m) for m in ("alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound",
+                                    "procrustes", "hausdorff", "tps", "wendland")}
+#: metrics with d(u, v) = d(v, u); the others are computed for both orders in pairwise_distances
+SYMMETRIC = {"alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound", "procrustes",
+             "hausdorff"}
+
+
+def _target(metric: str, rtol):
+    """The library function whose keyword options ``metric`` (with ``rtol``) accepts."""
+    if rtol is not None:
+        from .bracket import distance_bracket
+
+        return distance_bracket
+    return _function(metric)
 
 
 def check_metric_params(metric: str, params: dict, *, rtol=None) -> None:
