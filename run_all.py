@@ -97,7 +97,7 @@ NOTEBOOKS: dict[str, dict] = {
             "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")} | {"fig11/": 28, "speed/": 2, "constant/table1/": 7},
     },
     "adhd200_population": {
-        "params": {"rtol": 1e-3},
+        "params": {"rtol": 1e-3}, "store": True,
         "quick": {"n_shapes": 40, "n_subset": 8, "geodesic_n_steps": 2, "geodesic_max_iter": 1, "permutations": 199},
         "data": ["adhd200/ADHD-200.Rdata", "adhd200/clinical_info.csv"],
         "expects": {"adhd200/permanova/": 108, "adhd200/knn/": 36, "adhd200/mantel/": 62, "adhd200/mds/": 14,
@@ -332,6 +332,15 @@ def run_one(name: str, *, quick: bool, force: bool, results_dir: Path = RESULTS_
     if _STOPPING.is_set():
         return name, "interrupted", 0.0, "not started"
     results_dir.mkdir(parents=True, exist_ok=True)
+    stores = None
+    if NOTEBOOKS[name].get("store") and "store_dir" not in params:
+        # the notebook's zarr stores live outside its atomic output folder, keyed by the input
+        # fingerprint: a killed or failed run resumes from them; changed code or inputs start afresh
+        stores = results_dir / ".stores" / f"{name}-{fingerprint[:16]}"
+        for stale in (results_dir / ".stores").glob(f"{name}-*"):
+            if stale != stores:
+                shutil.rmtree(stale, ignore_errors=True)
+        params = {**params, "store_dir": str(stores)}
     tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-", dir=results_dir))
     with _TMP_LOCK:
         _RUNNING_TMP.add(tmp)
@@ -360,6 +369,8 @@ def run_one(name: str, *, quick: bool, force: bool, results_dir: Path = RESULTS_
         os.replace(tmp, final)
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
+        if stores is not None:
+            shutil.rmtree(stores, ignore_errors=True)
         return name, "ok", seconds, ""
     except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -87,6 +87,49 @@ def test_failure_names_the_cell_and_keeps_previous_results(toy):
     assert not list(results.glob(".tmp-*"))
 
 
+#: a notebook that keeps partial work in a store (as the population study keeps its zarr stores)
+STORED = textwrap.dedent('''\
+    # %% tags=["parameters"]
+    output_dir = "x"
+    store_dir = None
+    fail_if = ""
+
+    # %%
+    from pathlib import Path
+    from shapelib.study import record_values
+    part = Path(store_dir) / "part"
+    resumed = part.exists()
+    part.parent.mkdir(parents=True, exist_ok=True)
+    part.write_text("computed")
+    if fail_if and Path(fail_if).exists():
+        raise RuntimeError("stopped part-way")
+    record_values(output_dir, {"toy/resumed": float(resumed)})
+''')
+
+
+def test_store_outlives_a_failed_run_is_resumed_and_removed_once_done(toy, monkeypatch):
+    nbdir, results = toy
+    (nbdir / "toy.py").write_text(STORED)
+    flag = results.parent / "fail"
+    flag.write_text("")
+    monkeypatch.setitem(run_all.NOTEBOOKS, "toy", {"params": {"fail_if": str(flag)}, "quick": {}, "data": [],
+                                                   "expects": {}, "store": True})
+    stale = results / ".stores" / "toy-0000000000000000"  # a store of other inputs
+    stale.mkdir(parents=True)
+    assert run_all.run_one("toy", quick=False, force=False, results_dir=results)[1] == "FAILED"
+    assert not stale.exists()
+    (kept,) = (results / ".stores").glob("toy-*")
+    assert (kept / "part").read_text() == "computed"
+    flag.unlink()  # the cause of the failure is gone, the inputs are the same: the run resumes
+    assert run_all.run_one("toy", quick=False, force=False, results_dir=results)[1] == "ok"
+    assert values(results) == {"toy/resumed": 1.0}
+    assert not list((results / ".stores").glob("toy-*"))
+    # the store path is not an input: it is not in the fingerprint, so an unchanged run is skipped
+    assert run_all.run_one("toy", quick=False, force=False, results_dir=results)[1] == "skipped"
+    assert run_all.run_one("toy", quick=False, force=True, results_dir=results)[1] == "ok"
+    assert values(results) == {"toy/resumed": 0.0}
+
+
 def test_unknown_parameter_is_an_error(toy, tmp_path):
     with pytest.raises(ValueError, match=r"unknown parameter.*'bogus'"):
         run_all.execute_notebook("toy", {"bogus": 1}, tmp_path / "out")
