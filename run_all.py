@@ -243,6 +243,9 @@ def _kernel_options() -> dict:
     * ``--matplotlib=inline``: the kernel draws with matplotlib's inline backend, so the executed
       notebook shows its figures, whatever ``MPLBACKEND`` the caller exported (CI sets Agg);
       ``shapelib.study.save_figure`` still writes every figure as a PNG file.
+    * ``--IPKernelApp.log_level=CRITICAL``: jupyter_client interrupts (SIGINT) every kernel it
+      shuts down, and an idle kernel logs that as "ERROR | KeyboardInterrupt caught in kernel"
+      in the middle of a healthy run. Errors in cells still reach papermill, which names the cell.
     * ``KernelManager.transport_encryption = "auto"``: the kernel manager provisions CurveZMQ keys
       for the kernel's local TCP sockets. Without them ipykernel (>= 7.4) warns "Kernel is running
       over TCP without encryption" at every start. Where pyzmq lacks CurveZMQ, the kernel talks
@@ -256,7 +259,7 @@ def _kernel_options() -> dict:
         config.KernelManager.transport_encryption = "auto"
     else:
         config.KernelManager.transport = "ipc"
-    return {"config": config, "extra_arguments": ["--matplotlib=inline"]}
+    return {"config": config, "extra_arguments": ["--matplotlib=inline", "--IPKernelApp.log_level=CRITICAL"]}
 
 
 def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: bool = False,

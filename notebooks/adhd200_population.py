@@ -24,7 +24,7 @@ geodesic_max_iter = 3
 permutations = 999
 n_neighbors = 5
 seed = 0
-n_jobs = None  # pairwise engine: None = let it measure and choose (in-process or one worker per core)
+n_jobs = None  # pairwise engine workers; None: the engine measures and chooses (in-process or one worker per core)
 rtol = None  # certified relative tolerance of the geodesic brackets (None: fixed solver iterations; full run: 1e-3)
 store_dir = None  # zarr stores of the matrices, so a killed run resumes (run_all.py passes results/.stores/...); None: none
 

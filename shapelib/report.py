@@ -61,27 +61,39 @@ SECTION_FILE = "report_section.md"
 REGRESSION_PREFIX = "regression_"
 
 
-def fit_constant(paper, ours) -> dict:
+def fit_constant(paper, ours, *, abs_tol=None) -> dict:
     """Fit ``paper ≈ k · ours`` with one constant and measure how well it fits.
 
     ``k`` is the least-squares fit on log ratios, ``k = exp(mean log(paper / ours))`` (the
     geometric mean of the ratios: every pair weighs the same, whatever its size).
 
+    A printed value is only known to half a unit of its last digit, so a column printed with few
+    digits has a ratio spread that no constant can remove. With ``abs_tol`` (that half unit, per
+    value) the fit also gives the spread that print rounding does *not* explain: each ratio may
+    move anywhere in its rounding interval ``[(paper − abs_tol) / ours, (paper + abs_tol) / ours]``,
+    and ``cv_beyond_rounding`` is the smallest CV of the moved ratios over every constant, i.e.
+    ``min_c CV(clip(c, lo_i, hi_i))``. It is 0 exactly when one constant reproduces every printed
+    value to its last digit, and never exceeds ``cv``.
+
     Parameters
     ----------
     paper, ours : array_like
         Positive values, pair by pair.
+    abs_tol : float or array_like, optional
+        Half a unit of each printed value's last digit, in the units of ``paper`` (non-negative).
 
     Returns
     -------
     dict
         ``k``; ``median`` of the ratios paper/ours; ``cv`` = std/mean of the ratios (population
-        std); ``max_min`` = max/min − 1 of the ratios; ``n`` pairs.
+        std); ``max_min`` = max/min − 1 of the ratios; ``n`` pairs; with ``abs_tol`` also
+        ``cv_beyond_rounding`` and ``k_rounding``, the constant attaining it.
 
     Raises
     ------
     ValueError
-        If the arrays differ in shape, are empty, or hold a non-positive or non-finite value.
+        If the arrays differ in shape, are empty, or hold a non-positive or non-finite value, or
+        ``abs_tol`` is negative, non-finite or of another shape.
     """
     paper = np.asarray(paper, dtype=np.float64)
     ours = np.asarray(ours, dtype=np.float64)
@@ -90,8 +102,42 @@ def fit_constant(paper, ours) -> dict:
     if not (np.all(np.isfinite(paper)) and np.all(np.isfinite(ours)) and np.all(paper > 0) and np.all(ours > 0)):
         raise ValueError("fit_constant needs finite positive values")
     r = paper / ours
-    return {"k": float(np.exp(np.mean(np.log(r)))), "median": float(np.median(r)), "cv": float(r.std() / r.mean()),
-            "max_min": float(r.max() / r.min() - 1), "n": int(len(r))}
+    out = {"k": float(np.exp(np.mean(np.log(r)))), "median": float(np.median(r)), "cv": float(r.std() / r.mean()),
+           "max_min": float(r.max() / r.min() - 1), "n": int(len(r))}
+    if abs_tol is not None:
+        try:
+            tol = np.broadcast_to(np.asarray(abs_tol, dtype=np.float64), paper.shape)
+        except ValueError:
+            raise ValueError(f"abs_tol must be a scalar or match paper's shape {paper.shape}; got "
+                             f"{np.shape(abs_tol)}") from None
+        if not (np.all(np.isfinite(tol)) and np.all(tol >= 0)):
+            raise ValueError("abs_tol must be finite and non-negative")
+        out["cv_beyond_rounding"], out["k_rounding"] = _cv_beyond_rounding(r, tol / ours)
+    return out
+
+
+def _cv_beyond_rounding(r, half_width) -> tuple[float, float]:
+    """``min_c CV(clip(c, r − w, r + w))`` and its ``c`` (see :func:`fit_constant`).
+
+    The CV is smooth between the interval ends, so it is scanned on a grid spanning them and the
+    best grid point refined by a bounded scalar minimisation.
+    """
+    from scipy.optimize import minimize_scalar
+
+    lo, hi = np.maximum(r - half_width, np.finfo(float).tiny), r + half_width
+
+    def cv(c):
+        moved = np.clip(c, lo, hi)
+        return moved.std() / moved.mean()
+
+    grid = np.linspace(lo.min(), hi.max(), 4001)
+    moved = np.clip(grid[:, None], lo, hi)
+    cvs = moved.std(axis=1) / moved.mean(axis=1)
+    i = int(np.argmin(cvs))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    res = minimize_scalar(cv, bounds=(a, b), method="bounded", options={"xatol": 1e-12 * max(abs(b), 1.0)})
+    best, c = (float(res.fun), float(res.x)) if res.fun <= cvs[i] else (float(cvs[i]), float(grid[i]))
+    return min(best, float(r.std() / r.mean())), c
 
 
 def _read_csvs(paths) -> pd.DataFrame:
@@ -270,7 +316,6 @@ def _cell(text) -> str:
 
 
 _FIT_KEY = re.compile(r"^fit/(?P<item>[^/]+)/(?P<column>[^/]+)/(?P<conv>[^/]+)/(?P<stat>[a-z_]+)_(?P<n>\d+)$")
-_FIT_STATS = ("median", "cv", "max_min")
 
 
 def _conventions(notes: dict, values: dict) -> list[str]:
@@ -294,14 +339,17 @@ def _conventions(notes: dict, values: dict) -> list[str]:
         table = fits.get((item, column), {})
         sets = sorted({n for stats in table.values() for (_, n) in stats}, reverse=True)
         if table:
-            head = ["convention", "k (fit on log ratios)"] + [f"{s.replace('_', '/')} ({n} pairs)" for n in sets
-                                                                for s in ("median", "CV", "max_min − 1")]
+            rounding = any(s == "cv_beyond_rounding" for stats in table.values() for (s, _) in stats)
+            labels = ("median", "CV", "max/min − 1") + (("CV beyond print rounding",) if rounding else ())
+            head = ["convention", "k (fit on log ratios)"] + [f"{s} ({n} pairs)" for n in sets for s in labels]
             out += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
             for name, stats in table.items():
                 cells = [f"**{name}** (fitted)" if name == best else name, _fmt(ks.get((item, column, name)))]
                 for n in sets:
                     cells += [_fmt(stats.get(("median", n))), _fmt(stats.get(("cv", n)), ".2%"),
                               _fmt(stats.get(("max_min", n)), ".2%")]
+                    if rounding:
+                        cells.append(_fmt(stats.get(("cv_beyond_rounding", n)), ".2%"))
                 out.append("| " + " | ".join(cells) + " |")
             out.append("")
         if conv.get("sentence"):
@@ -309,8 +357,8 @@ def _conventions(notes: dict, values: dict) -> list[str]:
     if out:
         out = ["## Fitted conventions", "",
                "For each column with a fitted convention: one constant k (paper ≈ k × ours) per convention tried, "
-               "the spread of the ratios paper/ours over each set of pairs, and the convention used for the values "
-               "above (bold). The sentences are generated by the notebook from the same numbers.", ""] + out
+               "the spread of the ratios paper/ours over each set of pairs (and the part of it that rounding the "
+               "printed values to their last digit cannot explain), and the convention used for the values above (bold). The sentences are generated by the notebook from the same numbers.", ""] + out
     return out
 
 

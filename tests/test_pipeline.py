@@ -340,3 +340,15 @@ def test_readme_timings_come_from_the_run_records(tmp_path):
     (results / names[0] / ".inputs.json").write_text(json.dumps({"mode": "quick", "seconds": 1.0}))
     with pytest.raises(ValueError, match=f"{names[0]}: no full run"):
         run_all.update_readme_timings(results, readme)
+
+
+@pytest.mark.parametrize("name", list(run_all.NOTEBOOKS))
+def test_papermill_reads_every_declared_parameter(name):
+    """papermill's own parser (used for `papermill --help-notebook` and parameter injection) skips
+    a line it cannot parse with a warning; every study notebook's parameters must parse."""
+    import jupytext
+    from papermill.translators import PythonTranslator
+
+    nb = jupytext.read(run_all.NOTEBOOK_DIR / f"{name}.py")
+    (cell,) = [c for c in nb.cells if "parameters" in c.metadata.get("tags", [])]
+    assert [p.name for p in PythonTranslator.inspect(cell)] == list(run_all.declared_parameters(name))

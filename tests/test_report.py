@@ -99,6 +99,33 @@ def test_fit_constant_closed_forms():
         fit_constant([1.0], [1.0, 2.0])
 
 
+def test_fit_constant_spread_beyond_print_rounding():
+    rng = np.random.default_rng(3)
+    ours = rng.uniform(0.02, 0.5, 15)  # printed 0.07–1.8: rounding is up to 7 %
+    printed = np.round(3.55 * ours, 2)  # a column printed to 2 decimals: k · ours to its last digit
+    f = fit_constant(printed, ours, abs_tol=0.005)
+    assert f["cv"] > 0.005  # rounding alone spreads the raw ratios
+    assert f["cv_beyond_rounding"] == pytest.approx(0.0, abs=1e-9)
+    assert np.all(np.abs(f["k_rounding"] * ours - printed) <= 0.005 + 1e-12)  # the constant reproduces every digit
+    # no rounding interval: the spread is the raw CV whatever the constant
+    f0 = fit_constant(printed, ours, abs_tol=0.0)
+    assert f0["cv_beyond_rounding"] == pytest.approx(f0["cv"], rel=1e-12)
+    # a real deviation larger than the rounding stays, but less of it than the raw CV
+    off = printed.copy()
+    off[0] *= 1.2
+    g = fit_constant(off, ours, abs_tol=0.005)
+    assert 0.0 < g["cv_beyond_rounding"] < g["cv"]
+    # independent check: brute force over constants
+    lo, hi = (off - 0.005) / ours, (off + 0.005) / ours
+    moved = np.clip(np.linspace(lo.min(), hi.max(), 200001)[:, None], lo, hi)
+    brute = (moved.std(axis=1) / moved.mean(axis=1)).min()
+    assert g["cv_beyond_rounding"] == pytest.approx(brute, rel=1e-6)
+    with pytest.raises(ValueError, match="abs_tol"):
+        fit_constant(printed, ours, abs_tol=-0.1)
+    with pytest.raises(ValueError, match="abs_tol"):
+        fit_constant(printed, ours, abs_tol=np.ones(3))
+
+
 def test_verdicts_are_validated_and_tabulated(tmp_path, reference):
     results = tmp_path / "results"
     with pytest.raises(ValueError, match="must be one of"):
