@@ -57,6 +57,8 @@ CC_FILES = ["cdfhc/cdfhc_data2D_CC.mat"]
 #: name -> full parameters, quick parameters (CI), raw data files used (their checksums key the cache).
 #: ``expects`` maps a value-key prefix to how many values the notebook must record under it
 #: (checked by tests/test_notebooks.py, so that the report never silently loses a column).
+#: ``"cores": "all"``: the notebook starts a worker per core and runs alone (:class:`_Cores`);
+#: ``"store": True``: it gets a ``store_dir`` for resumable zarr stores (:func:`run_one`).
 NOTEBOOKS: dict[str, dict] = {
     "fig07_fish_deformations": {
         "params": {}, "quick": {"max_iter": 3},
@@ -78,6 +80,7 @@ NOTEBOOKS: dict[str, dict] = {
         "data": CC_FILES, "expects": {"alpha_discretisation/": 13},
     },
     "tutorial_own_data": {
+        "cores": "all",
         "params": {},
         "quick": {"per_class": 2, "n_landmarks": 16, "n_steps": 4, "n_jobs": 1,
                   "metrics": ["procrustes", "alpha", "fisher_rao_bound"]},
@@ -85,6 +88,7 @@ NOTEBOOKS: dict[str, dict] = {
         "expects": {"tutorial/": 23},
     },
     "table1_pairwise": {
+        "cores": "all",
         # full run: α and Fisher–Rao distances through the certified bracket (rtol 1e-3, well
         # inside print precision): 105 s instead of 13 min on 2 cores, ratio medians and CVs within
         # 0.1 % of the converged geodesics' (measured 2026-11-23); quick keeps 3 fixed iterations
@@ -97,7 +101,7 @@ NOTEBOOKS: dict[str, dict] = {
             "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")} | {"fig11/": 28, "speed/": 2, "constant/table1/": 7},
     },
     "adhd200_population": {
-        "params": {"rtol": 1e-3}, "store": True,
+        "params": {"rtol": 1e-3}, "store": True, "cores": "all",
         "quick": {"n_shapes": 40, "n_subset": 8, "geodesic_n_steps": 2, "geodesic_max_iter": 1, "permutations": 199},
         "data": ["adhd200/ADHD-200.Rdata", "adhd200/clinical_info.csv"],
         "expects": {"adhd200/permanova/": 108, "adhd200/knn/": 36, "adhd200/mantel/": 62, "adhd200/mds/": 14,
@@ -446,6 +450,36 @@ def stop_child_processes(*, grace: float = 5.0) -> int:
     return len(procs)
 
 
+class _Cores:
+    """Who may run now: a notebook that starts a worker per core (registry ``"cores": "all"``: a
+    Dask cluster or a process pool) runs alone; the others share the machine ``jobs`` at a time.
+    Two such notebooks side by side would put twice as many busy processes as cores on the machine:
+    no faster in all, and each one's recorded run time would be inflated. A notebook waiting for
+    the whole machine goes before any later small one."""
+
+    def __init__(self, jobs: int):
+        self.jobs, self.used, self.whole_waiting = jobs, 0, 0
+        self.cond = threading.Condition()
+
+    def run(self, whole: bool, fn, *args, **kwargs):
+        need = self.jobs if whole else 1
+        with self.cond:
+            self.whole_waiting += whole
+            try:
+                while not _STOPPING.is_set() and not (
+                        self.used + need <= self.jobs and (whole or not self.whole_waiting)):
+                    self.cond.wait(0.5)
+            finally:
+                self.whole_waiting -= whole
+            self.used += need
+        try:
+            return fn(*args, **kwargs)  # run_one returns "interrupted" at once when stopping
+        finally:
+            with self.cond:
+                self.used -= need
+                self.cond.notify_all()
+
+
 def _stop_run(pool: cf.ThreadPoolExecutor, futures) -> None:
     """Cancel the notebooks not started, stop the running ones' processes, remove their folders."""
     _STOPPING.set()
@@ -546,8 +580,9 @@ def run_all(names, *, quick: bool, force: bool, jobs: int, results_dir: Path = R
     done_count = 0
     show = _Progress(len(names), enabled=progress, jobs=jobs)
     pool = cf.ThreadPoolExecutor(max_workers=max(1, jobs))
-    futures = [pool.submit(show.run, n, quick=quick, force=force, results_dir=results_dir, overrides=overrides,
-                           jobs=jobs) for n in names]
+    cores = _Cores(max(1, jobs))
+    futures = [pool.submit(cores.run, NOTEBOOKS[n].get("cores") == "all", show.run, n, quick=quick, force=force,
+                           results_dir=results_dir, overrides=overrides, jobs=jobs) for n in names]
     try:
         pending = set(futures)
         while pending:

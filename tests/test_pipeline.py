@@ -130,6 +130,36 @@ def test_store_outlives_a_failed_run_is_resumed_and_removed_once_done(toy, monke
     assert values(results) == {"toy/resumed": 0.0}
 
 
+TIMED = textwrap.dedent('''\
+    # %% tags=["parameters"]
+    output_dir = "x"
+    sleep = 0.0
+    name = "toy"
+
+    # %%
+    import time
+    from shapelib.study import record_values
+    start = time.time()
+    time.sleep(sleep)
+    record_values(output_dir, {f"{name}/start": start, f"{name}/end": time.time()})
+''')
+
+
+def test_whole_machine_notebooks_run_alone_the_others_side_by_side(toy, monkeypatch):
+    nbdir, results = toy
+    for name, cores in (("whole1", "all"), ("small1", None), ("small2", None), ("whole2", "all")):
+        (nbdir / f"{name}.py").write_text(TIMED)
+        monkeypatch.setitem(run_all.NOTEBOOKS, name, {"params": {"sleep": 3.0, "name": name}, "quick": {}, "data": [], "expects": {},
+                                                      **({"cores": cores} if cores else {})})
+    names = ["small1", "small2", "whole1", "whole2"]
+    assert run_all.run_all(names, quick=False, force=True, jobs=2, results_dir=results) == 0
+    span = {n: (values(results, n)[f"{n}/start"], values(results, n)[f"{n}/end"]) for n in names}
+    overlap = lambda a, b: span[a][0] < span[b][1] and span[b][0] < span[a][1]
+    for whole in ("whole1", "whole2"):
+        assert not any(overlap(whole, other) for other in names if other != whole), span
+    assert overlap("small1", "small2"), span  # the others share the machine
+
+
 def test_unknown_parameter_is_an_error(toy, tmp_path):
     with pytest.raises(ValueError, match=r"unknown parameter.*'bogus'"):
         run_all.execute_notebook("toy", {"bogus": 1}, tmp_path / "out")
