@@ -193,7 +193,7 @@ def engine(x, metric, **params):
     timings[metric] = time.perf_counter() - t0
     assert res.complete, f"{metric}: matrix incomplete"
     print(f"{metric}: {timings[metric]:.1f} s wall, {np.nansum(res.seconds):.1f} s summed over pairs "
-          f"({res.log.get('where', '')})")
+          f"({res.log.get('mode', '')})")
     return res
 
 

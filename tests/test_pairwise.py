@@ -227,3 +227,27 @@ def test_store_of_a_non_path_metric_spanning_several_chunks_reopens(rng, tmp_pat
     assert again.computed[~np.eye(len(x), dtype=bool)].all()
     np.testing.assert_array_equal(again.matrix, first.matrix)
     assert np.isnan(again.energy[~np.eye(len(x), dtype=bool)]).all()  # not applicable, not 0
+
+
+def test_blocks_are_sized_from_the_warm_cost_of_a_pair_in_a_fresh_process():
+    """The first call in a process pays one-off costs (compiled kernels, quadrature grids) far
+    above a cheap metric's per-pair cost; sizing blocks from it gave the 647-shape Fisher–Rao
+    bound matrix blocks of 2 shapes (52,650 tasks, the client busy writing them)."""
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+
+    script = (
+        "import json, numpy as np\n"
+        "from shapelib.pairwise import compute_pairwise\n"
+        "rng = np.random.default_rng(0)\n"
+        "t = np.linspace(0, 2 * np.pi, 30, endpoint=False)\n"
+        "x = np.stack([np.c_[10 * np.cos(t), 5 * np.sin(t)] + rng.normal(size=(30, 2)) for _ in range(40)])\n"
+        "r = compute_pairwise(x, metric='fisher_rao_bound', sigma2=1.0, n_jobs=1, progress=False)\n"
+        "s = r.seconds[np.isfinite(r.seconds)]\n"
+        "print(json.dumps({'estimate': r.log['seconds_per_pair_estimate'], 'median': float(np.median(s))}))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, check=True)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["estimate"] < 3 * got["median"], got
