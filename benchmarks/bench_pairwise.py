@@ -13,8 +13,7 @@ pairs/s, and the scaling efficiency ``rate_w / (w · rate_1)``; then the project
 full 647-shape matrices (208,981 pairs) of the α and Fisher–Rao geodesic distances on N workers,
 from the mean measured seconds per pair and the measured 2-worker efficiency.
 
-The geodesic metrics use the certified bracket (``rtol``, :func:`shapelib.bracket.distance_bracket`)
-when :mod:`shapelib.bracket` is installed, else the plain geodesic (``tol`` 1e-6): the report says which.
+The geodesic metrics use the certified bracket (``--rtol``, :func:`shapelib.bracket.distance_bracket`).
 Not a test: numbers depend on the machine and its load (``/proc/loadavg`` is recorded).
 
     python benchmarks/bench_pairwise.py [--sigma2 0.5] [--workers 1 2] [--json out.json] [--quick]
@@ -23,7 +22,6 @@ Not a test: numbers depend on the machine and its load (``/proc/loadavg`` is rec
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import os
 import sys
@@ -57,14 +55,11 @@ def loadavg() -> str:
         return "unknown"
 
 
-def metric_params(metric: str, args, bracket: bool) -> dict:
+def metric_params(metric: str, args) -> dict:
     if metric in ("alpha", "fisher_rao"):
-        kw = {"sigma2": args.sigma2}
-        if bracket:
-            kw["rtol"] = args.rtol
+        kw = {"sigma2": args.sigma2, "rtol": args.rtol}
         if args.quick:  # a smoke test of the machinery, not a distance anyone should use
-            kw.update({"n_steps": 4, "max_n_steps": 4, "level_iter": 2, "rtol": 0.5} if bracket
-                      else {"n_steps": 4, "max_iter": 3})
+            kw.update({"n_steps": 4, "max_n_steps": 4, "level_iter": 2, "rtol": 0.5})
         return kw
     if metric in ("alpha_bound", "fisher_rao_bound"):
         return {"sigma2": args.sigma2}
@@ -114,13 +109,12 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="tiny subsets, n_steps=4 (smoke test)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
-    bracket = importlib.util.find_spec("shapelib.bracket") is not None
     sizes = QUICK_SIZES if args.quick else SIZES
     contours, _ = load_adhd200()
     x_all = paper_scale(contours)
     order = np.random.default_rng(args.seed).permutation(len(x_all))
     report = {"machine_cores": os.cpu_count(), "loadavg_start": loadavg(), "sigma2": args.sigma2,
-              "geodesics": f"bracket rtol={args.rtol}" if bracket else "plain geodesic (tol 1e-6)",
+              "geodesics": f"bracket rtol={args.rtol}",
               "quick": args.quick, "metrics": {}}
     print(f"ADHD-200, centroid size 20, sigma2={args.sigma2}; geodesics: {report['geodesics']}; "
           f"load {report['loadavg_start']}")
@@ -142,7 +136,7 @@ def main(argv=None):
                 print(f"LocalCluster({w}) started in {report[f'cluster_startup_seconds_{w}']:.1f} s")
         for metric in args.metrics:
             x = x_all[order[: sizes[metric]]]
-            params = metric_params(metric, args, bracket)
+            params = metric_params(metric, args)
             out = {"n_shapes": len(x), "params": params,
                    "warmup_seconds": warm_up(x, metric, params, [c for _, c in clusters.values()])}
             for w in args.workers:
