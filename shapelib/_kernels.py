@@ -277,6 +277,19 @@ def _landmarks_by_coordinate(theta, vel):
     return th, v, tv
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def _velocity_dot_offset(x, m, v, tv, rv):
+    """``rv[a] = (x_m − θ_a) · v_a`` for every landmark ``a`` at grid node ``m`` (into ``rv``),
+    from the (d, K) velocities ``v`` and ``tv[a] = θ_a · v_a``."""
+    k = rv.shape[0]
+    for a in range(k):
+        rv[a] = -tv[a]
+    for i in range(x.shape[1]):
+        xi = x[m, i]
+        for a in range(k):
+            rv[a] += xi * v[i, a]
+
+
 @njit(cache=True, fastmath=False)
 def fr_qform_grad(x, weight, theta, vel, s2, psi, coef):
     """``Q = ∫ ψ̇²``, ``∂Q/∂θ`` (K, d) and ``∂Q/∂v`` (K, d) for one shape on the grid nodes ``x``
@@ -292,12 +305,7 @@ def fr_qform_grad(x, weight, theta, vel, s2, psi, coef):
     q = 0.0
     inv_s2 = 1.0 / s2
     for m in range(m_nodes):
-        for a in range(k):
-            rv[a] = -tv[a]
-        for i in range(d):
-            xi = x[m, i]
-            for a in range(k):
-                rv[a] += xi * v[i, a]
+        _velocity_dot_offset(x, m, v, tv, rv)
         pd = 0.0
         for a in range(k):
             pd += coef[m, a] * rv[a]
@@ -346,13 +354,11 @@ def fr_hessian_parts(x, theta, vel, s2, psi, coef):
     s_brr = np.zeros((d, d, k))
     s_arvrr = np.zeros((d, d, k))
     for m in range(mk):
-        for a in range(k):
-            rv[a] = -tv[a]
+        _velocity_dot_offset(x, m, v, tv, rv)
         for i in range(d):
             xi = x[m, i]
             for a in range(k):
                 r[i, a] = xi - th[i, a]
-                rv[a] += xi * v[i, a]
         pd = 0.0
         for a in range(k):
             pd += coef[m, a] * rv[a]

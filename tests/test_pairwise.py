@@ -229,10 +229,12 @@ def test_store_of_a_non_path_metric_spanning_several_chunks_reopens(rng, tmp_pat
     assert np.isnan(again.energy[~np.eye(len(x), dtype=bool)]).all()  # not applicable, not 0
 
 
-def test_blocks_are_sized_from_the_warm_cost_of_a_pair_in_a_fresh_process():
+@pytest.mark.parametrize("metric, n_shapes, extra", [("fisher_rao_bound", 40, "")])
+def test_blocks_are_sized_from_the_warm_cost_of_a_pair_in_a_fresh_process(metric, n_shapes, extra):
     """The first call in a process pays one-off costs (compiled kernels, quadrature grids) far
-    above a cheap metric's per-pair cost; sizing blocks from it gave the 647-shape Fisher–Rao
-    bound matrix blocks of 2 shapes (52,650 tasks, the client busy writing them)."""
+    above a pair's cost; sizing blocks from it gave the 647-shape Fisher–Rao bound matrix of the
+    population study blocks of 2 shapes (52,650 tasks, the client busy writing them) and its
+    140-shape Fisher–Rao bracket matrix blocks of 1 (the client's chunk rewrites took a core)."""
     import subprocess
     import sys
 
@@ -243,8 +245,8 @@ def test_blocks_are_sized_from_the_warm_cost_of_a_pair_in_a_fresh_process():
         "from shapelib.pairwise import compute_pairwise\n"
         "rng = np.random.default_rng(0)\n"
         "t = np.linspace(0, 2 * np.pi, 30, endpoint=False)\n"
-        "x = np.stack([np.c_[10 * np.cos(t), 5 * np.sin(t)] + rng.normal(size=(30, 2)) for _ in range(40)])\n"
-        "r = compute_pairwise(x, metric='fisher_rao_bound', sigma2=1.0, n_jobs=1, progress=False)\n"
+        f"x = np.stack([np.c_[10 * np.cos(t), 5 * np.sin(t)] + rng.normal(size=(30, 2)) for _ in range({n_shapes})])\n"
+        f"r = compute_pairwise(x, metric={metric!r}, sigma2=1.0, n_jobs=1, progress=False{extra})\n"
         "s = r.seconds[np.isfinite(r.seconds)]\n"
         "print(json.dumps({'estimate': r.log['seconds_per_pair_estimate'], 'median': float(np.median(s))}))\n"
     )
