@@ -402,7 +402,18 @@ else:
 lines.append(f"Age is significant at p ≤ {alpha_level} under {len(sig_age)} of {len(all_metrics)} metrics "
              f"(R² up to {age.loc['all'].R2.max():.2%}). k-NN beats its permutation null at p ≤ {alpha_level} under "
              f"{len(sig_knn)} of {len(all_metrics)} metrics; the best accuracy is "
-             f"{kn.loc['all'].accuracy.max():.3f} ({kn.loc['all'].accuracy.idxmax()}).")
+             f"{kn.loc['all'].accuracy.max():.3f} ({kn.loc['all'].accuracy.idxmax()})"
+             + (", below always answering TD." if kn.loc["all"].accuracy.max() < kn["majority"].iloc[0] else "."))
+sub_dx = [m for (s, m), r in dx.iterrows() if s == "subset" and r.p <= alpha_level]
+sub_knn = [m for (s, m), r in kn.iterrows() if s == "subset" and r.p <= alpha_level]
+n_sub_metrics = int(sum(s == "subset" for s, _ in kn.index))
+best_sub = kn.loc["subset"].accuracy
+lines.append(f"On the subset of {len(sub_local)}, balanced over diagnosis × sex (chance ≈ "
+             f"{kn.loc['subset'].null_mean.mean():.2f}), diagnosis is significant under {len(sub_dx)} of "
+             f"{n_sub_metrics} metrics (R² up to {dx.loc['subset'].R2.max():.2%}) and k-NN beats its permutation null "
+             f"under {len(sub_knn)} of {n_sub_metrics} (accuracy up to {best_sub.max():.3f}, {best_sub.idxmax()}). "
+             + ("With the classes balanced, shape carries some information on the diagnosis, far too little to "
+                "classify a subject." if sub_knn else "Even with the classes balanced, k-NN does no better than chance."))
 lines += ["", f"**Certified bracket on the subset** ({len(iu[0])} pairs per metric, σ² = {sigma2:g}, "
           + (f"paths of {geodesic_n_steps} segments, at most {geodesic_max_iter} solver iterations):" if rtol is None
              else f"certified brackets with rtol = {rtol:g}):"), "",

@@ -50,6 +50,7 @@ import hashlib
 import inspect
 import itertools
 import json
+import logging
 import math
 import os
 import time
@@ -653,10 +654,14 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token)
                 except (OSError, TimeoutError) as exc:
                     raise ValueError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from exc
             else:
+                # Logs at CRITICAL only: a worker whose heartbeat races the scheduler's shutdown at
+                # the end of a run logs a CommClosedError traceback at ERROR. Failures that matter
+                # still reach the caller: a task's exception is raised here, a lost worker's
+                # blocks are rerun by the scheduler.
                 with warnings.catch_warnings():  # the scheduler's HTTP port moves if 8787 is taken
                     warnings.filterwarnings("ignore", message="Port .* is already in use")
                     cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=40)
+                                           dashboard_address=None, silence_logs=logging.CRITICAL)
                 own_client = Client(cluster)
             client = own_client
         # keep a bounded number of blocks in flight (the shapes of each travel with its task)
