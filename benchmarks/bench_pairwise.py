@@ -120,15 +120,14 @@ def main(argv=None):
           f"load {report['loadavg_start']}")
     clusters = {}
     try:
-        from distributed import Client, LocalCluster
+        from distributed import Client
+
+        from shapelib.pairwise import local_cluster  # the cluster n_jobs=w starts, malloc settings included
 
         for w in args.workers:
             if w > 1:
                 t0 = time.perf_counter()
-                with warnings.catch_warnings():  # the scheduler's HTTP port moves if 8787 is taken
-                    warnings.filterwarnings("ignore", message="Port .* is already in use")
-                    cluster = LocalCluster(n_workers=w, threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=40)
+                cluster = local_cluster(w)
                 client = Client(cluster)
                 client.run(lambda: __import__("shapelib.pairwise"))  # workers import shapelib once, up front
                 clusters[w] = (cluster, client)

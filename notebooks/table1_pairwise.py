@@ -129,10 +129,11 @@ def run_jobs(client):
 
 t0 = time.perf_counter()
 if n_jobs > 1:
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
-    with LocalCluster(n_workers=n_jobs, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
+    from shapelib.pairwise import local_cluster
+
+    with local_cluster(n_jobs) as cluster, Client(cluster) as client:
         results = run_jobs(client)
 else:
     results = run_jobs(None)
