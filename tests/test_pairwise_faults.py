@@ -65,7 +65,7 @@ def _n_done(path) -> int:
     atomically by zarr, so reading during a run is safe."""
     try:
         return len(_Store.open(path).task_done())
-    except ValueError:
+    except Exception:  # not there yet, or caught between two writes: ask again
         return 0
 
 
@@ -200,13 +200,18 @@ def test_ctrl_c_keeps_finished_blocks_and_stops_the_local_cluster(tmp_path):
     before = {p.pid for p in psutil.Process().children(recursive=True)}
     watcher = threading.Thread(target=interrupt)
     watcher.start()
+    interrupted = False
+    t0 = time.monotonic()
     try:
-        with pytest.raises(KeyboardInterrupt):
-            compute_pairwise(x, n_jobs=2, block_size=1, store=store, progress=False, **PARAMS)
+        compute_pairwise(x, n_jobs=2, block_size=1, store=store, progress=False, **PARAMS)
+    except KeyboardInterrupt:
+        interrupted = True
     finally:
         stop.set()
         watcher.join()
-    assert fired.is_set()
+    # each its own message: a failure under load says which step did not happen
+    assert fired.is_set(), f"the watcher never saw 2 finished blocks ({_n_done(store)} done)"
+    assert interrupted, f"SIGINT did not stop the run: it finished in {time.monotonic() - t0:.1f} s"
     partial = open_store(store)
     assert 2 <= partial.log["blocks_done"] < partial.log["blocks_total"]
     time.sleep(0.5)
