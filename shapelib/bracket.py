@@ -47,6 +47,13 @@ STOPPED_BY = ("rtol", "stalled", "trivial", "max_n_steps")
 #: faster in all (a model-Hessian iteration is ~4× cheaper: metric tensors at the segment
 #: midpoints instead of Hessians of the quadratic form at every Gauss–Legendre node).
 DEFAULT_HESSIAN = {"alpha": "exact", "fisher_rao": "model"}
+#: Fisher–Rao quadrature step (in σ) of a bracket with ``rtol ≥ BRACKET_SPACING_RTOL`` when
+#: ``grid_spacing`` is not given. Against a 0.25σ grid, the bound and the straight-line length of
+#: the 21 corpus callosum pairs differ by at most 3e-8 (σ² = 0.1, 0.5) and 3.2e-7 (σ² = 1.5)
+#: relative at 0.5σ, far inside any such rtol, with half the nodes of the library's 0.35σ: the
+#: Fisher–Rao brackets at σ² = 0.5 run 2.1× faster (4.0 → 8.4 pairs/s), same iterations.
+BRACKET_SPACING = 0.5
+BRACKET_SPACING_RTOL = 1e-5
 
 
 @dataclass
@@ -166,7 +173,7 @@ def _positive_int(value, name):
 
 def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: int = 8,
                      max_n_steps: int = 64, level_iter: int = 3, level_tol: float | None = None,
-                     min_shrink: float = 0.25, grid_spacing: float = DEFAULT_SPACING,
+                     min_shrink: float = 0.25, grid_spacing: float | None = None,
                      grid_margin: float = DEFAULT_MARGIN, hessian: str | None = None,
                      warn: bool = True) -> DistanceBracket:
     """Certified bracket ``lower ≤ d(u, v) ≤ upper`` with ``upper / lower − 1 ≤ rtol`` if reachable.
@@ -194,8 +201,13 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         Also ``"stalled"`` when, after three levels, the Aitken Δ² extrapolation of the gaps
         to ``n_steps → ∞`` lies above ``rtol``: the geodesic is longer than the bound by more
         than ``rtol``, and no ``n_steps`` will close the bracket.
-    grid_spacing, grid_margin : float
-        Fisher–Rao quadrature (:mod:`shapelib.quadrature`).
+    grid_spacing : float, optional
+        Fisher–Rao quadrature step in units of σ (:mod:`shapelib.quadrature`). Default
+        :data:`BRACKET_SPACING` (0.5) when ``rtol ≥ 1e-5`` — its quadrature error, ≤ 3.2e-7
+        relative on the corpus callosum pairs, is far below such a tolerance — else the library's
+        0.35 (:data:`shapelib.quadrature.DEFAULT_SPACING`).
+    grid_margin : float
+        Fisher–Rao quadrature margin (:mod:`shapelib.quadrature`).
     hessian : {"exact", "model"}, optional
         Hessian of the Levenberg–Marquardt steps (:func:`shapelib.geodesic.geodesic`); default
         the cheaper per metric for brackets (:data:`DEFAULT_HESSIAN`: exact for α, the model
@@ -232,6 +244,8 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
     if not 0.0 <= float(min_shrink) < 1.0:
         raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
+    if grid_spacing is None:
+        grid_spacing = BRACKET_SPACING if rtol >= BRACKET_SPACING_RTOL else DEFAULT_SPACING
     if hessian is None:
         hessian = DEFAULT_HESSIAN[metric]
     if hessian not in ("exact", "model"):

@@ -58,7 +58,8 @@ def test_bracket_is_certified_and_contains_a_converged_fine_geodesic(pair, metri
     assert b.path.shape == (b.n_steps + 1,) + u.shape
     assert np.array_equal(b.path[0], u) and np.array_equal(b.path[-1], v)
     # the length of that very path, recomputed independently
-    assert shapelib.path_length(b.path, metric=metric, sigma2=0.5) == pytest.approx(b.upper, rel=1e-12)
+    grid = {"grid_spacing": b.log["grid_spacing"]} if metric == "fisher_rao" else {}
+    assert shapelib.path_length(b.path, metric=metric, sigma2=0.5, **grid) == pytest.approx(b.upper, rel=1e-12)
     fine = geodesic(u, v, metric=metric, sigma2=0.5, n_steps=32, tol=1e-10)
     assert fine.converged
     assert b.lower <= fine.length <= b.upper * (1 + 1e-9)
@@ -170,3 +171,22 @@ def test_refine_path_keeps_the_curve_and_its_length(far_pair):
 
 def test_exported():
     assert shapelib.distance_bracket is distance_bracket
+
+
+def test_fisher_rao_bracket_grid_follows_rtol_and_stays_accurate(pair):
+    from shapelib.bracket import BRACKET_SPACING
+    from shapelib.quadrature import DEFAULT_SPACING
+
+    u, v = pair
+    coarse = distance_bracket(u, v, metric="fisher_rao", sigma2=0.5, rtol=1e-3)
+    assert coarse.log["grid_spacing"] == BRACKET_SPACING
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GeodesicWarning)
+        tight = distance_bracket(u, v, metric="fisher_rao", sigma2=0.5, rtol=1e-6, max_n_steps=8)
+    assert tight.log["grid_spacing"] == DEFAULT_SPACING
+    given = distance_bracket(u, v, metric="fisher_rao", sigma2=0.5, rtol=1e-3, grid_spacing=0.25)
+    assert given.log["grid_spacing"] == 0.25
+    # the coarse grid's quadrature error is far inside rtol: bound and length as on a 0.25σ grid
+    assert coarse.lower == pytest.approx(given.lower, rel=1e-6)
+    assert shapelib.path_length(coarse.path, metric="fisher_rao", sigma2=0.5, grid_spacing=0.25) == pytest.approx(
+        coarse.upper, rel=1e-6)
