@@ -177,6 +177,24 @@ def test_run_all_exit_code_and_report(toy, monkeypatch):
     assert "cell 2" in row and "RuntimeError: boom" in row  # cell 1 is papermill's injected parameters
 
 
+def _kill_tree(proc):
+    """SIGKILL ``proc``'s process group and every descendant: the kernel runs in a session of its
+    own, outside the group, and an orphaned kernel is not always reaped (a failed assertion here
+    once left a kernel running for the rest of the CI job)."""
+    try:
+        tree = psutil.Process(proc.pid).children(recursive=True)
+    except psutil.NoSuchProcess:
+        tree = []
+    os.killpg(proc.pid, signal.SIGKILL)
+    for p in tree:
+        try:
+            p.kill()
+        except psutil.NoSuchProcess:
+            pass
+    proc.wait()
+    psutil.wait_procs(tree, timeout=10)
+
+
 def test_killed_run_leaves_previous_results_intact(toy):
     nbdir, results = toy
     run_all.run_one("toy", quick=False, force=False, results_dir=results)
@@ -194,8 +212,7 @@ def test_killed_run_leaves_previous_results_intact(toy):
     while time.time() < deadline and not list(results.glob(".tmp-toy-*/toy.ipynb")):
         time.sleep(0.2)  # wait until papermill is executing
     time.sleep(1.0)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    _kill_tree(proc)
     after = {p.name: p.read_bytes() for p in (results / "toy").iterdir()}
     assert after == before
     # the next run clears the leftovers of the killed one
@@ -253,8 +270,7 @@ def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig)
         out, _ = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+            _kill_tree(proc)
     assert proc.returncode == 128 + sig, out.decode()
     assert not [c for c in children if _running(c)], out.decode()
     assert not list(results.glob(".tmp-*"))
