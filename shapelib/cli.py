@@ -355,9 +355,10 @@ def _animate_path(result, path, *, title, fps):
 
 def find_run_all() -> Path | None:
     """``run_all.py`` of the source checkout this package was imported from, or None."""
+    from .study import is_checkout
+
     root = Path(__file__).resolve().parent.parent
-    script = root / "run_all.py"
-    return script if script.is_file() and (root / "notebooks").is_dir() else None
+    return root / "run_all.py" if is_checkout(root) else None
 
 
 def cmd_study(args) -> int:

@@ -487,14 +487,17 @@ def _one_blas_thread():
 def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
     """Seconds for one pair, warm: the first call in a process also pays one-off costs (loading
     compiled kernels, building quadrature grids: 0.2 s against 2.5 ms warm for a Fisher–Rao
-    bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice, a third time
-    while the calls took under ``budget`` seconds, and the fastest call counts."""
+    bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice (once if the
+    first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
+    the calls took under ``budget`` seconds, and the fastest call counts."""
     from .geodesic import GeodesicWarning
 
     times = []
     with _one_blas_thread(), warnings.catch_warnings():
         warnings.simplefilter("ignore", GeodesicWarning)
-        while len(times) < 2 or (len(times) < 3 and sum(times) < budget):
+        # a pair far above TASK_SECONDS gets a block of its own either way: no second call
+        while not times or (len(times) < 2 and times[0] < 10 * TASK_SECONDS) or (
+                len(times) < 3 and sum(times) < budget):
             t0 = time.perf_counter()
             pair_record(x[0], x[1 % len(x)], metric=metric, rtol=rtol, **params)
             times.append(time.perf_counter() - t0)
@@ -545,7 +548,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
             "rtol": None if rtol is None else float(rtol), "shapes_sha256": shapes_sha256(x),
             "N": int(n), "K": int(k), "d": int(d), "symmetric": symmetric, "shapelib_version": __version__}
 
-    st = None
+    st, found = None, None
     if store is not None and Path(store).exists() and not (Path(store) / "zarr.json").exists() and (
             not Path(store).is_dir() or any(Path(store).iterdir())):
         raise ValueError(f"store {str(store)!r} exists and is not a pairwise store (no zarr.json); "
@@ -553,7 +556,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if store is not None and (Path(store) / "zarr.json").exists():
         st = _Store.open(store)
         _check_same(st, want, block_size_given=block_size)
-        st.read()  # damage in the done blocks is named now, not after hours of new work
+        found = st.read()  # damage in the done blocks is named now, not after hours of new work
     local = client is None and scheduler is None
     n_workers = _n_cores() if n_jobs in (None, -1) else int(n_jobs)
     seconds_per_pair = None
@@ -593,7 +596,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     finally:
         bar.close()
     log["seconds"] = time.perf_counter() - t0
-    data, computed = st.read()
+    data, computed = found if found is not None and not todo else st.read()  # a finished store is read once
     if not computed.all():
         raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
     result = _result(st, data, computed, log)

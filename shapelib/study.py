@@ -28,9 +28,15 @@ def project_root(start=None) -> Path | None:
     """
     here = Path(start or Path.cwd()).resolve()
     for folder in (here, *here.parents):
-        if (folder / "run_all.py").is_file() and (folder / "notebooks").is_dir():
+        if is_checkout(folder):
             return folder
     return None
+
+
+def is_checkout(folder) -> bool:
+    """Whether ``folder`` is a study checkout: its ``run_all.py`` beside a ``notebooks/`` folder."""
+    folder = Path(folder)
+    return (folder / "run_all.py").is_file() and (folder / "notebooks").is_dir()
 
 
 def default_output_dir(name: str, *, start=None) -> Path:
