@@ -623,9 +623,6 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
         newton_decrement = None
         lam = 1e-3  # damping, relative to the mean diagonal of the Hessian
         while not converged and it < max_iter:
-            if target_energy is not None and energy <= target_energy:
-                converged, stopped_by = True, "target_energy"
-                break
             hd, ho = hess
             g2 = grad.reshape(n - 1, -1)
             scale = float(np.mean(np.einsum("tii->t", hd))) / hd.shape[1]
@@ -698,6 +695,8 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
             dampings.append(lam)
             if len(energies) > window and (energies[-1 - window] - energy) < tol * energy:
                 converged, stopped_by = True, "energy_window"
+            elif done:  # decided on the trial energy, as the Hessian left out above
+                converged, stopped_by = True, "target_energy"
     grad_norm = float(np.linalg.norm(grad)) if grad is not None and n > 1 else 0.0
     window_change = (energies[-1 - min(window, len(energies) - 1)] - energy) / energy if energy > 0 else 0.0
     if not converged and warn:
