@@ -243,22 +243,16 @@ def alpha_path_hessian(path, s2, tau, tw, csign):
 def fr_psidot(x, theta, vel, coef):
     """``ψ̇_m = Σ_a coef_ma (r_ma·V_a)`` (M,) at the grid nodes ``x`` (M, d), ``r_ma = x_m − φ_a``
     (see ``metrics._fr_psidot``)."""
-    m_nodes, d = x.shape
+    m_nodes = x.shape[0]
     k = theta.shape[0]
-    tv = np.empty(k)
-    for a in range(k):
-        s = 0.0
-        for i in range(d):
-            s += theta[a, i] * vel[a, i]
-        tv[a] = s
+    _, v, tv = _landmarks_by_coordinate(theta, vel)
+    rv = np.empty(k)
     out = np.empty(m_nodes)
     for m in range(m_nodes):
+        _velocity_dot_offset(x, m, v, tv, rv)
         s = 0.0
         for a in range(k):
-            rv = -tv[a]
-            for i in range(d):
-                rv += x[m, i] * vel[a, i]
-            s += coef[m, a] * rv
+            s += coef[m, a] * rv[a]
         out[m] = s
     return out
 

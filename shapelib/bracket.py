@@ -32,15 +32,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._validate import as_shape_pair, check_positive, check_sigma2
-from .geodesic import GeodesicWarning, _model, fisher_rao_lower_bound, minimise_path
+from .geodesic import METRICS, GeodesicWarning, _check_entry, _model, fisher_rao_lower_bound, minimise_path
 from .gmm import l2_distance
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from .scale import SIGMA_RATIO_MIN
 
 __all__ = ["DistanceBracket", "distance_bracket", "lower_bound", "refine_path"]
 
-METRICS = ("alpha", "fisher_rao")
-STOPPED_BY = ("rtol", "stalled", "trivial", "max_n_steps")
 #: Hessian of the Levenberg–Marquardt steps per metric when ``hessian=None``. Measured on the CC
 #: pairs at σ² = 0.5 (2026-11-23, load ~20, so as ratios): α exact 32 iterations for 21 pairs,
 #: model 45 and ~5 % slower; Fisher–Rao exact 9 iterations for 7 pairs, model 14 but 1.5–1.9×
@@ -230,8 +228,6 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     """
     t0 = time.perf_counter()
     _check_metric(metric)
-    from .geodesic import _check_entry  # scale and layout checks shared with geodesic()
-
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
     ratio = _check_entry(u, v, s2, metric=metric, stacklevel=3)
