@@ -70,11 +70,9 @@ def warm_up(x, metric, params, clients) -> float:
     """One pair in this process and on every worker before timing: the first call of a process pays
     one-off costs (numba compiles the α kernels, imports) that a long run amortises."""
     t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        pair_record(x[0], x[1], metric=metric, **params)
-        for client in clients:
-            client.run(_quiet_pair, x[0], x[1], metric=metric, **params)
+    _quiet_pair(x[0], x[1], metric=metric, **params)
+    for client in clients:
+        client.run(_quiet_pair, x[0], x[1], metric=metric, **params)
     return time.perf_counter() - t0
 
 

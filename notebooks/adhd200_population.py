@@ -52,7 +52,7 @@ labels = pd.DataFrame({
     "age": clinical["age"].to_numpy(dtype=np.float64),
     "phenotype": clinical["phenotype"].to_numpy(),
 })
-values, notes, meta, timings = {}, {}, {}, {}
+values, notes, timings = {}, {}, {}
 print(raw.shape)
 pd.crosstab(labels["diagnosis"], labels["sex"], margins=True)
 

@@ -62,8 +62,8 @@ def refine(u, v):
     for n in ns:
         if path is not None:  # the same curve with a point inserted in every segment
             path = refine_path(path)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
+        with warnings.catch_warnings():  # convergence is recorded below instead
+            warnings.simplefilter("ignore")
             r = geodesic(u, v, metric="alpha", sigma2=sigma2, n_steps=n, tol=tol, max_iter=max_iter, init=path)
         path = r.path
         lengths.append(r.length)

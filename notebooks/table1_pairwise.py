@@ -245,7 +245,7 @@ for metric in info_metrics:
         m = {n: np.tile(mask, len(sub)) for n, mask in SETS.items()}
         f = {n: fit_constant(p[m[n]], o[m[n]], abs_tol=t[m[n]]) for n in SETS}
         pooled.append({"metric": metric, "convention": kind, "k": f["15"]["k"],
-                       **{f"{q}_{n}": f[n][q] for n in SETS for q in ("cv", "max_min", "cv_beyond_rounding")}})
+                       **{f"{q}_{n}": f[n][q] for n in SETS for q in STATS[1:]}})
 pooled = pd.DataFrame(pooled)
 fits.round(5), pooled.round(5)
 
@@ -459,7 +459,7 @@ for r in fits.itertuples():
     for q in ["k"] + [f"{q}_{n}" for n in ("21", "15") for q in STATS]:
         values[f"fit/table1/{r.column}/{r.convention}/{q}"] = float(getattr(r, q))
 for r in pooled.itertuples():
-    for q in ["k"] + [f"{q}_{n}" for n in ("15", "21") for q in ("cv", "max_min", "cv_beyond_rounding")]:
+    for q in ["k"] + [f"{q}_{n}" for n in ("15", "21") for q in STATS[1:]]:
         values[f"fit/table1/{r.metric}/{r.convention}/pooled_{q}"] = float(getattr(r, q))
 notes = {
     "table1/procrustes": "Convention: ρ = arccos Σ sᵢ (Kendall shape-space angle, radians) between centred, "
