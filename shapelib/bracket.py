@@ -262,7 +262,8 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     while True:
         tl = time.perf_counter()
         r = minimise_path(model, u, v, n_steps=n, tol=level_tol, max_iter=level_iter, window=2, init=path,
-                          warn=False, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, target_energy=target)
+                          warn=False, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, target_energy=target,
+                          lower_bound=lower)
         n_iter += r.n_iter
         upper, energy, path = r.length, r.energy, r.path
         gap = upper / lower - 1.0 if lower > 0 else np.inf

@@ -27,7 +27,8 @@ factorised by block Cholesky in O(n (Kd)³):
 
 * by default the **exact** Hessian of the path energy, assembled from the second derivatives
   of ``Q = vᵀg(θ)v`` — in closed form for α (:func:`shapelib.metrics._alpha_qform_hessian`, run
-  as one compiled pass over the path by :func:`shapelib._kernels.alpha_path_hessian`),
+  as one compiled pass over the path, with the gradient, by
+  :func:`shapelib._kernels.alpha_path_grad_hessian`),
   by the same quadrature as the metric for Fisher–Rao (:func:`shapelib.metrics._fr_qform_hessian`).
   Where it is positive definite the Newton decrement ``½ gᵀH⁻¹g`` estimates the energy still
   to be gained; the solver stops when it falls below ``tol · E`` (``log["stopped_by"] ==
@@ -120,8 +121,9 @@ class GeodesicResult:
     converged : bool
     n_iter : int
         Levenberg–Marquardt iterations.
-    grad_norm : float
-        Euclidean norm of the energy gradient at the solution.
+    grad_norm : float or None
+        Euclidean norm of the energy gradient at the solution; None when the solve stopped on
+        ``target_energy``, where the gradient at the final path is not evaluated.
     rel_energy_change : float
         Relative energy decrease of the last accepted step.
     max_step_over_sigma : float
@@ -143,7 +145,7 @@ class GeodesicResult:
     lower_bound: float
     converged: bool
     n_iter: int
-    grad_norm: float
+    grad_norm: float | None
     rel_energy_change: float
     max_step_over_sigma: float
     metric: str
@@ -203,14 +205,16 @@ class _AlphaModel:
     def qform_hessian(self, theta, vel, ctx):
         return _alpha_qform_hessian(theta, vel, self.s2)
 
-    def path_hessian(self, path, ctx):
-        """:func:`_exact_path_hessian` in one compiled pass (:func:`shapelib._kernels.alpha_path_hessian`)."""
+    def path_grad_hessian(self, path, ctx):
+        """``qform_grad`` at the segments' Gauss–Legendre nodes and :func:`_exact_path_hessian`, in
+        one compiled pass (:func:`shapelib._kernels.alpha_path_grad_hessian`)."""
         n = len(path) - 1
         q = path[0].size
         tau, w = _GL3_NODES, _GL3_WEIGHTS
         tw = np.stack([w * (1 - tau) ** 2 / n, w * (1 - tau) * tau / n, w * tau**2 / n, w * (1 - tau), w * tau, w * n])
-        diag, upper = _kernels.alpha_path_hessian(np.ascontiguousarray(path), self.s2, tau, tw, np.array([1.0, -1.0, 1.0]))
-        return diag.reshape(-1, q, q), upper.reshape(-1, q, q)
+        qf, d_theta, d_vel, diag, upper = _kernels.alpha_path_grad_hessian(
+            np.ascontiguousarray(path), self.s2, tau, tw, np.array([1.0, -1.0, 1.0]))
+        return qf, d_theta, d_vel, (diag.reshape(-1, q, q), upper.reshape(-1, q, q))
 
     def lower_bound(self, u, v):
         return l2_distance(u, v, self.s2)
@@ -294,8 +298,10 @@ def _energy(model, path, *, gradient=True, hessian=None):
     if not gradient:
         q = model.qform(flat_t, flat_v, ctx).reshape(n, nq)
         return float(np.sum(q * _GL3_WEIGHTS) / n), None, None
-    node_hessian = None
-    if hessian == "exact" and hasattr(model, "qform_grad_hessian"):  # shares work between the two
+    node_hessian, blocks = None, None
+    if hessian == "exact" and hasattr(model, "path_grad_hessian"):  # α: one compiled pass
+        q, dq_t, dq_v, blocks = model.path_grad_hessian(path, ctx)
+    elif hessian == "exact" and hasattr(model, "qform_grad_hessian"):  # shares work between the two
         q, dq_t, dq_v, node_hessian = model.qform_grad_hessian(flat_t, flat_v, ctx)
     else:
         q, dq_t, dq_v = model.qform_grad(flat_t, flat_v, ctx)
@@ -309,14 +315,11 @@ def _energy(model, path, *, gradient=True, hessian=None):
     g_left = (np.sum((1 - tau) * dq_t, axis=1) - n * np.sum(dq_v, axis=1)) / n
     g_right = (np.sum(tau * dq_t, axis=1) + n * np.sum(dq_v, axis=1)) / n
     grad = g_left[1:] + g_right[:-1]
-    blocks = None
     if hessian == "model":
         gbar = model.tensors(path[:-1] + 0.5 * np.diff(path, axis=0), ctx)
         blocks = (2 * n * (gbar[:-1] + gbar[1:]), -2 * n * gbar[1:-1])
     elif hessian == "exact":
-        if hasattr(model, "path_hessian"):
-            blocks = model.path_hessian(path, ctx)
-        else:
+        if blocks is None:
             blocks = _exact_path_hessian(model, flat_t, flat_v, ctx, n, node_hessian)
     elif hessian is not None:
         raise ValueError(f"unknown hessian {hessian!r}")
@@ -344,7 +347,7 @@ def _exact_path_hessian(model, theta, vel, ctx, n, node_hessian=None):
     """Exact Hessian of the piecewise-linear path energy from the Hessian of ``Q = vᵀg(θ)v``.
 
     Returns ``(diag, upper)`` as :func:`_energy`; the segment blocks are combined with the
-    weights of :func:`_path_hessian_weights` (models with a compiled ``path_hessian`` do the
+    weights of :func:`_path_hessian_weights` (models with a compiled ``path_grad_hessian`` do the
     same in one pass). ``node_hessian``: ``model.qform_hessian(theta, vel, ctx)`` if already computed.
     """
     if node_hessian is None:
@@ -568,7 +571,7 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
 
 
 def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, length_scale, sigma2=None,
-                  hessian=None, stacklevel=2, target_energy=None) -> GeodesicResult:
+                  hessian=None, stacklevel=2, target_energy=None, lower_bound=None) -> GeodesicResult:
     """Minimise the piecewise-linear path energy of any metric ``model`` between ``u`` and ``v``.
 
     ``model`` provides ``prepare(points)``, ``qform``/``qform_grad`` (``vᵀ g(θ) v`` and its
@@ -579,7 +582,8 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
 
     ``target_energy``: stop as soon as the energy is at or below it (``stopped_by ==
     "target_energy"``, counted as converged) — :func:`shapelib.bracket.distance_bracket` passes
-    ``(lower · (1 + rtol))²``, since ``length ≤ √E``.
+    ``(lower · (1 + rtol))²``, since ``length ≤ √E``. ``lower_bound``: ``model.lower_bound(u, v)``
+    when the caller has it already (the bracket computes it once per pair, not once per level).
     """
     if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 1:
         raise ValueError(f"n_steps must be a positive integer; got {n_steps!r}")
@@ -688,16 +692,21 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
                 break
             rel_change = actual / energy
             path = trial
-            # no Hessian once the target is met: the loop stops before using it
             done = target_energy is not None and e_trial <= target_energy
-            energy, grad, hess = _energy(model, path, hessian=None if done else kind)
+            if done:  # the loop stops here: no gradient or Hessian at the new path
+                energy, grad = e_trial, None
+            else:
+                energy, grad, hess = _energy(model, path, hessian=kind)
             energies.append(energy)
             dampings.append(lam)
             if len(energies) > window and (energies[-1 - window] - energy) < tol * energy:
                 converged, stopped_by = True, "energy_window"
-            elif done:  # decided on the trial energy, as the Hessian left out above
+            elif done:
                 converged, stopped_by = True, "target_energy"
-    grad_norm = float(np.linalg.norm(grad)) if grad is not None and n > 1 else 0.0
+    if n == 1 or np.array_equal(u, v):
+        grad_norm = 0.0
+    else:  # None: stopped on target_energy, where no gradient is evaluated
+        grad_norm = float(np.linalg.norm(grad)) if grad is not None else None
     window_change = (energies[-1 - min(window, len(energies) - 1)] - energy) / energy if energy > 0 else 0.0
     if not converged and warn:
         warnings.warn(
@@ -708,7 +717,8 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
     length = _length(model, path)
     steps = np.linalg.norm(np.diff(path, axis=0), axis=2)
     return GeodesicResult(
-        path=path, length=length, energy=energy, lower_bound=model.lower_bound(u, v), converged=bool(converged),
+        path=path, length=length, energy=energy, lower_bound=model.lower_bound(u, v) if lower_bound is None else float(lower_bound),
+        converged=bool(converged),
         n_iter=it, grad_norm=grad_norm, rel_energy_change=float(rel_change),
         max_step_over_sigma=float(steps.max() / length_scale), metric=model.name, sigma2=sigma2,
         log={"energy": energies, "damping": dampings, "hessian": kind, "stopped_by": stopped_by,

@@ -233,3 +233,25 @@ def test_model_hessian_reaches_the_exact_hessian_minimum(pair):
     assert model.energy == pytest.approx(exact.energy, rel=1e-6)
     with pytest.raises(ValueError, match="hessian must be"):
         geodesic(u, v, metric="fisher_rao", sigma2=0.5, hessian="bfgs")
+
+
+@pytest.mark.parametrize("metric", METRICS)
+def test_target_energy_stop(pair, metric):
+    """minimise_path(target_energy=E): stops on the step that reaches E, reports that path's
+    energy (no gradient is evaluated there: grad_norm None), and takes a given lower bound."""
+    from shapelib.geodesic import minimise_path
+
+    u, v = pair
+    model = _model(metric, 0.5, 0.35, 6.0)
+    opts = dict(n_steps=4, tol=1e-12, window=2, init=None, warn=False, length_scale=np.sqrt(0.5), sigma2=0.5)
+    e0 = _energy(model, minimise_path(model, u, v, max_iter=0, **opts).path, gradient=False)[0]
+    one = minimise_path(model, u, v, max_iter=1, **opts)
+    assert one.energy < e0 and one.grad_norm > 0
+    hit = minimise_path(model, u, v, max_iter=5, target_energy=one.energy * (1 + 1e-12), lower_bound=0.123, **opts)
+    assert hit.n_iter == 1 and hit.converged and hit.log["stopped_by"] == "target_energy"
+    assert hit.grad_norm is None and hit.lower_bound == 0.123
+    np.testing.assert_array_equal(hit.path, one.path)
+    assert hit.energy == pytest.approx(_energy(model, hit.path, gradient=False)[0], rel=1e-14)
+    start = minimise_path(model, u, v, max_iter=5, target_energy=e0, **opts)  # the start already does
+    assert start.n_iter == 0 and start.converged and start.grad_norm is None
+    assert start.lower_bound == model.lower_bound(u, v)

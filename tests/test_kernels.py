@@ -32,17 +32,31 @@ def test_alpha_path_hessian_matches_numpy_assembly(rng, d, n):
     model = _AlphaModel(0.4)
     theta, vel = _segment_nodes(path, _GL3_NODES)
     ref = _exact_path_hessian(model, theta.reshape(-1, k, d), np.repeat(vel, len(_GL3_NODES), axis=0), None, n)
-    got = model.path_hessian(path, None)
+    got = model.path_grad_hessian(path, None)[3]
     assert got[0].shape == (n - 1, k * d, k * d) and got[1].shape == (n - 2, k * d, k * d)
     assert _rel(got[0], ref[0]) < 1e-12
     if n > 2:
         assert _rel(got[1], ref[1]) < 1e-12
 
 
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("n", [1, 2, 5])
+def test_alpha_path_pass_gradient_is_the_node_kernels(rng, d, n):
+    """The Hessian pass also returns Q and its gradients at the segment nodes: the very numbers
+    of the separate kernel (same formulas, same order of summation), for d = 2 and 3."""
+    k = 7
+    path = rng.normal(size=(n + 1, k, d))
+    theta, vel = _segment_nodes(path, _GL3_NODES)
+    ref = _kernels.alpha_qform_grad(theta.reshape(-1, k, d), np.repeat(vel, len(_GL3_NODES), axis=0), 0.4)
+    got = _AlphaModel(0.4).path_grad_hessian(path, None)[:3]
+    for g, r in zip(got, ref):
+        assert g.shape == r.shape and np.array_equal(g, r)
+
+
 def test_alpha_path_hessian_degenerate_paths():
     """n = 1 has no interior point; n = 2 one diagonal block and no off-diagonal block."""
     path = np.linspace(np.zeros((3, 2)), np.ones((3, 2)), 2)
-    diag, upper = _AlphaModel(0.5).path_hessian(path, None)
+    diag, upper = _AlphaModel(0.5).path_grad_hessian(path, None)[3]
     assert diag.shape == (0, 6, 6) and upper.shape == (0, 6, 6)
     _, _, (diag, upper) = _energy(_AlphaModel(0.5), np.linspace(np.zeros((3, 2)), np.ones((3, 2)), 3), hessian="exact")
     assert diag.shape == (1, 6, 6) and upper.shape == (0, 6, 6) and np.allclose(diag[0], diag[0].T)
