@@ -199,18 +199,6 @@ def check_parameters(name: str, params: dict, declared: dict) -> None:
             )
 
 
-def parse_parameter(text: str) -> tuple[str, object]:
-    """``"sigma2=0.5"`` -> ``("sigma2", 0.5)``: the value is a Python literal, else a string."""
-    key, sep, raw = text.partition("=")
-    key, raw = key.strip(), raw.strip()
-    if not sep or not key.isidentifier():
-        raise ValueError(f"-p {text!r}: expected name=value, e.g. -p sigma2=0.5")
-    try:
-        return key, ast.literal_eval(raw)
-    except (ValueError, TypeError, SyntaxError, MemoryError, RecursionError):
-        return key, raw
-
-
 def notebook_parameters(name: str, *, quick: bool, overrides: dict | None = None) -> dict:
     """The parameters run_all passes to ``name``: the registry's, its quick ones if ``quick``, then
     those of ``overrides`` the notebook declares."""
@@ -697,7 +685,11 @@ def _still_stopping(signum, frame):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples (the same options follow `shapelib study`):\n  python run_all.py --quick\n"
+               "  python run_all.py --only table1_pairwise --force\n"
+               "  python run_all.py --only adhd200_population -p n_subset=60")
     parser.add_argument("--quick", action="store_true", help="use each notebook's quick (CI) parameters")
     parser.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1, help="notebooks run in parallel")
     parser.add_argument("--only", action="append", metavar="NAME", help="run only this notebook (repeatable)")
@@ -712,6 +704,8 @@ def main(argv=None) -> int:
     parser.add_argument("--readme-timings", action="store_true",
                         help="write the run times of the last full run (results/*/.inputs.json) into README.md and exit")
     args = parser.parse_args(argv)
+    from shapelib.cli import parse_assignment
+
     if args.readme_timings:
         try:
             print(f"updated {update_readme_timings(args.results_dir.resolve())}")
@@ -732,7 +726,7 @@ def main(argv=None) -> int:
     overrides = {}
     try:
         for text in args.parameter:
-            key, value = parse_parameter(text)
+            key, value = parse_assignment(text, flag="-p")
             if key == "output_dir":
                 raise ValueError("-p output_dir: run_all.py chooses it (use --results-dir)")
             overrides[key] = value

@@ -104,15 +104,19 @@ def check_dimension(x: np.ndarray, *, name: str = "u", allowed=(2, 3)) -> np.nda
     """Raise ``ValueError`` unless the landmarks of ``x`` (``(K, d)`` or ``(N, K, d)``) have d in ``allowed``.
 
     A shape passed transposed (``(d, K)``), or a geomorph-style ``p × k × n`` array read as
-    ``(N, K, d)``, shows up as a landmark dimension other than 2 or 3.
+    ``(N, K, d)``, shows up as a landmark dimension other than 2 or 3; the message says which
+    layout shapelib expects and how to convert. ``name``: the argument or file named in it.
     """
     d = x.shape[-1]
     if d not in allowed:
+        if x.ndim == 3 and x.shape[1] in allowed:
+            hint = f"; the array looks like geomorph's p x k x n layout {x.shape}: convert it with shapelib.io.from_pkn"
+        else:
+            hint = "; a geomorph-style p x k x n array converts with shapelib.io.from_pkn(array)"
         raise ValueError(
-            f"{name} has landmarks in {d} dimensions (shape {x.shape}); landmarks must be 2-D or 3-D. "
-            f"shapelib expects one shape as a (K, d) array (one row per landmark) and a collection as "
-            f"(N, K, d) (specimens, landmarks, coordinates). A shape stored as (d, K) must be transposed; "
-            f"a geomorph-style p x k x n array converts with shapelib.io.from_pkn(array)"
+            f"{name}: landmarks must have d = 2 or 3 coordinates; got {d} dimensions (shape {x.shape}). shapelib "
+            f"expects one shape as a (K, d) array (one row per landmark) and a collection as (N, K, d) "
+            f"(specimens, landmarks, coordinates); a shape stored as (d, K) must be transposed{hint}"
         )
     return x
 

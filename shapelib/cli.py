@@ -7,7 +7,7 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
     shapelib distances FILE --metric M [--sigma2 S] [--rtol R] [--jobs N | --scheduler ADDRESS]
                            [--store D.zarr] [--no-progress] -o D.csv
     shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S -o path.csv [--plot P.png] [--animate A.gif]
-    shapelib study [--quick]
+    shapelib study [run_all.py options: --quick, --only NAME, -p NAME=VALUE, -j N, --force, --list, ...]
 
 Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
 input ends the command with one line ``shapelib: error: …`` on stderr (naming the file, specimen,
@@ -69,18 +69,26 @@ def _write_frame(frame, path, **kw):
     _atomic_write(Path(path), frame.to_csv(lineterminator="\n", **kw))
 
 
+def parse_assignment(text: str, *, flag: str = "--param") -> tuple[str, object]:
+    """``"sigma2=0.5"`` -> ``("sigma2", 0.5)``: ``NAME=VALUE`` with the value read as a Python literal
+    (numbers, True, lists, 'text'), else kept as a string. The one parser of ``shapelib --param``
+    and ``run_all.py -p``; a ValueError names ``flag`` and the text."""
+    key, sep, raw = text.partition("=")
+    key, raw = key.strip(), raw.strip()
+    if not sep or not key.isidentifier():
+        raise ValueError(f"{flag} {text!r}: expected NAME=VALUE, e.g. {flag} sigma2=0.5")
+    try:
+        return key, ast.literal_eval(raw)
+    except (ValueError, TypeError, SyntaxError, MemoryError, RecursionError):
+        return key, raw
+
+
 def _parse_params(items):
-    """``KEY=VALUE`` pairs -> dict; values as Python literals (numbers, True, 'text'), else strings."""
-    params = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        if not sep or not key.isidentifier():
-            raise CLIError(f"--param {item!r}: expected KEY=VALUE, e.g. --param n_steps=16")
-        try:
-            params[key] = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            params[key] = value
-    return params
+    """``--param NAME=VALUE`` items -> dict (:func:`parse_assignment`)."""
+    try:
+        return dict(parse_assignment(item) for item in items or [])
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
 
 
 def _metric_params(args):
@@ -361,23 +369,15 @@ def find_run_all() -> Path | None:
     return root / "run_all.py" if is_checkout(root) else None
 
 
-def cmd_study(args) -> int:
+def cmd_study(run_all_args) -> int:
+    """``shapelib study ARGS``: ``run_all.py ARGS`` of the source checkout, every option passed
+    through unchanged (``shapelib study --help`` is run_all.py's help)."""
     script = find_run_all()
     if script is None:
         raise CLIError("`shapelib study` runs run_all.py from a source checkout, and this shapelib is installed "
                        f"from {Path(__file__).resolve().parent} without one; clone the repository, `pip install -e .` "
                        "there and run it from that checkout")
-    argv = [sys.executable, str(script)]
-    if args.quick:
-        argv.append("--quick")
-    if args.force:
-        argv.append("--force")
-    if args.list:
-        argv.append("--list")
-    for name in args.only or []:
-        argv += ["--only", name]
-    if args.jobs is not None:
-        argv += ["--jobs", str(args.jobs)]
+    argv = [sys.executable, str(script), *run_all_args]
     sys.stdout.flush()
     sys.stderr.flush()
     os.execv(sys.executable, argv)  # run_all.py's own signal handling sees Ctrl-C / SIGTERM directly
@@ -397,7 +397,6 @@ EXAMPLES = {
                   "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
     "geodesic": ("example:\n  shapelib geodesic aligned.tps --negative-coordinates --from 0 --to 3 --metric fisher_rao \\\n"
                  "      --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
-    "study": "examples:\n  shapelib study --quick\n  shapelib study --only table1_pairwise --force",
 }
 
 
@@ -433,7 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     def add(name, help_):
-        return sub.add_parser(name, help=help_, description=help_, epilog=EXAMPLES[name],
+        return sub.add_parser(name, help=help_, description=help_, epilog=EXAMPLES.get(name),
                               formatter_class=argparse.RawDescriptionHelpFormatter)
 
     p = add("info", "specimens, landmarks, dimension, missing values, scale of a landmark file")
@@ -479,13 +478,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fps", type=int, default=8, help="animation frames per second (default 8)")
     p.set_defaults(func=cmd_geodesic)
 
-    p = add("study", "regenerate the study's figures and tables (run_all.py; needs a source checkout)")
-    p.add_argument("--quick", action="store_true", help="the quick parameters CI uses")
-    p.add_argument("--only", action="append", metavar="NAME", help="run only this notebook (repeatable)")
-    p.add_argument("--force", action="store_true", help="re-run notebooks whose inputs are unchanged")
-    p.add_argument("--list", action="store_true", help="list the notebooks")
-    p.add_argument("-j", "--jobs", type=int, metavar="N", help="notebooks run in parallel")
-    p.set_defaults(func=cmd_study)
+    # listed here for `shapelib --help`; main() hands everything after `study` to run_all.py
+    add("study", "regenerate the study's figures and tables: run_all.py with the same options "
+                 "(needs a source checkout; `shapelib study --help` lists them)")
     return parser
 
 
@@ -495,11 +490,15 @@ def _one_line_warnings(message, category, filename, lineno, file=None, line=None
 
 def main(argv=None) -> int:
     """Entry point of the ``shapelib`` console script and ``python -m shapelib``."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["study"]:  # run_all.py parses its own options
+        args, run = None, (lambda: cmd_study(argv[1:]))
+    else:
+        args = build_parser().parse_args(argv)
+        run = (lambda: args.func(args))
     warnings.showwarning = _one_line_warnings
     try:
-        return int(args.func(args) or 0)
+        return int(run() or 0)
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130

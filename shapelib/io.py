@@ -53,6 +53,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ._validate import check_dimension
+
 __all__ = [
     "read_landmarks", "write_landmarks", "read_tps", "write_tps", "read_csv", "write_csv",
     "read_npy", "write_npy", "from_pkn", "to_pkn", "FORMATS",
@@ -78,16 +80,6 @@ def _format_of(path, format=None) -> str:
 def _check_missing_option(missing):
     if missing not in ("error", "nan"):
         raise ValueError(f"missing must be 'error' or 'nan'; got {missing!r}")
-
-
-def _check_dimension(shapes, where):
-    d = shapes.shape[-1]
-    if d not in (2, 3):
-        hint = ""
-        if shapes.ndim == 3 and shapes.shape[1] in (2, 3):
-            hint = (f"; the array looks like geomorph's p x k x n layout {shapes.shape}: "
-                    "convert it with shapelib.io.from_pkn")
-        raise ValueError(f"{where}: landmarks must have d = 2 or 3 coordinates; got shape {shapes.shape}{hint}")
 
 
 def _report_missing(shapes, specimens, path, missing, hint="", lines=None):
@@ -395,7 +387,7 @@ def _as_writable(shapes, path):
         x = x[None]
     if x.ndim != 3:
         raise ValueError(f"{path}: shapes must have shape (N, K, d); got {x.shape}")
-    _check_dimension(x, path)
+    check_dimension(x, name=str(path))
     if np.isinf(x).any():
         i, k, _ = np.argwhere(np.isinf(x))[0]
         raise ValueError(f"{path}: shapes[{i}] landmark {k + 1} is infinite")
@@ -568,7 +560,7 @@ def read_csv(path, *, layout: str = "auto", missing: str = "error", id_column: s
     else:
         shapes, specimens = _read_wide(df, path, data_lines, id_column)
     specimens.attrs.update(path=str(path), format="csv", layout=layout)
-    _check_dimension(shapes, path)
+    check_dimension(shapes, name=str(path))
     _report_missing(shapes, specimens, path, missing, hint=" (empty or NA cell)")
     _warn_duplicate_ids(specimens, path)
     return shapes, specimens
@@ -733,7 +725,7 @@ def read_npy(path, *, missing: str = "error", layout: str = "nkd"):
     arr = np.asarray(arr, dtype=np.float64)
     if arr.ndim != 3 or arr.size == 0:
         raise ValueError(f"{path}: expected a non-empty (N, K, d) array; got shape {arr.shape}")
-    _check_dimension(arr, path)
+    check_dimension(arr, name=str(path))
     if np.isinf(arr).any():
         i, k, _ = np.argwhere(np.isinf(arr))[0]
         raise ValueError(f"{path}: specimen #{i + 1}, landmark {k + 1} is infinite")
@@ -778,7 +770,7 @@ def to_pkn(shapes) -> np.ndarray:
     x = np.asarray(shapes, dtype=np.float64)
     if x.ndim != 3:
         raise ValueError(f"shapes must have shape (N, K, d); got {x.shape}")
-    _check_dimension(x, "shapes")
+    check_dimension(x, name="shapes")
     return np.ascontiguousarray(x.transpose(1, 2, 0))
 
 

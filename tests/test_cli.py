@@ -73,6 +73,8 @@ def test_help_shows_an_example_for_every_subcommand():
     assert set(commands) == {"info", "align", "distances", "geodesic", "study"}
     for cmd, sub in commands.items():
         assert cmd in top
+        if cmd == "study":  # `shapelib study --help` is run_all.py's help (test_study_...)
+            continue
         out = sub.format_help()
         assert "example" in out and f"shapelib {cmd}" in out.split("example", 1)[1], cmd
 
@@ -189,9 +191,27 @@ def test_missing_file_and_unknown_extension(files):
     one_line_error(run("info", files["csv"], "--scale"), "--scale applies to .tps files only")
 
 
+def test_parse_assignment():
+    """The one NAME=VALUE parser of --param and run_all.py -p: Python literals, else text."""
+    from shapelib.cli import parse_assignment
+
+    assert parse_assignment("value=5") == ("value", 5)
+    assert parse_assignment(" names = ['a', 'b'] ") == ("names", ["a", "b"])
+    assert parse_assignment("fish_name=fish-2") == ("fish_name", "fish-2")  # not a literal: text
+    assert parse_assignment("flag=True", flag="-p") == ("flag", True)
+    for bad in ("value", "=3", "2x=1", "a b=1"):
+        with pytest.raises(ValueError, match=rf"^-p {re.escape(repr(bad))}: expected NAME=VALUE"):
+            parse_assignment(bad, flag="-p")
+
+
 def test_study_lists_notebooks_in_a_checkout_and_refuses_outside_one(tmp_path):
     out = run("study", "--list", check=0).stdout.split()
     assert "table1_pairwise" in out and "fig01_gmm_representation" in out
+    # every option goes through to run_all.py, which parses it: its help, its -p, its errors
+    helptext = run("study", "--help", check=0).stdout
+    assert "--results-dir" in helptext and "-p NAME=VALUE" in helptext and "shapelib study" in helptext
+    proc = run("study", "--only", "fig01_gmm_representation", "-p", "bogus", check=None)
+    assert proc.returncode == 2 and "-p 'bogus': expected NAME=VALUE" in proc.stderr
     # an installed copy of the package without the repository around it
     import shutil
 
