@@ -168,6 +168,7 @@ def _alpha_path_grad_hessian(path, s2, tau, tw, csign, dims):
     vel = np.empty((k, d))
     delta = np.empty(d)
     gh = np.empty(d)
+    pv = np.empty((d, d))
     acc = np.empty((8, d, d))  # node sums: H·tw0, H·tw1, H·tw2, M·tw3, M·tw4, N·tw3, N·tw4, C·tw5
     blk = np.empty((3, 2, d, d))  # the (a, b) and (b, a) blocks of the three segment blocks
     dacc = np.empty((k, 3, d, d))  # diagonal blocks (a, a) of the three segment blocks
@@ -196,6 +197,9 @@ def _alpha_path_grad_hessian(path, s2, tau, tw, csign, dims):
             vsum += vva
             for b in range(a + 1, k):
                 acc[:] = 0.0
+                for i in range(d):
+                    for j in range(d):
+                        pv[i, j] = vel[a, i] * vel[b, j] + vel[b, i] * vel[a, j]
                 for q in range(nq):
                     m = t * nq + q
                     rr, vv, dva, dvb = _pair_dots(th[q], vel, a, b, delta)
@@ -215,22 +219,30 @@ def _alpha_path_grad_hessian(path, s2, tau, tw, csign, dims):
                     for i in range(d):
                         for j in range(d):
                             eye = 1.0 if i == j else 0.0
-                            hij = c * (-(vel[a, i] * vel[b, j] + vel[b, i] * vel[a, j]) * r4
-                                       + h * r4 * delta[i] * delta[j] - eye * h * r2
-                                       - (delta[i] * gh[j] + gh[i] * delta[j]) * r2)
                             mij = -c * (eye * dva * r4 + vel[a, i] * delta[j] * r4
                                         + delta[i] * (vel[a, j] * r2 - dva * delta[j] * r4) * r2)
                             nij = -c * (eye * dvb * r4 + vel[b, i] * delta[j] * r4
                                         + delta[i] * (vel[b, j] * r2 - dvb * delta[j] * r4) * r2)
-                            cij = 2.0 * c * (eye * r2 - delta[i] * delta[j] * r4)
-                            acc[0, i, j] += tw[0, q] * hij
-                            acc[1, i, j] += tw[1, q] * hij
-                            acc[2, i, j] += tw[2, q] * hij
                             acc[3, i, j] += tw[3, q] * mij
                             acc[4, i, j] += tw[4, q] * mij
                             acc[5, i, j] += tw[3, q] * nij
                             acc[6, i, j] += tw[4, q] * nij
+                            if j < i:  # H and C are symmetric in (i, j): mirrored below
+                                continue
+                            hij = c * (-pv[i, j] * r4
+                                       + h * r4 * delta[i] * delta[j] - eye * h * r2
+                                       - (delta[i] * gh[j] + gh[i] * delta[j]) * r2)
+                            cij = 2.0 * c * (eye * r2 - delta[i] * delta[j] * r4)
+                            acc[0, i, j] += tw[0, q] * hij
+                            acc[1, i, j] += tw[1, q] * hij
+                            acc[2, i, j] += tw[2, q] * hij
                             acc[7, i, j] += tw[5, q] * cij
+                for i in range(d):
+                    for j in range(i):
+                        acc[0, i, j] = acc[0, j, i]
+                        acc[1, i, j] = acc[1, j, i]
+                        acc[2, i, j] = acc[2, j, i]
+                        acc[7, i, j] = acc[7, j, i]
                 # (t, t): k_a (1−τ)², k_b = k_bᵀ = −(1−τ)n, k_c = n²; (t, t+1): (1−τ)τ, (1−τ)n,
                 # −τn, −n²; (t+1, t+1): τ², τn, τn, n²   (all times w/n)
                 for x in range(3):
