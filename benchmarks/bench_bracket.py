@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks._machine import loadavg  # noqa: E402
 
 from shapelib.bracket import distance_bracket  # noqa: E402
 from shapelib.datasets import load_corpus_callosum  # noqa: E402
@@ -39,13 +40,6 @@ CASES = [
     ("fisher_rao_s2_0.5", "fisher_rao", 0.5, 5.0),
     ("alpha_s2_0.1", "alpha", 0.1, None),
 ]
-
-
-def loadavg() -> str:
-    try:
-        return Path("/proc/loadavg").read_text().strip()
-    except OSError:
-        return "n/a"
 
 
 def run_case(shapes, pairs, metric, sigma2, *, rtol, repeat):

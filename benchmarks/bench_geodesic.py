@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks._machine import loadavg  # noqa: E402
 
 from shapelib.datasets import load_corpus_callosum  # noqa: E402
 from shapelib.metrics import fisher_rao_metric  # noqa: E402
@@ -57,13 +58,6 @@ ROWS = {  # name: (metric, tol, target seconds)
     "alpha-1e-9": ("alpha", 1e-9, 1.0),
     "fr-1e-9": ("fisher_rao", 1e-9, 10.0),
 }
-
-
-def loadavg() -> str:
-    try:
-        return " ".join(Path("/proc/loadavg").read_text().split()[:3])
-    except OSError:
-        return f"n/a ({os.cpu_count()} cpus)"
 
 
 @contextmanager
@@ -178,6 +172,9 @@ def main(argv=None):
     ap.add_argument("--n-steps", type=int, default=16)
     ap.add_argument("--grid-spacing", type=float, default=DEFAULT_SPACING)
     ap.add_argument("--max-iter", type=int, default=1000)
+    ap.add_argument("--repeat", type=int, default=5,
+                    help="rows whose first run takes under 5 s are run this many times and reported as the "
+                         "fastest, with the median (single runs vary by ~10 %% on the 2-core machine)")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--tensor-comparison", action="store_true")
     args = ap.parse_args(argv)
@@ -197,12 +194,18 @@ def main(argv=None):
     print(f"CC 1–2, K = {len(u)}, σ² = {args.sigma2}, n_steps = {args.n_steps}, FR grid spacing {args.grid_spacing}σ")
     for name in args.rows:
         metric, tol, target = ROWS[name]
-        row = run_row(u, v, metric, tol, sigma2=args.sigma2, n_steps=args.n_steps, grid_spacing=args.grid_spacing,
-                      max_iter=args.max_iter)
+        runs = [run_row(u, v, metric, tol, sigma2=args.sigma2, n_steps=args.n_steps, grid_spacing=args.grid_spacing,
+                        max_iter=args.max_iter)]
+        while runs[0]["seconds"] < 5.0 and len(runs) < args.repeat:
+            runs.append(run_row(u, v, metric, tol, sigma2=args.sigma2, n_steps=args.n_steps,
+                                grid_spacing=args.grid_spacing, max_iter=args.max_iter))
+        row = min(runs, key=lambda r: r["seconds"])
+        row["runs"], row["median_seconds"] = len(runs), float(np.median([r["seconds"] for r in runs]))
         row["target_seconds"] = target
         report["rows"][name] = row
         p = row["per_iteration_cpu_ms"]
-        print(f"{name:>13}: {row['seconds']:7.2f} s wall, {row['cpu_seconds']:7.2f} s CPU (target ≤ {target:g} s), "
+        runs_text = f" (fastest of {row['runs']}, median {row['median_seconds']:.2f} s)" if row["runs"] > 1 else ""
+        print(f"{name:>13}: {row['seconds']:7.2f} s wall{runs_text}, {row['cpu_seconds']:7.2f} s CPU (target ≤ {target:g} s), "
               f"{row['iterations']:3d} it, stopped by {row['stopped_by']}, E = {row['energy']:.10e}, "
               f"length/bound − 1 = {row['length_over_bound_minus_1']:.2e}  [load {row['loadavg']}]")
         print(f"{'':>15}per iteration (CPU): energy+gradient+Hessian {p['energy_grad_hessian']:.1f} ms, "

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks._machine import loadavg  # noqa: E402
 
 from shapelib.datasets import load_adhd200  # noqa: E402
 from shapelib.distances import pair_record  # noqa: E402
@@ -46,13 +47,6 @@ QUICK_SIZES = {"procrustes": 8, "tps": 6, "hausdorff": 8, "alpha_bound": 8, "fis
                "alpha": 3, "fisher_rao": 2}
 FULL_N = 647
 PROJECT_WORKERS = (1, 2, 8, 32, 128)
-
-
-def loadavg() -> str:
-    try:
-        return Path("/proc/loadavg").read_text().split(" ", 3)[:3].__str__()
-    except OSError:
-        return "unknown"
 
 
 def metric_params(metric: str, args) -> dict:
