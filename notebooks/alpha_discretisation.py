@@ -45,7 +45,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from shapelib import distance_bracket, geodesic
-from shapelib.bracket import lower_bound, refine_path
+from shapelib.bracket import extrapolate_doublings, lower_bound, refine_path
 from shapelib.datasets import load_corpus_callosum
 from shapelib.study import pair_key, paper_scale, record_values, save_figure
 
@@ -72,14 +72,11 @@ def refine(u, v):
 
 
 def richardson(gaps):
-    """Limit and order of ``g(n) = g∞ + C n^-p`` from the last three doublings; order None if
-    the differences do not decrease geometrically (then the last gap is returned)."""
-    g1, g2, g3 = gaps[-3:]
-    d1, d2 = g1 - g2, g2 - g3
-    if not (d1 > 0 and d2 > 0 and d2 < d1):
-        return g3, None
-    p = np.log2(d1 / d2)
-    return g3 - d2 / (2.0**p - 1.0), p
+    """Limit and order of ``g(n) = g∞ + C n^-p`` from the last three doublings (order fitted,
+    :func:`shapelib.bracket.extrapolate_doublings`); order None if the differences do not
+    decrease geometrically (then the last gap is returned)."""
+    limit, order = extrapolate_doublings(gaps)
+    return (gaps[-1], None) if limit is None else (limit, order)
 
 
 t0 = time.perf_counter()

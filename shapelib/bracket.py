@@ -37,7 +37,7 @@ from .gmm import l2_distance
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from .scale import SIGMA_RATIO_MIN
 
-__all__ = ["DistanceBracket", "distance_bracket", "lower_bound", "refine_path"]
+__all__ = ["DistanceBracket", "distance_bracket", "extrapolate_doublings", "lower_bound", "refine_path"]
 
 #: Hessian of the Levenberg–Marquardt steps per metric when ``hessian=None``. Measured on the CC
 #: pairs at σ² = 0.5 (2026-11-23, load ~20, so as ratios): α exact 32 iterations for 21 pairs,
@@ -148,19 +148,23 @@ def refine_path(path) -> np.ndarray:
     return fine
 
 
-def _aitken(gaps):
-    """Aitken Δ² limit of the last three gaps (one per doubling of n_steps), or None.
+def extrapolate_doublings(gaps):
+    """``(limit, order)`` of ``g(n) = g∞ + C n^−p`` from the last three values of ``gaps``, each
+    at twice the ``n_steps`` of the one before: Richardson extrapolation with the order fitted,
+    ``2^p = d1/d2`` (``d1, d2`` the two successive decrements), which is Aitken's Δ² limit
+    ``g3 − d2²/(d1 − d2)``.
 
-    None unless the three decrease with a ratio of successive decrements in (0, 1), the case
-    where the extrapolation means something.
+    ``(None, None)`` unless the three are finite and decrease with ``0 < d2 < d1`` — the case
+    where the extrapolation means something. Used by :func:`distance_bracket` to stop a bracket
+    whose gap converges above ``rtol``, and by ``notebooks/alpha_discretisation.py``.
     """
     if len(gaps) < 3 or not all(np.isfinite(gaps[-3:])):
-        return None
+        return None, None
     g1, g2, g3 = gaps[-3:]
     d1, d2 = g1 - g2, g2 - g3
     if not (d1 > 0 and d2 > 0 and d2 < d1):
-        return None
-    return g3 - d2 * d2 / (d1 - d2)
+        return None, None
+    return g3 - d2 * d2 / (d1 - d2), float(np.log2(d1 / d2))
 
 
 def _positive_int(value, name):
@@ -275,7 +279,7 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         if prev_gap is not None and not gap < (1.0 - min_shrink) * prev_gap:
             stopped_by = "stalled"
             break
-        limit = _aitken([lv["rel_gap"] for lv in levels])
+        limit, _ = extrapolate_doublings([lv["rel_gap"] for lv in levels])
         if limit is not None and limit > rtol:
             stopped_by = "stalled"  # the gaps converge geometrically to a limit above rtol
             break

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import shapelib
-from shapelib.bracket import DistanceBracket, distance_bracket, lower_bound, refine_path
+from shapelib.bracket import DistanceBracket, distance_bracket, extrapolate_doublings, lower_bound, refine_path
 from shapelib.geodesic import GeodesicWarning, geodesic
 
 METRICS = ["alpha", "fisher_rao"]
@@ -190,3 +190,15 @@ def test_fisher_rao_bracket_grid_follows_rtol_and_stays_accurate(pair):
     assert coarse.lower == pytest.approx(given.lower, rel=1e-6)
     assert shapelib.path_length(coarse.path, metric="fisher_rao", sigma2=0.5, grid_spacing=0.25) == pytest.approx(
         coarse.upper, rel=1e-6)
+
+
+@pytest.mark.parametrize("p", [0.7, 1.1, 2.0])
+def test_extrapolate_doublings_is_exact_for_power_laws(p):
+    """g(n) = g∞ + C n^−p at n, 2n, 4n: the fitted-order Richardson (= Aitken Δ²) limit is g∞."""
+    n = np.array([4.0, 8.0, 16.0, 32.0])
+    gaps = 2e-3 + 0.05 * n**-p
+    limit, order = extrapolate_doublings(list(gaps))
+    assert limit == pytest.approx(2e-3, rel=1e-10) and order == pytest.approx(p, rel=1e-10)
+    for bad in ([1e-3, 5e-4], [3e-3, 2e-3, 1.5e-3 + 1e-3], [3e-3, 2e-3, 1e-3], [1e-3, np.nan, 5e-4, 2e-4],
+                [3e-3, 3e-3, 3e-3]):
+        assert extrapolate_doublings(bad) == (None, None)  # too few, rising, not shrinking geometrically, NaN, flat
