@@ -42,7 +42,7 @@ from shapelib.study import paper_scale  # noqa: E402
 #: shapes per metric (full run): 10-60 s of work each on one core, so task and store overheads show
 #: at their real share; the cheap metrics and the α bound use the whole population
 SIZES = {"procrustes": 647, "tps": 300, "hausdorff": 647, "alpha_bound": 647, "fisher_rao_bound": 200,
-         "alpha": 16, "fisher_rao": 8}
+         "alpha": 40, "fisher_rao": 20}
 QUICK_SIZES = {"procrustes": 8, "tps": 6, "hausdorff": 8, "alpha_bound": 8, "fisher_rao_bound": 4,
                "alpha": 3, "fisher_rao": 2}
 FULL_N = 647

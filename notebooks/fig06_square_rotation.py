@@ -41,10 +41,11 @@ def turning(path):
     return float(np.degrees(np.arccos(np.clip(cos, -1, 1))).max())
 
 
+turn = {m: turning(res.path) for m, res in results.items()}
 record_values(
     output_dir,
     {f"fig06/{m}/{q}": getattr(res, q) for m, res in results.items() for q in ("length", "lower_bound", "energy")}
-    | {f"fig06/{m}/max_turning_degrees": turning(res.path) for m, res in results.items()},
+    | {f"fig06/{m}/max_turning_degrees": turn[m] for m in results},
     notes={"fig06": "σ² is not given in the paper; chosen 0.5 for a square of side 2."},
     meta={m: {"converged": res.converged, "n_iter": res.n_iter} for m, res in results.items()},
 )
@@ -55,7 +56,6 @@ record_values(
 # consecutive segments of any landmark trajectory (same `n_steps` for both metrics).
 
 # %%
-turn = {m: turning(res.path) for m, res in results.items()}
 sharper = turn["alpha"] > turn["fisher_rao"]
 text6 = (f"Largest turning angle between consecutive path segments: α {turn['alpha']:.1f}°, Fisher–Rao "
          f"{turn['fisher_rao']:.1f}° (n_steps = {n_steps}; converged: α {results['alpha'].converged}, Fisher–Rao "

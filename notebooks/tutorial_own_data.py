@@ -142,9 +142,10 @@ for metric in metrics:
     matrices[metric] = frame
     n_pairs = len(result.to_frame())
     values[f"tutorial/{metric}/n_pairs"] = n_pairs
-    values[f"tutorial/{metric}/converged_fraction"] = 1.0 - len(result.nonconverged_pairs()) / n_pairs
+    n_failed = len(result.nonconverged_pairs())
+    values[f"tutorial/{metric}/converged_fraction"] = 1.0 - n_failed / n_pairs
     values[f"tutorial/{metric}/max_asymmetry"] = float(np.max(np.abs(result.matrix - result.matrix.T)))
-    print(f"{metric}: {n_pairs} pairs, {len(result.nonconverged_pairs())} not converged")
+    print(f"{metric}: {n_pairs} pairs, {n_failed} not converged")
 display(matrices[metrics[1]].round(3))
 
 # %% [markdown]
@@ -163,7 +164,8 @@ from sklearn.manifold import MDS
 fig, axes = plt.subplots(2, len(metrics), figsize=(4.2 * len(metrics), 7.5))
 for col, metric in enumerate(metrics):
     d = matrices[metric].to_numpy()
-    condensed = squareform(0.5 * (d + d.T), checks=False)
+    d = 0.5 * (d + d.T)  # exactly symmetric (the computed matrix is symmetric to rounding)
+    condensed = squareform(d, checks=False)
     tree = linkage(condensed, method="average")
     values[f"tutorial/{metric}/cophenetic_correlation"] = float(cophenet(tree, condensed)[0])
     labels = fcluster(tree, t=len(classes), criterion="maxclust")
@@ -175,7 +177,7 @@ for col, metric in enumerate(metrics):
     for tick in axes[0, col].get_xticklabels():
         tick.set_color(colors[tick.get_text().split("-")[0]])
     axes[0, col].set_title(f"{metric}: cophenetic r = {values[f'tutorial/{metric}/cophenetic_correlation']:.2f}")
-    xy = MDS(n_components=2, metric="precomputed", init="classical_mds", random_state=0).fit_transform(0.5 * (d + d.T))
+    xy = MDS(n_components=2, metric="precomputed", init="classical_mds", random_state=0).fit_transform(d)
     for c in classes:
         m = specimens["class"].to_numpy() == c
         axes[1, col].scatter(xy[m, 0], xy[m, 1], color=colors[c], label=c, s=25)
