@@ -726,7 +726,7 @@ def main(argv=None) -> int:
     overrides = {}
     try:
         for text in args.parameter:
-            key, value = parse_assignment(text, flag="-p")
+            key, value = parse_assignment(text, flag="-p", example="sigma2=0.5")
             if key == "output_dir":
                 raise ValueError("-p output_dir: run_all.py chooses it (use --results-dir)")
             overrides[key] = value

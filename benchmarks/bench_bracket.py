@@ -7,7 +7,7 @@ Measures, in one process, pairs per second for ``distance_bracket(rtol=1e-3)``:
 * α at σ² = 0.1, where the geodesic is longer than the L² chord and most pairs stop "stalled",
 
 with the distribution of the certified gaps, the iterations and the final n_steps, and the
-machine load (``/proc/loadavg``) before and after: the machine may be shared, so numbers taken
+machine load (``os.getloadavg``) before and after: the machine may be shared, so numbers taken
 under load are provisional.
 
     python benchmarks/bench_bracket.py [--quick] [--json out.json] [--repeat 3]

@@ -14,7 +14,7 @@ full 647-shape matrices (208,981 pairs) of the α and Fisher–Rao geodesic dist
 from the mean measured seconds per pair and the measured 2-worker efficiency.
 
 The geodesic metrics use the certified bracket (``--rtol``, :func:`shapelib.bracket.distance_bracket`).
-Not a test: numbers depend on the machine and its load (``/proc/loadavg`` is recorded).
+Not a test: numbers depend on the machine and its load (the load average, ``os.getloadavg``, is recorded).
 
     python benchmarks/bench_pairwise.py [--sigma2 0.5] [--workers 1 2] [--json out.json] [--quick]
 """

@@ -109,12 +109,13 @@ def check_dimension(x: np.ndarray, *, name: str = "u", allowed=(2, 3)) -> np.nda
     """
     d = x.shape[-1]
     if d not in allowed:
+        dims = " or ".join(map(str, allowed))
         if x.ndim == 3 and x.shape[1] in allowed:
             hint = f"; the array looks like geomorph's p x k x n layout {x.shape}: convert it with shapelib.io.from_pkn"
         else:
             hint = "; a geomorph-style p x k x n array converts with shapelib.io.from_pkn(array)"
         raise ValueError(
-            f"{name}: landmarks must have d = 2 or 3 coordinates; got {d} dimensions (shape {x.shape}). shapelib "
+            f"{name}: landmarks must have d = {dims} coordinates; got {d} dimensions (shape {x.shape}). shapelib "
             f"expects one shape as a (K, d) array (one row per landmark) and a collection as (N, K, d) "
             f"(specimens, landmarks, coordinates); a shape stored as (d, K) must be transposed{hint}"
         )

@@ -12,6 +12,7 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
 Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
 input ends the command with one line ``shapelib: error: …`` on stderr (naming the file, specimen,
 landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does.
+``shapelib study`` is ``run_all.py`` itself: its help, usage errors and exit codes are run_all's.
 """
 
 from __future__ import annotations
@@ -69,14 +70,14 @@ def _write_frame(frame, path, **kw):
     _atomic_write(Path(path), frame.to_csv(lineterminator="\n", **kw))
 
 
-def parse_assignment(text: str, *, flag: str = "--param") -> tuple[str, object]:
+def parse_assignment(text: str, *, flag: str = "--param", example: str = "n_steps=16") -> tuple[str, object]:
     """``"sigma2=0.5"`` -> ``("sigma2", 0.5)``: ``NAME=VALUE`` with the value read as a Python literal
     (numbers, True, lists, 'text'), else kept as a string. The one parser of ``shapelib --param``
-    and ``run_all.py -p``; a ValueError names ``flag`` and the text."""
+    and ``run_all.py -p``; a ValueError names ``flag`` and the text, and shows ``example``."""
     key, sep, raw = text.partition("=")
     key, raw = key.strip(), raw.strip()
     if not sep or not key.isidentifier():
-        raise ValueError(f"{flag} {text!r}: expected NAME=VALUE, e.g. {flag} sigma2=0.5")
+        raise ValueError(f"{flag} {text!r}: expected NAME=VALUE, e.g. {flag} {example}")
     try:
         return key, ast.literal_eval(raw)
     except (ValueError, TypeError, SyntaxError, MemoryError, RecursionError):
@@ -415,7 +416,7 @@ def _metric_options(p, *, required_sigma2=False):
                         "fisher_rao_bound")
     p.add_argument("--sigma2", type=float, metavar="S", required=required_sigma2,
                    help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
-    p.add_argument("--param", action="append", metavar="KEY=VALUE",
+    p.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
 
 
@@ -480,7 +481,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     # listed here for `shapelib --help`; main() hands everything after `study` to run_all.py
     add("study", "regenerate the study's figures and tables: run_all.py with the same options "
-                 "(needs a source checkout; `shapelib study --help` lists them)")
+        "(needs a source checkout; `shapelib study --help` lists them)").set_defaults(func=lambda a: cmd_study([]))
     return parser
 
 

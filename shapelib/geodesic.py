@@ -123,7 +123,8 @@ class GeodesicResult:
         Levenberg–Marquardt iterations.
     grad_norm : float or None
         Euclidean norm of the energy gradient at the solution; None when the solve stopped on
-        ``target_energy``, where the gradient at the final path is not evaluated.
+        ``target_energy`` (the start or the last step met it), where the gradient at the final
+        path is not evaluated.
     rel_energy_change : float
         Relative energy decrease of the last accepted step.
     max_step_over_sigma : float
@@ -291,20 +292,21 @@ def _energy(model, path, *, gradient=True, hessian=None):
     n = len(path) - 1
     k, d = path.shape[1:]
     nq = len(_GL3_NODES)
-    theta, vel = _segment_nodes(path, _GL3_NODES)
     ctx = model.prepare(path)
-    flat_t = theta.reshape(-1, k, d)
-    flat_v = np.repeat(vel, nq, axis=0)
-    if not gradient:
-        q = model.qform(flat_t, flat_v, ctx).reshape(n, nq)
-        return float(np.sum(q * _GL3_WEIGHTS) / n), None, None
     node_hessian, blocks = None, None
-    if hessian == "exact" and hasattr(model, "path_grad_hessian"):  # α: one compiled pass
+    if hessian == "exact" and gradient and hasattr(model, "path_grad_hessian"):  # α: one compiled pass
         q, dq_t, dq_v, blocks = model.path_grad_hessian(path, ctx)
-    elif hessian == "exact" and hasattr(model, "qform_grad_hessian"):  # shares work between the two
-        q, dq_t, dq_v, node_hessian = model.qform_grad_hessian(flat_t, flat_v, ctx)
     else:
-        q, dq_t, dq_v = model.qform_grad(flat_t, flat_v, ctx)
+        theta, vel = _segment_nodes(path, _GL3_NODES)
+        flat_t = theta.reshape(-1, k, d)
+        flat_v = np.repeat(vel, nq, axis=0)
+        if not gradient:
+            q = model.qform(flat_t, flat_v, ctx).reshape(n, nq)
+            return float(np.sum(q * _GL3_WEIGHTS) / n), None, None
+        if hessian == "exact" and hasattr(model, "qform_grad_hessian"):  # shares work between the two
+            q, dq_t, dq_v, node_hessian = model.qform_grad_hessian(flat_t, flat_v, ctx)
+        else:
+            q, dq_t, dq_v = model.qform_grad(flat_t, flat_v, ctx)
     energy = float(np.sum(q.reshape(n, nq) * _GL3_WEIGHTS) / n)
     w = _GL3_WEIGHTS[None, :, None, None]
     tau = _GL3_NODES[None, :, None, None]
@@ -504,7 +506,7 @@ def _underflow(result, ratio):
     if ratio < SIGMA_RATIO_MIN and result.path.shape[1] > 1 and result.length > 2 * result.lower_bound:
         return (f"the solver stopped before its first step with length {result.length:.4g}, "
                 f"{result.length / result.lower_bound:.3g} times the lower bound {result.lower_bound:.4g}, "
-                f"because the gradient underflows (norm {result.grad_norm:.2e}): sigma = {np.sqrt(result.sigma2):.3g} "
+                f"because the gradient underflows (norm {result.grad_norm or 0.0:.2e}): sigma = {np.sqrt(result.sigma2):.3g} "
                 f"is {ratio:.3g} landmark spacings, so the Gaussians of different landmarks do not interact")
 
 
@@ -699,10 +701,10 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
                 energy, grad, hess = _energy(model, path, hessian=kind)
             energies.append(energy)
             dampings.append(lam)
-            if len(energies) > window and (energies[-1 - window] - energy) < tol * energy:
-                converged, stopped_by = True, "energy_window"
-            elif done:
+            if done:
                 converged, stopped_by = True, "target_energy"
+            elif len(energies) > window and (energies[-1 - window] - energy) < tol * energy:
+                converged, stopped_by = True, "energy_window"
     if n == 1 or np.array_equal(u, v):
         grad_norm = 0.0
     else:  # None: stopped on target_energy, where no gradient is evaluated

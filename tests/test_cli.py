@@ -200,8 +200,8 @@ def test_parse_assignment():
     assert parse_assignment("fish_name=fish-2") == ("fish_name", "fish-2")  # not a literal: text
     assert parse_assignment("flag=True", flag="-p") == ("flag", True)
     for bad in ("value", "=3", "2x=1", "a b=1"):
-        with pytest.raises(ValueError, match=rf"^-p {re.escape(repr(bad))}: expected NAME=VALUE"):
-            parse_assignment(bad, flag="-p")
+        with pytest.raises(ValueError, match=rf"^-p {re.escape(repr(bad))}: expected NAME=VALUE, e\.g\. -p x=1$"):
+            parse_assignment(bad, flag="-p", example="x=1")
 
 
 def test_study_lists_notebooks_in_a_checkout_and_refuses_outside_one(tmp_path):
@@ -251,6 +251,8 @@ def test_distances_labelled_matrix_equals_the_library(files):
     one_line_error(run("distances", files["tps"], "--metric", "alpah", "-o", out), "--metric alpah", "unknown metric")
     one_line_error(run("distances", files["tps"], "--metric", "procrustes", "--param", "nope=1", "-o", out),
                    "--metric procrustes", "nope")
+    one_line_error(run("distances", files["tps"], "--metric", "alpha", "--param", "n_steps", "-o", out),
+                   "--param 'n_steps': expected NAME=VALUE, e.g. --param n_steps=16")
     one_line_error(run("distances", files["tps"], "--metric", "procrustes", "-o", files["dir"] / "d.txt"),
                    "-o", "d.txt", ".csv")
 
