@@ -16,7 +16,7 @@
 from shapelib.study import default_output_dir
 output_dir = default_output_dir("adhd200_population")  # run_all.py passes its own
 n_shapes = 647  # shapes in the all-pairs matrices (a stratified sample when < 647)
-n_subset = 180  # shapes in the geodesic subset (stratified by diagnosis and sex): ~5 min of α + Fisher–Rao brackets on 2 cores
+n_subset = 180  # shapes in the geodesic subset (stratified by diagnosis and sex): ~3.5 min of α + Fisher–Rao brackets on 2 cores
 sigma_ratio = 2.6  # σ in units of the mean nearest-landmark spacing at centroid size 20
 fisher_rao_grid_spacing = 0.5  # Fisher–Rao quadrature step, in units of σ (library default 0.35)
 geodesic_n_steps = 4
