@@ -81,7 +81,9 @@ def _alpha_qform(theta, vel, s2, dims):
     m, k = theta.shape[0], theta.shape[1]
     d = len(dims)
     norm = _overlap_norm(s2, k, d)
-    s4 = 4.0 * s2 * s2
+    r4 = 1.0 / (4.0 * s2 * s2)
+    r2 = 1.0 / (2.0 * s2)
+    e4 = 1.0 / (4.0 * s2)  # multiplications, not divisions, in the loop over pairs
     out = np.empty(m)
     delta = np.empty(d)
     for n in range(m):
@@ -94,9 +96,9 @@ def _alpha_qform(theta, vel, s2, dims):
                 vva += vel[n, a, i] * vel[n, a, i]
             diag += vva
             for b in range(a + 1, k):
-                r2, vv, dva, dvb = _pair_dots(th, ve, a, b, delta)
-                off += math.exp(-r2 / (4.0 * s2)) * (vv / (2.0 * s2) - dva * dvb / s4)
-        out[n] = norm * (diag / (2.0 * s2) + 2.0 * off)
+                rr, vv, dva, dvb = _pair_dots(th, ve, a, b, delta)
+                off += math.exp(-rr * e4) * (vv * r2 - dva * dvb * r4)
+        out[n] = norm * (diag * r2 + 2.0 * off)
     return out
 
 
@@ -107,6 +109,7 @@ def _alpha_qform_grad(theta, vel, s2, dims):
     norm = _overlap_norm(s2, k, d)
     r4 = 1.0 / (4.0 * s2 * s2)
     r2 = 1.0 / (2.0 * s2)
+    e4 = 1.0 / (4.0 * s2)
     q = np.empty(m)
     d_theta = np.zeros((m, k, d))
     d_vel = np.zeros((m, k, d))
@@ -122,7 +125,7 @@ def _alpha_qform_grad(theta, vel, s2, dims):
             diag += vva
             for b in range(a + 1, k):
                 rr, vv, dva, dvb = _pair_dots(theta[n], vel[n], a, b, delta)
-                c = norm * math.exp(-rr / (4.0 * s2))
+                c = norm * math.exp(-rr * e4)
                 cb = c * (vv * r2 - dva * dvb * r4)
                 off += cb
                 # ordered pairs (a, b) and (b, a): Δ → −Δ, (Δ·V_a, Δ·V_b) → (−Δ·V_b, −Δ·V_a)
@@ -162,6 +165,7 @@ def _alpha_path_grad_hessian(path, s2, tau, tw, csign, dims):
     norm = _overlap_norm(s2, k, d)
     r4 = 1.0 / (4.0 * s2 * s2)
     r2 = 1.0 / (2.0 * s2)
+    e4 = 1.0 / (4.0 * s2)
     diag = np.zeros((max(n - 1, 0), k, d, k, d))
     upper = np.zeros((max(n - 2, 0), k, d, k, d))
     th = np.empty((nq, k, d))
@@ -203,7 +207,7 @@ def _alpha_path_grad_hessian(path, s2, tau, tw, csign, dims):
                 for q in range(nq):
                     m = t * nq + q
                     rr, vv, dva, dvb = _pair_dots(th[q], vel, a, b, delta)
-                    c = norm * math.exp(-rr / (4.0 * s2))
+                    c = norm * math.exp(-rr * e4)
                     h = vv * r2 - dva * dvb * r4
                     # Q and its gradient (as _alpha_qform_grad): ordered pairs (a, b) and (b, a)
                     qf[m] += c * h
