@@ -9,8 +9,9 @@ the same sums pair by pair, without the (m, K, K) temporaries, and use the symme
 summand in (a, b) so that every Gaussian overlap is evaluated once per unordered pair.
 
 Why compiled: at the corpus callosum's K = 63 the numpy versions are memory bound on
-(m, K, K) and (m, K d, K d) temporaries (``benchmarks/bench_geodesic.py --parts`` prints the
-per-iteration breakdown). All kernels are float64, ``fastmath=False`` (IEEE semantics: no
+(m, K, K) and (m, K d, K d) temporaries (``benchmarks/bench_geodesic.py`` prints the
+per-iteration breakdown). The path Hessian's pass also returns Q and its gradient at the nodes,
+since it evaluates every overlap there anyway. All kernels are float64, ``fastmath=False`` (IEEE semantics: no
 reassociation), single-threaded (the machine's cores go to separate pairs), and cached on disk
 (``cache=True``) so that only the first import after installation pays the compilation.
 """
@@ -54,8 +55,8 @@ def _dims(d):
 
     numba compiles a kernel once per argument type, and ``len`` of a tuple is a compile-time
     constant, so a kernel given ``dims`` is compiled (and cached) separately for d = 2 and d = 3
-    with its loops over coordinates of known length: LLVM unrolls them and keeps the small
-    per-pair arrays in registers (the α path Hessian 2.9 → 1.9 ms at K = 63, n = 8, d = 2).
+    with its loops over coordinates of known length, which LLVM unrolls (the α path Hessian
+    2.9 → 1.9 ms at K = 63, n = 8, d = 2).
     One source serves both dimensions."""
     return (0,) * d
 
