@@ -50,6 +50,22 @@ def _pair_dots(theta, vel, a, b, delta):
     return rr, vv, dva, dvb
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def _add_pair_gradient(vel, a, b, delta, dva, dvb, c, cb, r2, r4, d_theta, d_vel):
+    """Adds the pair (a, b) of one shape to ``∂Q/∂θ`` and ``∂Q/∂v`` (``vel``, ``d_theta``, ``d_vel``
+    (K, d)), both ordered pairs at once: (b, a) has Δ → −Δ and (Δ·V_a, Δ·V_b) → (−Δ·V_b, −Δ·V_a).
+    ``c = G(Δ)/K²`` (with the overlap's norm) and ``cb`` = c (V_a·V_b/(2σ²) − (Δ·V_a)(Δ·V_b)/(4σ⁴)),
+    the pair's term of Q; ``r2 = 1/(2σ²)``, ``r4 = 1/(4σ⁴)``. The one copy of these formulas for
+    :func:`_alpha_qform_grad` and :func:`_alpha_path_grad_hessian`."""
+    c2, c4 = 2.0 * c * r2, 2.0 * c * r4
+    for i in range(delta.shape[0]):
+        gt = -2.0 * cb * r2 * delta[i] - c4 * (dvb * vel[a, i] + dva * vel[b, i])
+        d_theta[a, i] += gt
+        d_theta[b, i] -= gt
+        d_vel[a, i] += c2 * vel[b, i] - c4 * dvb * delta[i]
+        d_vel[b, i] += c2 * vel[a, i] - c4 * dva * delta[i]
+
+
 def _dims(d):
     """The landmark dimension as a type: a tuple of ``d`` zeros.
 
@@ -129,14 +145,7 @@ def _alpha_qform_grad(theta, vel, s2, dims):
                 c = norm * math.exp(-rr * e4)
                 cb = c * (vv * r2 - dva * dvb * r4)
                 off += cb
-                # ordered pairs (a, b) and (b, a): Δ → −Δ, (Δ·V_a, Δ·V_b) → (−Δ·V_b, −Δ·V_a)
-                c2, c4 = 2.0 * c * r2, 2.0 * c * r4
-                for i in range(d):
-                    gt = -2.0 * cb * r2 * delta[i] - c4 * (dvb * vel[n, a, i] + dva * vel[n, b, i])
-                    d_theta[n, a, i] += gt
-                    d_theta[n, b, i] -= gt
-                    d_vel[n, a, i] += c2 * vel[n, b, i] - c4 * dvb * delta[i]
-                    d_vel[n, b, i] += c2 * vel[n, a, i] - c4 * dva * delta[i]
+                _add_pair_gradient(vel[n], a, b, delta, dva, dvb, c, cb, r2, r4, d_theta[n], d_vel[n])
         q[n] = norm * diag * r2 + 2.0 * off
     return q, d_theta, d_vel
 
@@ -210,15 +219,9 @@ def _alpha_path_grad_hessian(path, s2, tau, tw, csign, dims):
                     rr, vv, dva, dvb = _pair_dots(th[q], vel, a, b, delta)
                     c = norm * math.exp(-rr * e4)
                     h = vv * r2 - dva * dvb * r4
-                    # Q and its gradient (as _alpha_qform_grad): ordered pairs (a, b) and (b, a)
+                    # Q and its gradient, as _alpha_qform_grad
                     qf[m] += c * h
-                    c2, c4 = 2.0 * c * r2, 2.0 * c * r4
-                    for i in range(d):
-                        gt = -2.0 * (c * h) * r2 * delta[i] - c4 * (dvb * vel[a, i] + dva * vel[b, i])
-                        d_theta[m, a, i] += gt
-                        d_theta[m, b, i] -= gt
-                        d_vel[m, a, i] += c2 * vel[b, i] - c4 * dvb * delta[i]
-                        d_vel[m, b, i] += c2 * vel[a, i] - c4 * dva * delta[i]
+                    _add_pair_gradient(vel, a, b, delta, dva, dvb, c, c * h, r2, r4, d_theta[m], d_vel[m])
                     for i in range(d):
                         gh[i] = -(dvb * vel[a, i] + dva * vel[b, i]) * r4
                     for i in range(d):
