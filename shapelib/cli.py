@@ -493,10 +493,10 @@ def main(argv=None) -> int:
     """Entry point of the ``shapelib`` console script and ``python -m shapelib``."""
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["study"]:  # run_all.py parses its own options
-        args, run = None, (lambda: cmd_study(argv[1:]))
+        run = lambda: cmd_study(argv[1:])  # noqa: E731
     else:
         args = build_parser().parse_args(argv)
-        run = (lambda: args.func(args))
+        run = lambda: args.func(args)  # noqa: E731
     warnings.showwarning = _one_line_warnings
     try:
         return int(run() or 0)

@@ -705,7 +705,7 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
                 converged, stopped_by = True, "target_energy"
             elif len(energies) > window and (energies[-1 - window] - energy) < tol * energy:
                 converged, stopped_by = True, "energy_window"
-    if n == 1 or np.array_equal(u, v):
+    if trivial:
         grad_norm = 0.0
     else:  # None: stopped on target_energy, where no gradient is evaluated
         grad_norm = float(np.linalg.norm(grad)) if grad is not None else None
@@ -719,8 +719,8 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
     length = _length(model, path)
     steps = np.linalg.norm(np.diff(path, axis=0), axis=2)
     return GeodesicResult(
-        path=path, length=length, energy=energy, lower_bound=model.lower_bound(u, v) if lower_bound is None else float(lower_bound),
-        converged=bool(converged),
+        path=path, length=length, energy=energy,
+        lower_bound=model.lower_bound(u, v) if lower_bound is None else float(lower_bound), converged=bool(converged),
         n_iter=it, grad_norm=grad_norm, rel_energy_change=float(rel_change),
         max_step_over_sigma=float(steps.max() / length_scale), metric=model.name, sigma2=sigma2,
         log={"energy": energies, "damping": dampings, "hessian": kind, "stopped_by": stopped_by,
