@@ -11,8 +11,8 @@ import warnings
 
 import numpy as np
 
-__all__ = ["as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_dimension",
-           "check_scale"]
+__all__ = ["as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_positive_int",
+           "check_dimension", "check_scale"]
 
 
 def as_shape(x, *, name: str = "shape", min_landmarks: int = 1) -> np.ndarray:
@@ -93,6 +93,16 @@ def check_positive(value, *, name: str) -> float:
     if not np.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be a positive finite number; got {value!r}")
     return value
+
+
+def check_positive_int(value, *, name: str) -> int:
+    """Return ``value`` as an int if it is an integer ``>= 1`` (an integral float such as ``5.0``
+    passes; ``True``, ``None``, ``"99"`` and ``2.5`` do not), else raise ``ValueError``."""
+    ok = (not isinstance(value, bool) and isinstance(value, (numbers.Real, np.integer, np.floating))
+          and np.isfinite(value) and float(value).is_integer() and value >= 1)
+    if not ok:
+        raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    return int(value)
 
 
 def check_sigma2(sigma2) -> float:

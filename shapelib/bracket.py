@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validate import as_shape_pair, check_positive, check_sigma2
+from ._validate import as_shape_pair, check_positive, check_positive_int, check_sigma2
 from .geodesic import METRICS, GeodesicWarning, _check_entry, _model, fisher_rao_lower_bound, minimise_path
 from .gmm import l2_distance
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
@@ -167,12 +167,6 @@ def extrapolate_doublings(gaps):
     return g3 - d2 * d2 / (d1 - d2), float(np.log2(d1 / d2))
 
 
-def _positive_int(value, name):
-    if isinstance(value, bool) or int(value) != value or value < 1:
-        raise ValueError(f"{name} must be a positive integer; got {value!r}")
-    return int(value)
-
-
 def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: int = 8,
                      max_n_steps: int = 64, level_iter: int = 3, level_tol: float | None = None,
                      min_shrink: float = 0.25, grid_spacing: float | None = None,
@@ -236,11 +230,11 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     s2 = check_sigma2(sigma2)
     ratio = _check_entry(u, v, s2, metric=metric, stacklevel=3)
     rtol = check_positive(rtol, name="rtol")
-    n = _positive_int(n_steps, "n_steps")
-    max_n = _positive_int(max_n_steps, "max_n_steps")
+    n = check_positive_int(n_steps, name="n_steps")
+    max_n = check_positive_int(max_n_steps, name="max_n_steps")
     if max_n < n:
         raise ValueError(f"max_n_steps must be >= n_steps; got max_n_steps={max_n_steps!r}, n_steps={n_steps!r}")
-    level_iter = _positive_int(level_iter, "level_iter")
+    level_iter = check_positive_int(level_iter, name="level_iter")
     level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
     if not 0.0 <= float(min_shrink) < 1.0:
         raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")

@@ -69,7 +69,7 @@ from scipy.linalg.lapack import dpotrf
 from threadpoolctl import ThreadpoolController
 
 from . import _kernels
-from ._validate import as_shape_pair, check_dimension, check_positive, check_scale, check_sigma2
+from ._validate import as_shape_pair, check_dimension, check_positive, check_positive_int, check_scale, check_sigma2
 from .gmm import l2_distance
 from .metrics import (
     _alpha_qform_hessian,
@@ -587,12 +587,8 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
     ``(lower · (1 + rtol))²``, since ``length ≤ √E``. ``lower_bound``: ``model.lower_bound(u, v)``
     when the caller has it already (the bracket computes it once per pair, not once per level).
     """
-    if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 1:
-        raise ValueError(f"n_steps must be a positive integer; got {n_steps!r}")
-    n = int(n_steps)
-    if isinstance(window, bool) or int(window) != window or window < 1:
-        raise ValueError(f"window must be a positive integer; got {window!r}")
-    window = int(window)
+    n = check_positive_int(n_steps, name="n_steps")
+    window = check_positive_int(window, name="window")
     if int(max_iter) != max_iter or max_iter < 0:
         raise ValueError(f"max_iter must be a non-negative integer; got {max_iter!r}")
     tol = check_positive(tol, name="tol")

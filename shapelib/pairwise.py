@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import as_shapes
+from ._validate import as_shapes, check_positive_int
 from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record
 
 __all__ = ["PairwiseResult", "compute_pairwise", "open_store", "compute_block", "block_pairs", "local_cluster",
@@ -541,9 +541,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         raise ValueError(f"n_jobs must be a positive integer, -1 or None; got {n_jobs!r}")
     if (client is not None or scheduler is not None) and n_jobs not in (None, -1):
         raise ValueError("n_jobs sizes a local cluster; it cannot be combined with client or scheduler")
-    if block_size is not None and (isinstance(block_size, bool) or not isinstance(block_size, (int, np.integer))
-                                   or block_size < 1):
-        raise ValueError(f"block_size must be a positive integer; got {block_size!r}")
+    if block_size is not None:
+        block_size = check_positive_int(block_size, name="block_size")
     want = {"format": _FORMAT, "metric": metric, "params": _full_params(metric, rtol, params),
             "rtol": None if rtol is None else float(rtol), "shapes_sha256": shapes_sha256(x),
             "N": int(n), "K": int(k), "d": int(d), "symmetric": symmetric, "shapelib_version": __version__}
@@ -663,8 +662,7 @@ def local_cluster(n_workers: int):
     import dask
     from distributed import LocalCluster
 
-    if isinstance(n_workers, bool) or not isinstance(n_workers, (int, np.integer)) or n_workers < 1:
-        raise ValueError(f"n_workers must be a positive integer; got {n_workers!r}")
+    check_positive_int(n_workers, name="n_workers")
     with warnings.catch_warnings(), dask.config.set(WORKER_ENVIRON):
         warnings.filterwarnings("ignore", message="Port .* is already in use")  # the HTTP port moves
         return LocalCluster(n_workers=int(n_workers), threads_per_worker=1, processes=True,

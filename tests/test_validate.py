@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from shapelib._validate import as_shape, as_shape_pair, as_shapes, check_sigma2
+from shapelib._validate import as_shape, as_shape_pair, as_shapes, check_positive_int, check_sigma2
 
 
 def test_as_shape_returns_float64_copy_of_valid_input():
@@ -48,3 +48,15 @@ def test_sigma2_must_be_positive_finite_number(bad):
 def test_sigma2_accepts_numpy_scalars():
     assert check_sigma2(np.float32(0.5)) == pytest.approx(0.5)
     assert check_sigma2(2) == 2.0
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, np.nan, np.inf, "99", None, True, False, [3]])
+def test_positive_int_rejects_everything_but_integers_from_one(bad):
+    with pytest.raises(ValueError, match=r"permutations must be a positive integer; got"):
+        check_positive_int(bad, name="permutations")
+
+
+def test_positive_int_accepts_integral_numbers_and_returns_int():
+    for ok in (1, 999, np.int64(7), 5.0, np.float32(3.0)):
+        out = check_positive_int(ok, name="n")
+        assert type(out) is int and out == ok
