@@ -19,14 +19,26 @@ Anderson's (2001) pseudo-F, the statistic of :func:`skbio.stats.distance.permano
 
 Permutations. ``permute="residuals"`` (default) is Freedman & Lane's (1983) scheme, the one
 Anderson (2001, *Can. J. Fish. Aquat. Sci.* 58:626) recommends for a term in the presence of
-covariates: the responses are replaced by ``Ŷ_Z + P R_Z Y`` (fitted values of the reduced model
-plus permuted residuals), so the covariates keep their relation to the response under every
-permutation and only the tested term's association is broken. In Gram form the permuted
-statistic only needs ``E = R_Z G R_Z`` and the permuted design basis (the projections onto
-``Z`` cancel), which is what :func:`permanova` computes, vectorised over permutations.
-``permute="rows"`` permutes whole observations (the design rows), which is exact only without
-covariates. With an intercept-only reduced model the two coincide (``R_Z G R_Z = G``) and
-equal scikit-bio's label permutation, draw for draw (``tests/test_stats.py``).
+covariates: the responses are replaced by ``Y* = Ŷ_Z + P R_Z Y`` (fitted values of the reduced
+model plus permuted residuals), so the covariates keep their relation to the response under
+every permutation and only the tested term's association is broken. The reduced model ``Z`` of
+a term is the model with all the *other* terms, for ``by="margin"`` and ``by="terms"`` alike
+(the two differ in the statistic, not in the null: no effect of the term given the others).
+Were the reduced model of a sequential term only the terms before it, a later term with an
+effect would be permuted into noise the full model cannot remove, every permuted F would be too
+small, and a term without effect would be rejected in half of the data sets (issue found in
+review; ``tests/test_stats.py`` checks the size of both). In Gram form the permuted statistic
+needs ``E = R_Z G R_Z``, the permuted design basis and, for a sequential term (not orthogonal to
+the later terms in ``Z``), the cross product ``R_Z G H_Z Q_t``; :func:`permanova` computes
+them vectorised over permutations. ``permute="rows"`` permutes whole observations (the design
+rows), which is exact only when no term has an effect. With an intercept-only reduced model the
+two coincide (``R_Z G R_Z = G``) and equal scikit-bio's label permutation, draw for draw.
+
+A permuted statistic counts as "at least as large" as the observed one when it is within a
+relative ``1e-9`` below it (:data:`TIE_RTOL`): the permuted sums of squares are computed
+differently from the observed one, so an exact tie (discrete distances, a permutation that
+maps every group onto itself) can otherwise land a few units of the last place below and be
+missed, making ``p`` too small — as R's vegan does with an absolute ``√ε``.
 
 Leave-one-out k-NN uses scikit-learn's neighbour search on the precomputed matrix, and the
 permutation p-value of :func:`sklearn.model_selection.permutation_test_score`; see
@@ -40,6 +52,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ._validate import check_positive_int
+
 __all__ = [
     "as_distance_matrix",
     "gower_centered",
@@ -50,6 +64,10 @@ __all__ = [
     "classical_mds",
     "mantel_test",
 ]
+
+#: Relative tolerance below the observed statistic within which a permuted one still counts as a
+#: tie (``F* ≥ F − TIE_RTOL · |F|``); rounding in the vectorised null is ~1e-12 relative.
+TIE_RTOL = 1e-9
 
 
 def as_distance_matrix(d, *, name: str = "distances", atol: float = 1e-9) -> np.ndarray:
@@ -141,7 +159,8 @@ class PermanovaResult:
 
 def _term_columns(col: pd.Series, term: str) -> np.ndarray:
     """Design columns of one term: treatment-coded indicators (first level dropped) for a
-    categorical/boolean/string column, the centred values for a numeric one."""
+    categorical/boolean/string column, the centred values for a numeric one
+    (scaled to unit length, which changes no sum of squares)."""
     if col.isna().any():
         row = int(np.flatnonzero(col.isna().to_numpy())[0])
         raise ValueError(f"covariate {term!r} is missing at row {row}")
@@ -157,7 +176,8 @@ def _term_columns(col: pd.Series, term: str) -> np.ndarray:
         raise ValueError(f"covariate {term!r} is {float(v[row])} at row {row}")
     if np.ptp(v) == 0:
         raise ValueError(f"covariate {term!r} is constant: nothing to test")
-    return (v - v.mean())[:, None]
+    c = v - v.mean()
+    return (c / np.linalg.norm(c))[:, None]  # unit length: the collinearity test is scale-free
 
 
 def _extend_basis(basis: np.ndarray, block: np.ndarray, term: str) -> np.ndarray:
@@ -190,23 +210,26 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
     covariates : pandas.DataFrame or dict of 1-D arrays
         One column per term, rows in the order of ``distances``. Categorical, boolean and
         string columns are treatment coded (first level in sorted order is the baseline);
-        numeric columns enter as one centred column.
+        numeric columns enter as one centred column (its units do not matter).
     terms : sequence of str, optional
         Terms in model order (default: all columns of ``covariates``).
     by : {"margin", "terms"}
-        ``"margin"``: each term tested against the model with all the other terms (type III,
-        "accounted for the others"); ``"terms"``: sequentially in the given order (type I),
-        every F using the full model's residual.
+        ``"margin"``: each term's sum of squares given all the other terms (type III,
+        "accounted for the others"); ``"terms"``: sequentially in the given order (type I, given
+        the terms before it), as R vegan's ``adonis2``. Every F uses the full model's residual,
+        and either way the permutations are those of the model without the term (module
+        docstring), so both test "no effect of the term given the others".
     permute : {"residuals", "rows"}
         ``"residuals"``: Freedman–Lane, permute the residuals of the reduced model (see the module
-        docstring); ``"rows"``: permute whole observations.
+        docstring); ``"rows"``: permute whole observations (exact only if no term has an effect).
     permutations : int
-        Number of random permutations (``>= 1``); ``p = (1 + #{F* ≥ F}) / (1 + permutations)``.
+        Number of random permutations (``>= 1``); ``p = (1 + #{F* ≥ F}) / (1 + permutations)``,
+        ties counted within :data:`TIE_RTOL`.
     seed : int or None
         Seed of :func:`numpy.random.default_rng`; permutation ``p`` is the ``p``-th call to
-        ``rng.permutation(N)``, the draws scikit-bio makes, shared by all terms. Draw ``π`` permutes
-        the design rows by ``π`` (``"rows"``), i.e. moves the reduced-model residual of object ``i``
-        to row ``π⁻¹(i)`` (``"residuals"``).
+        ``rng.permutation(N)``, the draws scikit-bio makes, shared by all terms. Draw ``π`` gives
+        row ``i`` the design row ``π(i)`` (``"rows"``), or, equivalently for the residuals, moves
+        the reduced-model residual of object ``i`` to row ``π(i)`` (``"residuals"``).
 
     Returns
     -------
@@ -218,8 +241,7 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
         raise ValueError(f"by must be 'margin' or 'terms'; got {by!r}")
     if permute not in ("residuals", "rows"):
         raise ValueError(f"permute must be 'residuals' or 'rows'; got {permute!r}")
-    if int(permutations) != permutations or permutations < 1:
-        raise ValueError(f"permutations must be a positive integer; got {permutations!r}")
+    permutations = check_positive_int(permutations, name="permutations")
     cov = pd.DataFrame(covariates)
     if len(cov) != n:
         raise ValueError(f"covariates have {len(cov)} rows but distances are {n} x {n}")
@@ -248,39 +270,44 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
 
     g = gower_centered(d)
     ss_total = float(np.trace(g))
+    if ss_total == 0:
+        raise ValueError("distances are all zero: there is no variation to test")
     ss_res = ss_total - float(np.einsum("nk,nk->", full, g @ full))
     rng = np.random.default_rng(seed)
-    perms = np.stack([rng.permutation(n) for _ in range(int(permutations))])
+    perms = np.stack([rng.permutation(n) for _ in range(permutations)])
 
     rows, null = [], {}
     for t in terms:
-        if by == "terms":
-            k = terms.index(t)
-            qz = np.hstack([one] + [seq[s] for s in terms[:k]])
+        # Z: all the other terms (the Freedman–Lane reduced model, for both kinds of test)
+        qz = one
+        for s in terms:
+            if s != t:
+                qz = np.hstack([qz, _extend_basis(qz, blocks[s], s)])
+        if by == "terms":  # the term given those before it; full = its basis + the others'
             qt = seq[t]
-            qw = np.hstack([np.zeros((n, 0))] + [seq[s] for s in terms[k + 1:]])
-        else:
-            qz = one
-            for s in terms:
-                if s != t:
-                    qz = np.hstack([qz, _extend_basis(qz, blocks[s], s)])
+            q_all = np.hstack([qt] + [one] + [seq[s] for s in terms if s != t])
+        else:  # the term given all the others
             qt = _extend_basis(qz, blocks[t], t)
-            qw = np.zeros((n, 0))
+            q_all = np.hstack([qt, qz])
         df_t = qt.shape[1]
         ss_t = float(np.einsum("nk,nk->", qt, g @ qt))
         f_obs = (ss_t / df_t) / (ss_res / df_res)
+        # Y* = H_Z Y + Pᵀ R_Z Y: Q_tᵀ Y* = (H_Z Q_t)ᵀ Y + (P Q_t)ᵀ R_Z Y, so
+        # SS_t* = ‖·‖² of H_Z Q_t (fixed) + 2 ⟨P Q_t, R_Z G H_Z Q_t⟩ + (P Q_t)ᵀ E (P Q_t);
+        # H_Z Q_t = 0 for a marginal term. The residual: R_full H_Z = 0, so only E enters.
         if permute == "residuals":
             rz = np.eye(n) - qz @ qz.T
             e = rz @ g @ rz
+            hq = qz @ (qz.T @ qt)
+            fixed = float(np.einsum("nk,nk->", hq, g @ hq))
+            cross = 2.0 * np.einsum("pnk,nk->p", qt[perms], rz @ (g @ hq))
         else:
-            e = g
-        q_all = np.hstack([qz, qt, qw])
+            e, fixed, cross = g, 0.0, 0.0
         c = _quadratic_by_column(e, q_all, perms)
-        nz = qz.shape[1]
-        s_t = c[:, nz:nz + df_t].sum(axis=1)
+        s_t = fixed + cross + c[:, :df_t].sum(axis=1)
         s_res = np.trace(e) - c.sum(axis=1)
         f_null = (s_t / df_t) / (s_res / df_res)
-        p = (1.0 + np.count_nonzero(f_null >= f_obs)) / (1.0 + permutations)
+        p = (1.0 + np.count_nonzero(f_null >= f_obs - TIE_RTOL * abs(f_obs))) / (1.0 + permutations)
         null[t] = f_null
         rows.append({"term": t, "df": df_t, "sum_of_squares": ss_t, "r2": ss_t / ss_total,
                      "pseudo_F": f_obs, "p_value": p})
@@ -334,7 +361,10 @@ def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, permutations: i
     The statistic is exactly that of ``permutation_test_score(KNeighborsClassifier(n_neighbors,
     metric="precomputed"), D, labels, cv=LeaveOneOut(), n_permutations=permutations,
     random_state=seed)`` — the same accuracy and the same permuted accuracies, draw for draw
-    (``tests/test_stats.py``). That call refits the classifier N times per permutation (about
+    (``tests/test_stats.py``) — as long as no two distances tie at the k-th neighbour: such ties
+    are broken arbitrarily, here once for the whole matrix and by scikit-learn in every fold, so
+    the two may pick different neighbours (both legitimate; observed and permuted labels here
+    always vote with the same neighbours). That call refits the classifier N times per permutation (about
     3 s per permutation for N = 647 here, an hour for 999). The leave-one-out neighbours do not
     depend on the labels, so they are found once, with scikit-learn's own query
     (``KNeighborsClassifier.kneighbors()`` without ``X``: each training point's neighbours,
@@ -368,8 +398,7 @@ def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, permutations: i
         raise ValueError(f"labels are missing at row {int(np.flatnonzero(pd.isna(pd.Series(y)))[0])}")
     if int(n_neighbors) != n_neighbors or not 1 <= n_neighbors < n - 1:
         raise ValueError(f"n_neighbors must be an integer in [1, {n - 2}]; got {n_neighbors!r}")
-    if int(permutations) != permutations or permutations < 1:
-        raise ValueError(f"permutations must be a positive integer; got {permutations!r}")
+    permutations = check_positive_int(permutations, name="permutations")
     classes, codes = np.unique(y, return_inverse=True)
     if len(classes) < 2:
         raise ValueError(f"labels have a single class {classes.tolist()}: nothing to classify")
@@ -385,7 +414,7 @@ def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, permutations: i
     acc, pred = accuracies(codes[None])
     rs = np.random.RandomState(seed)
     null = np.concatenate([accuracies(codes[np.stack([rs.permutation(n) for _ in range(m)])])[0]
-                           for m in np.diff(np.r_[0:int(permutations):256, int(permutations)])])
+                           for m in np.diff(np.r_[0:permutations:256, permutations])])
     p = (1.0 + np.count_nonzero(null >= acc[0])) / (1.0 + permutations)
     return KnnResult(accuracy=float(acc[0]), p_value=float(p), null=null,
                      majority_rate=float(np.bincount(codes).max() / n), predictions=classes[pred[0]],
@@ -405,17 +434,33 @@ def classical_mds(distances, *, n_components: int = 2):
     coords : ndarray, shape (N, n_components)
     explained : ndarray, shape (n_components,)
         Each axis' eigenvalue of Gower's matrix over its trace (the total inertia
-        ``Σ_{i<j} d_ij² / N``); for non-Euclidean distances the negative eigenvalues count in
-        the trace, so the shares are conservative.
+        ``Σ_{i<j} d_ij² / N``, as scikit-bio's ``pcoa``). For non-Euclidean distances the trace
+        is the positive eigenvalues' sum *minus* the negative ones', so these shares are larger
+        than the axes' shares of the positive inertia (and may add up to more than 1): compare
+        metrics' shares only for (near-)Euclidean distances.
+
+    Raises
+    ------
+    ValueError
+        If the distances are all zero, or ``n_components`` exceeds the number of positive
+        eigenvalues (a Euclidean embedding has no more axes).
     """
     from sklearn.manifold import ClassicalMDS
 
     d = as_distance_matrix(distances)
-    if int(n_components) != n_components or not 1 <= n_components < len(d):
+    n_components = check_positive_int(n_components, name="n_components")
+    if n_components >= len(d):
         raise ValueError(f"n_components must be an integer in [1, {len(d) - 1}]; got {n_components!r}")
-    mds = ClassicalMDS(n_components=int(n_components), metric="precomputed")
-    coords = mds.fit_transform(d)
     total = float(np.sum(d * d) / (2 * len(d)))
+    if total == 0:
+        raise ValueError("distances are all zero: there is nothing to ordinate")
+    eig = np.linalg.eigvalsh(gower_centered(d))[::-1]
+    n_pos = int(np.count_nonzero(eig > 1e-12 * eig[0]))
+    if n_components > n_pos:
+        raise ValueError(f"n_components = {n_components} but Gower's matrix has only {n_pos} positive "
+                         "eigenvalues: ask for at most that many axes")
+    mds = ClassicalMDS(n_components=n_components, metric="precomputed")
+    coords = mds.fit_transform(d)
     return coords, np.asarray(mds.eigenvalues_, dtype=np.float64) / total
 
 
@@ -446,5 +491,11 @@ def mantel_test(x, y, *, method: str = "spearman", permutations: int = 999, seed
         raise ValueError(f"x is {a.shape} but y is {b.shape}")
     if method not in ("spearman", "pearson"):
         raise ValueError(f"method must be 'spearman' or 'pearson'; got {method!r}")
-    r, p, _ = mantel(a, b, method=method, permutations=int(permutations), alternative="two-sided", seed=seed)
+    permutations = check_positive_int(permutations, name="permutations")
+    iu = np.triu_indices(len(a), 1)
+    for name, m in (("x", a), ("y", b)):
+        if np.ptp(m[iu]) == 0:
+            raise ValueError(f"{name} has all off-diagonal distances equal ({float(m[iu][0])}): "
+                             "its correlation with anything is undefined")
+    r, p, _ = mantel(a, b, method=method, permutations=permutations, alternative="two-sided", seed=seed)
     return float(r), float(p)

@@ -106,9 +106,95 @@ def test_freedman_lane_permuted_f_equals_refit_on_permuted_residuals():
     x = np.column_stack([z, grp])
     beta, *_ = np.linalg.lstsq(z, y, rcond=None)
     fitted, resid = z @ beta, y - z @ beta
-    # draw p moves the residual of object p[i] to object i's design row: residuals by p⁻¹
+    # draw p moves the residual of object j to row p[j]: row i gets the residual of p⁻¹(i)
     expected = [_trace_f(fitted + resid[np.argsort(p)], z, x) for p in perms]
     np.testing.assert_allclose(res.null["group"], expected, rtol=1e-9)
+
+
+def test_sequential_permuted_f_equals_refit_on_residuals_of_the_other_terms():
+    # by="terms": the statistic of `group` is its sum of squares after the intercept only, over the
+    # full model's residual; the permutations are of the residuals of the model with all the other
+    # terms (here `age`, which comes *after* group) — checked against least-squares refits.
+    rng = np.random.default_rng(21)
+    n = 26
+    age = rng.uniform(7, 21, n)
+    grp = (rng.uniform(size=n) < 0.5 + 0.02 * (age - 14)).astype(int)  # correlated with age
+    y = rng.normal(size=(n, 3)) + 0.3 * age[:, None]
+    d = cdist(y, y)
+    res = permanova(d, {"group": grp, "age": age}, by="terms", permutations=6, seed=5)
+    r = np.random.default_rng(5)
+    perms = np.stack([r.permutation(n) for _ in range(6)])
+    one = np.ones((n, 1))
+    full = np.column_stack([one, grp, age])
+
+    def sequential_f(yy):
+        def rss(m):
+            beta, *_ = np.linalg.lstsq(m, yy, rcond=None)
+            return float(np.sum((yy - m @ beta) ** 2))
+        return (rss(one) - rss(np.column_stack([one, grp]))) / (rss(full) / (n - 3))
+
+    assert res.table.loc["group", "pseudo_F"] == pytest.approx(sequential_f(y), rel=1e-10)
+    z = np.column_stack([one, age])
+    beta, *_ = np.linalg.lstsq(z, y, rcond=None)
+    fitted, resid = z @ beta, y - z @ beta
+    expected = [sequential_f(fitted + resid[np.argsort(p)]) for p in perms]
+    np.testing.assert_allclose(res.null["group"], expected, rtol=1e-9)
+
+
+@pytest.mark.parametrize("by", ["terms", "margin"])
+def test_a_term_without_effect_keeps_its_size_when_a_later_term_has_one(by):
+    # group first, without effect and independent of age; age second, with a strong effect. A
+    # sequential test that permuted only the residuals of the terms *before* group rejected it in
+    # about half of such data sets; the rate at 5 % must be binomially consistent with 5 %
+    # (200 data sets; 99 % interval 2 %–9.5 %).
+    rejections = 0
+    for rep in range(200):
+        rng = np.random.default_rng(300 + rep)
+        n = 24
+        grp = rng.permutation(np.array([0, 1] * (n // 2)))
+        age = rng.normal(size=n)
+        y = rng.normal(size=(n, 2)) + 3.0 * age[:, None]
+        res = permanova(cdist(y, y), {"group": grp, "age": age}, by=by, permutations=99, seed=rep)
+        rejections += res.table.loc["group", "p_value"] <= 0.05
+    assert 4 <= rejections <= 19
+
+
+def test_exact_ties_in_the_null_count_towards_p():
+    # Integer distances: many permutations give exactly the observed F. Count them independently
+    # in exact rational arithmetic (one factor: F* ≥ F ⟺ SS_W* ≤ SS_W) with the same draws.
+    from fractions import Fraction
+
+    rng = np.random.default_rng(8)
+    n = 12
+    pts = rng.integers(0, 3, size=(n, 2))
+    d = np.abs(pts[:, None, :] - pts[None, :, :]).sum(axis=2)  # city-block: integers
+    g = np.array(["a", "b", "c"] * 4)
+
+    def ss_within(labels):
+        out = Fraction(0)
+        for c in np.unique(labels):
+            idx = np.flatnonzero(labels == c)
+            out += Fraction(int(sum(d[i, j] ** 2 for i in idx for j in idx if i < j)), len(idx))
+        return out
+
+    observed = ss_within(g)
+    r = np.random.default_rng(0)
+    draws = [r.permutation(n) for _ in range(199)]
+    exact = sum(ss_within(g[p]) <= observed for p in draws)
+    ties = sum(ss_within(g[p]) == observed for p in draws)
+    assert ties > 0  # the case under test
+    for permute in ("residuals", "rows"):
+        res = permanova(d.astype(float), {"g": g}, permute=permute, permutations=199, seed=0)
+        assert res.table.loc["g", "p_value"] == pytest.approx((1 + exact) / 200, abs=1e-15)
+
+
+def test_numeric_covariates_in_any_units():
+    y, g = _points(n=20, seed=3)
+    age = np.random.default_rng(3).uniform(7, 21, 20)
+    d = cdist(y, y)
+    base = permanova(d, {"g": g, "age": age}, permutations=19, seed=0).table
+    tiny = permanova(d, {"g": g, "age": age * 1e-12}, permutations=19, seed=0).table
+    pd.testing.assert_frame_equal(base, tiny, rtol=1e-9)
 
 
 def test_f_invariant_to_relabelling_scaling_and_reordering():
@@ -171,8 +257,11 @@ def test_permanova_errors_name_the_problem():
         permanova(d, {"g": g}, by="type2")
     with pytest.raises(ValueError, match="permute must be"):
         permanova(d, {"g": g}, permute="labels")
-    with pytest.raises(ValueError, match="permutations must be"):
-        permanova(d, {"g": g}, permutations=0)
+    for bad in (0, None, True, 2.5, "99"):
+        with pytest.raises(ValueError, match="permutations must be a positive integer"):
+            permanova(d, {"g": g}, permutations=bad)
+    with pytest.raises(ValueError, match="all zero"):
+        permanova(np.zeros((10, 10)), {"g": g})
     with pytest.raises(ValueError, match=r"\['h'\] are not columns"):
         permanova(d, {"g": g}, terms=["h"])
 
@@ -248,6 +337,31 @@ def test_classical_mds_recovers_euclidean_configuration():
     np.testing.assert_allclose(cdist(coords, coords), d, atol=1e-9)
     assert explained.sum() == pytest.approx(1.0)
     assert explained[0] > explained[1]
+
+
+def test_classical_mds_errors_name_the_problem():
+    line = cdist(*[np.arange(6.0)[:, None]] * 2)  # Euclidean in one dimension: one positive eigenvalue
+    coords, explained = classical_mds(line, n_components=1)
+    np.testing.assert_allclose(cdist(coords, coords), line, atol=1e-9)
+    with pytest.raises(ValueError, match="only 1 positive eigenvalues"):
+        classical_mds(line, n_components=2)
+    with pytest.raises(ValueError, match="all zero"):
+        classical_mds(np.zeros((5, 5)))
+    for bad in (0, 2.5, None, 6):
+        with pytest.raises(ValueError, match="n_components must be"):
+            classical_mds(line, n_components=bad)
+
+
+def test_mantel_errors_name_the_problem():
+    d = cdist(*[np.arange(6.0)[:, None]] * 2)
+    for bad in (0, -1, 2.5, None, "99", True):
+        with pytest.raises(ValueError, match="permutations must be a positive integer"):
+            mantel_test(d, d, permutations=bad)
+    flat = np.ones((6, 6)) - np.eye(6)
+    with pytest.raises(ValueError, match="y has all off-diagonal distances equal"):
+        mantel_test(d, flat)
+    with pytest.raises(ValueError, match=r"x is \(6, 6\) but y is \(5, 5\)"):
+        mantel_test(d, d[:5, :5])
 
 
 def test_mantel_identical_monotone_and_independent():
