@@ -265,16 +265,24 @@ def cmd_geodesic(args) -> int:
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     plot = _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot") if args.plot else None
     anim = _output_path(args.animate, suffixes=(".gif", ".mp4"), option="--animate") if args.animate else None
-    if args.n_steps < 1:
+    if args.n_steps is not None and args.n_steps < 1:
         raise CLIError(f"--n-steps must be >= 1; got {args.n_steps}")
+    if args.fps < 1:
+        raise CLIError(f"--fps must be >= 1; got {args.fps}")
     if anim is not None and anim.suffix.lower() == ".mp4":
         import matplotlib.animation as manim
 
         if not manim.writers.is_available("ffmpeg"):
             raise CLIError(f"--animate {args.animate}: writing .mp4 needs ffmpeg, which is not installed; use a .gif")
     params = _metric_params(args)
-    params["n_steps"] = args.n_steps
+    if args.n_steps is not None:
+        if "n_steps" in params:
+            raise CLIError("n_steps given twice: use --n-steps or --param n_steps=..., not both")
+        params["n_steps"] = args.n_steps
+    params.setdefault("n_steps", 16)
     shapes, spec = _read(args)
+    if (plot or anim) and shapes.shape[2] != 2:
+        raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
     i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
     result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
     n1, k, d = result.path.shape
@@ -283,8 +291,6 @@ def cmd_geodesic(args) -> int:
                           **{a: result.path[:, :, c].ravel() for c, a in enumerate("xyz"[:d])}})
     _write_frame(frame, out, index=False, float_format=lambda v: repr(float(v)))
     print(f"{spec['id'].iloc[i]} -> {spec['id'].iloc[j]}: {result.summary()} -> {out}")
-    if (plot or anim) and d != 2:
-        raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
     if plot:
         _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}")
         print(f"figure -> {plot}")
@@ -396,8 +402,8 @@ EXAMPLES = {
                   "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
                   "  shapelib distances fish.csv --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
                   "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
-    "geodesic": ("example:\n  shapelib geodesic aligned.tps --negative-coordinates --from 0 --to 3 --metric fisher_rao \\\n"
-                 "      --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
+    "geodesic": ("example:\n  shapelib geodesic aligned.tps --negative-coordinates --from fish-1 --to Heart-1 \\\n"
+                 "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
 }
 
 
@@ -410,10 +416,8 @@ def _file_options(p):
     g.add_argument("--pkn", action="store_true", help=".npy/.npz: the array is geomorph's p x k x n layout")
 
 
-def _metric_options(p, *, required_sigma2=False):
-    p.add_argument("--metric", required=True, metavar="M",
-                   help="alpha, fisher_rao, diffeomorphism, procrustes, hausdorff, tps, wendland, alpha_bound, "
-                        "fisher_rao_bound")
+def _metric_options(p, *, metrics, required_sigma2=False):
+    p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics))
     p.add_argument("--sigma2", type=float, metavar="S", required=required_sigma2,
                    help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
@@ -422,6 +426,7 @@ def _metric_options(p, *, required_sigma2=False):
 
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
+    from .distances import METRICS, PATH_METRICS
 
     parser = argparse.ArgumentParser(
         prog=PROG, description="Landmark shape analysis with information geometry (Peter & Rangarajan).",
@@ -450,7 +455,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add("distances", "the labelled distance matrix of every pair of specimens")
     _file_options(p)
-    _metric_options(p)
+    _metric_options(p, metrics=METRICS)
     p.add_argument("--rtol", type=float, metavar="R",
                    help="alpha/fisher_rao: certified bracket, stop when upper/lower - 1 <= R")
     where = p.add_mutually_exclusive_group()
@@ -468,10 +473,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add("geodesic", "the geodesic between two specimens: intermediate shapes, figure, animation")
     _file_options(p)
-    p.add_argument("--from", dest="source", required=True, metavar="ID", help="start specimen id")
+    p.add_argument("--from", dest="source", required=True, metavar="ID",
+                   help="start specimen id (`shapelib info` lists them; a file without ids numbers them 0, 1, …)")
     p.add_argument("--to", dest="target", required=True, metavar="ID", help="end specimen id")
-    _metric_options(p)
-    p.add_argument("--n-steps", type=int, default=16, metavar="N", help="time steps of the path (default 16)")
+    _metric_options(p, metrics=PATH_METRICS)
+    p.add_argument("--n-steps", type=int, metavar="N", help="time steps of the path (default 16)")
     p.add_argument("-o", "--output", required=True, metavar="path.csv",
                    help="long table step, t, landmark, x, y[, z] of the path")
     p.add_argument("--plot", metavar="path.png", help="landmark trajectories (Figs. 4 and 6 style)")

@@ -146,6 +146,23 @@ def test_geodesic_path_figure_and_animation(files):
                        "-o", path_csv), "--metric alpha", "sigma2")
     one_line_error(run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "sp_b", "--metric", "alpha",
                        "--sigma2", -1, "-o", path_csv), "sigma2")
+    # n_steps through --param is honoured; given both ways it is an error
+    run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "sp_c", "--metric", "alpha",
+        "--sigma2", 0.5, "--param", "n_steps=3", "-o", path_csv, check=0)
+    assert pd.read_csv(path_csv).step.max() == 3
+    one_line_error(run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "sp_c", "--metric", "alpha",
+                       "--sigma2", 0.5, "--param", "n_steps=3", "--n-steps", 5, "-o", path_csv), "n_steps given twice")
+    # a failing command writes nothing: checked before any work
+    fresh = files["dir"] / "fresh.csv"
+    for extra, fragment in ((["--animate", gif, "--fps", 0], "--fps must be >= 1"),
+                            (["--animate", gif, "--fps", -3], "--fps must be >= 1")):
+        one_line_error(run("geodesic", al, "--negative-coordinates", "--from", "sp_a", "--to", "sp_c", "--metric",
+                           "alpha", "--sigma2", 0.5, "-o", fresh, *extra), fragment)
+    three = files["dir"] / "three.csv"
+    io.write_landmarks(three, np.dstack([files["x"], files["x"][:, :, :1]]), pd.DataFrame({"id": files["ids"]}))
+    one_line_error(run("geodesic", three, "--from", "sp_a", "--to", "sp_c", "--metric", "alpha", "--sigma2", 500,
+                       "-o", fresh, "--plot", png), "--plot and --animate draw 2-D landmarks")
+    assert not fresh.exists()
 
 
 @pytest.mark.parametrize("kind, mutate, fragments", [
