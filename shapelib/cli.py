@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import ast
 import os
+import re
 import sys
 import warnings
 from pathlib import Path
@@ -214,6 +215,7 @@ def cmd_distances(args) -> int:
     import pandas as pd
 
     from .distances import pairwise_distances
+    from .pairwise import PairError
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     diag = _output_path(args.pairs, suffixes=(".csv",), option="--pairs") if args.pairs else None
@@ -229,9 +231,14 @@ def cmd_distances(args) -> int:
         raise CLIError(f"--block-size must be >= 1; got {args.block_size}")
     if args.store and Path(args.store).exists() and not Path(args.store).is_dir():
         raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
-    result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
-                                store=args.store, block_size=args.block_size, progress=not args.no_progress,
-                                rtol=args.rtol, return_result=True, **params)
+    try:
+        result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
+                                    store=args.store, block_size=args.block_size, progress=not args.no_progress,
+                                    rtol=args.rtol, return_result=True, **params)
+    except PairError as exc:  # name the specimens, as every other input error does
+        note = " (the metric counts landmarks from 0)" if re.search(r"landmarks? \d", exc.reason) else ""
+        raise CLIError(f"{args.file}: specimens {ids[exc.i]!r} (#{exc.i + 1}) and {ids[exc.j]!r} (#{exc.j + 1}), "
+                       f"as u and v: {exc.reason}{note}") from None
     frame = pd.DataFrame(result.matrix, index=pd.Index(ids, name="id"), columns=ids)
     _write_frame(frame, out, float_format=lambda v: repr(float(v)))
     bad = result.nonconverged_pairs()

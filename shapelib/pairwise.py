@@ -63,8 +63,8 @@ import numpy as np
 from ._validate import as_shapes, check_positive_int
 from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record
 
-__all__ = ["PairwiseResult", "compute_pairwise", "open_store", "compute_block", "block_pairs", "local_cluster",
-           "default_block_size", "ARRAYS"]
+__all__ = ["PairwiseResult", "PairError", "compute_pairwise", "open_store", "compute_block", "block_pairs",
+           "local_cluster", "default_block_size", "ARRAYS"]
 
 #: seconds one task should take (sets the default block size)
 TASK_SECONDS = 2.0
@@ -95,6 +95,32 @@ ARRAYS = {
 _FIELD = {"matrix": "value"}  # pair_record key of each array (same name otherwise)
 _ATTR = "shapelib_pairwise"
 _FORMAT = 1
+
+
+class PairError(ValueError):
+    """A pair's input was rejected by its metric: which pair and why.
+
+    ``i``, ``j`` are the row and column of the matrix, i.e. ``shapes[i]`` is the metric's ``u``
+    and ``shapes[j]`` its ``v``; ``reason`` is the metric's own message (which speaks of ``u``
+    and ``v`` and counts landmarks from 0). Raised in-process and, unchanged, through Dask.
+    """
+
+    def __init__(self, i, j, reason):
+        super().__init__(int(i), int(j), str(reason))  # args: what pickling (Dask) rebuilds it from
+        self.i, self.j, self.reason = int(i), int(j), str(reason)
+
+    def __str__(self):
+        return f"pair (shapes[{self.i}], shapes[{self.j}]) as (u, v): {self.reason}"
+
+
+def _pair_record(x_u, x_v, i, j, **kw):
+    """:func:`~shapelib.distances.pair_record` naming the pair in its input errors."""
+    try:
+        return pair_record(x_u, x_v, **kw)
+    except PairError:
+        raise
+    except ValueError as exc:
+        raise PairError(i, j, exc) from exc
 
 
 # ---------------------------------------------------------------------------------------------
@@ -188,10 +214,12 @@ def block_pairs(n: int, block_size: int, *, symmetric: bool) -> list[tuple[int, 
     return [(a, b) for a in range(nb) for b in range(nb) if not symmetric or a <= b]
 
 
-def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol, params: dict) -> dict:
+def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol, params: dict,
+                  offset=(0, 0)) -> dict:
     """All pairs of one block through :func:`shapelib.distances.pair_record`: ``{array: (bi, bj)}``.
 
-    ``xi``, ``xj`` are the block's row and column shapes. On a diagonal block only the pairs
+    ``xi``, ``xj`` are the block's row and column shapes, starting at rows/columns ``offset`` of
+    the matrix (used to name a pair in a :class:`PairError`). On a diagonal block only the pairs
     ``i ≠ j`` are computed (``i < j``, then mirrored, for symmetric metrics) and the diagonal is
     zero. Solver warnings are not emitted: convergence is recorded per pair instead.
     """
@@ -205,7 +233,7 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol,
             for b in range(bj):
                 if diagonal and (a == b or (symmetric and b < a)):
                     continue
-                rec = pair_record(xi[a], xj[b], metric=metric, rtol=rtol, **params)
+                rec = _pair_record(xi[a], xj[b], offset[0] + a, offset[1] + b, metric=metric, rtol=rtol, **params)
                 for name in ARRAYS:
                     out[name][a, b] = rec[_FIELD.get(name, name)]
     if diagonal:
@@ -499,7 +527,7 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
         while not times or (len(times) < 2 and times[0] < 10 * TASK_SECONDS) or (
                 len(times) < 3 and sum(times) < budget):
             t0 = time.perf_counter()
-            pair_record(x[0], x[1 % len(x)], metric=metric, rtol=rtol, **params)
+            _pair_record(x[0], x[1 % len(x)], 0, 1 % len(x), metric=metric, rtol=rtol, **params)
             times.append(time.perf_counter() - t0)
     return min(times)
 
@@ -585,7 +613,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     try:
         if todo and mode == "in-process":
             for a, b in todo:
-                out = compute_block(x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b, **kw)
+                out = compute_block(x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b, offset=(a * st.b, b * st.b),
+                                    **kw)
                 st.write_block(a, b, out)
                 log["blocks_computed"] += 1
                 bar.update(_block_n_pairs(st, a, b))
@@ -691,8 +720,8 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token)
         pending = iter(todo)
 
         def submit(a, b):
-            fut = client.submit(compute_block, x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b, **kw,
-                                key=f"shapelib-pairwise-{token}-{a}-{b}")
+            fut = client.submit(compute_block, x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b,
+                                offset=(a * st.b, b * st.b), **kw, key=f"shapelib-pairwise-{token}-{a}-{b}")
             inflight[fut.key] = (fut, (a, b))
             return fut
 

@@ -274,6 +274,20 @@ def test_distances_labelled_matrix_equals_the_library(files):
                    "-o", "d.txt", ".csv")
 
 
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_degenerate_specimen_is_named(files, jobs):
+    # sp_c's landmarks 5 and 6 coincide: the spline metrics cannot use it as the source (u)
+    x = files["x"].copy()
+    x[2, 5] = x[2, 4]
+    src = files["dir"] / "coincident.tps"
+    io.write_landmarks(src, x, pd.DataFrame({"id": files["ids"]}))
+    out = files["dir"] / "tps.csv"
+    line = one_line_error(run("distances", src, "--metric", "tps", "--jobs", jobs, "--block-size", 1, "--no-progress",
+                              "-o", out), "coincident.tps: specimens 'sp_c' (#3) and", "as u and v",
+                          "coincident landmarks 4 and 5", "counts landmarks from 0")
+    assert not out.exists(), line
+
+
 def test_distances_resume_after_interrupt_through_the_store(files):
     """Fault injection with the real CLI: SIGINT mid-run, rerun with the same store, same matrix."""
     import signal

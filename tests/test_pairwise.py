@@ -270,3 +270,24 @@ def test_local_cluster_workers_get_the_malloc_settings():
         (env,) = client.run(lambda: {k: os.environ.get(k) for k in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_")}
                             ).values()
     assert env == {key.rsplit(".", 1)[1]: str(value) for key, value in WORKER_ENVIRON.items()}
+
+
+def test_a_rejected_pair_is_named_in_process_and_through_dask(rng):
+    """A metric's input error reaches the caller as a PairError naming the pair (row i = u,
+    column j = v), in process and from a real worker process (pickled through Dask)."""
+    from distributed import Client
+
+    from shapelib.pairwise import PairError, local_cluster
+
+    base = np.array([[0.0, 0.0], [1.0, 0.1], [2.0, 0.0], [1.0, -0.9], [0.5, 0.6]])
+    x = np.stack([base + 0.1 * rng.normal(size=base.shape) for _ in range(5)])
+    x[3, 2] = x[3, 1]  # shape 3 has coincident landmarks: no spline from it
+    with pytest.raises(PairError) as serial:
+        compute_pairwise(x, metric="tps", n_jobs=1, block_size=2, progress=False)
+    with local_cluster(1) as cluster, Client(cluster) as client:
+        with pytest.raises(PairError) as dask:
+            compute_pairwise(x, metric="tps", client=client, block_size=2, progress=False)
+    for err in (serial.value, dask.value):
+        assert err.i == 3 and err.j != 3 and isinstance(err, ValueError)
+        assert "u has coincident landmarks 1 and 2" in err.reason
+        assert str(err).startswith(f"pair (shapes[3], shapes[{err.j}]) as (u, v): ")
