@@ -502,6 +502,16 @@ def _one_line_warnings(message, category, filename, lineno, file=None, line=None
     print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
 
+def _interrupted(exc: BaseException) -> bool:
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def main(argv=None) -> int:
     """Entry point of the ``shapelib`` console script and ``python -m shapelib``."""
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -516,6 +526,9 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `shapelib info F | head`: the reader has gone, nothing to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except (ValueError, OSError) as exc:
         if os.environ.get("SHAPELIB_DEBUG"):
             raise
@@ -525,6 +538,9 @@ def main(argv=None) -> int:
         print(f"{PROG}: error: {msg}", file=sys.stderr)
         return 1
     except Exception as exc:  # a bug, not bad input: still one line, traceback on request
+        if _interrupted(exc):  # Ctrl-C inside compiled code surfaces as a SystemError around it
+            print(f"{PROG}: interrupted", file=sys.stderr)
+            return 130
         if os.environ.get("SHAPELIB_DEBUG"):
             raise
         print(f"{PROG}: internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "

@@ -53,6 +53,8 @@ import json
 import logging
 import math
 import os
+import signal
+import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -687,15 +689,41 @@ def local_cluster(n_workers: int):
     end of a run logs a CommClosedError traceback at ERROR. Failures that matter still reach the
     caller: a task's exception is raised by the client, a lost worker's tasks are rerun by the
     scheduler. Use it as a context manager, or ``close()`` it.
+
+    Ctrl-C: a Ctrl-C while the cluster was starting left it half-started (an atexit traceback),
+    so SIGINT is blocked in the calling (main) thread while the cluster starts, and one pressed
+    meanwhile is delivered, as KeyboardInterrupt, once the cluster is up — which is then closed.
+    A terminal also sends SIGINT to the worker processes (same process group), which printed
+    their own KeyboardInterrupt tracebacks: the engine has its workers ignore SIGINT
+    (:func:`_ignore_sigint`, run on them once they are up; spawned processes do not inherit a
+    blocked mask), since the caller stops the run and closing the cluster ends them.
     """
     import dask
     from distributed import LocalCluster
 
     check_positive_int(n_workers, name="n_workers")
-    with warnings.catch_warnings(), dask.config.set(WORKER_ENVIRON):
-        warnings.filterwarnings("ignore", message="Port .* is already in use")  # the HTTP port moves
-        return LocalCluster(n_workers=int(n_workers), threads_per_worker=1, processes=True,
-                            dashboard_address=None, silence_logs=logging.CRITICAL)
+    block = hasattr(signal, "pthread_sigmask") and threading.current_thread() is threading.main_thread()
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if block else None
+    cluster = None
+    try:
+        with warnings.catch_warnings(), dask.config.set(WORKER_ENVIRON):
+            warnings.filterwarnings("ignore", message="Port .* is already in use")  # the HTTP port moves
+            cluster = LocalCluster(n_workers=int(n_workers), threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.CRITICAL)
+    finally:
+        if block:
+            try:  # a pending Ctrl-C is raised by this call (it runs the signal handlers)
+                signal.pthread_sigmask(signal.SIG_SETMASK, old)
+            except BaseException:
+                if cluster is not None:
+                    cluster.close()
+                raise
+    return cluster
+
+
+def _ignore_sigint():
+    """Run on a worker of the engine's own LocalCluster: leave Ctrl-C to the process that started it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token):
@@ -714,6 +742,7 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token)
             else:
                 cluster = local_cluster(n_workers)
                 own_client = Client(cluster)
+                own_client.run(_ignore_sigint)  # see local_cluster: Ctrl-C is the caller's
             client = own_client
         # keep a bounded number of blocks in flight (the shapes of each travel with its task)
         limit = max(64, 8 * max(1, sum(client.nthreads().values())))

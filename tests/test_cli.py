@@ -288,8 +288,21 @@ def test_a_degenerate_specimen_is_named(files, jobs):
     assert not out.exists(), line
 
 
-def test_distances_resume_after_interrupt_through_the_store(files):
-    """Fault injection with the real CLI: SIGINT mid-run, rerun with the same store, same matrix."""
+def _spawned():
+    import psutil
+
+    out = set()
+    for p in psutil.process_iter(["pid", "cmdline"]):
+        if "spawn_main" in " ".join(p.info["cmdline"] or []):
+            out.add(p.info["pid"])
+    return out
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_distances_resume_after_interrupt_through_the_store(files, jobs):
+    """Fault injection with the real CLI: Ctrl-C mid-run, rerun with the same store, same matrix.
+    With --jobs 2 the SIGINT goes to the whole process group, workers included, as a terminal
+    sends it: still one line, no worker traceback, no process left behind."""
     import signal
     import time
 
@@ -309,9 +322,10 @@ def test_distances_resume_after_interrupt_through_the_store(files):
     for attempt in range(3):  # the signal must land between the first and the last block
         store = files["dir"] / f"alpha{attempt}.zarr"
         args = ["distances", al, "--negative-coordinates", "--metric", "alpha", "--sigma2", 0.5, "--param",
-                "n_steps=6", "--jobs", 1, "--block-size", 1, "--store", store, "-o", out]
+                "n_steps=6", "--jobs", jobs, "--block-size", 1, "--store", store, "-o", out]
+        before = _spawned()
         proc = subprocess.Popen([sys.executable, "-m", "shapelib", *map(str, args)], env=env, text=True,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
         deadline = time.monotonic() + 120
         n_done = 0
         while time.monotonic() < deadline and proc.poll() is None:
@@ -321,7 +335,10 @@ def test_distances_resume_after_interrupt_through_the_store(files):
             except (ValueError, OSError):
                 continue
             if n_done >= 2:
-                proc.send_signal(signal.SIGINT)
+                if jobs == 1:
+                    proc.send_signal(signal.SIGINT)
+                else:
+                    os.killpg(proc.pid, signal.SIGINT)  # its own session: the group is the run's
                 break
         _, err = proc.communicate(timeout=60)
         if not out.exists():
@@ -330,7 +347,10 @@ def test_distances_resume_after_interrupt_through_the_store(files):
     else:
         pytest.fail("the run finished before it could be interrupted, three times")
     assert proc.returncode == 130 and "shapelib: interrupted" in err and "Traceback" not in err, (proc.returncode, err)
+    assert "KeyboardInterrupt" not in err and "CancelledError" not in err, err  # nothing from the workers
     assert not out.exists()  # no half-written matrix
+    time.sleep(0.5)
+    assert not (_spawned() - before), "worker processes left behind"
     partial = open_store(store)
     assert not partial.complete and 2 <= partial.computed[off].sum() < n * (n - 1)
     proc = run(*args, check=0)
