@@ -35,6 +35,22 @@ from .warp import extrinsic_warp
 
 __version__ = "0.1.0"
 
+#: modules above the mathematics, imported on first use (``shapelib.io.read_landmarks(...)`` works
+#: after ``import shapelib``, which itself imports neither pandas' IO nor Dask nor zarr)
+_LAZY_SUBMODULES = ("io", "pairwise", "stats", "datasets", "study", "report", "plotting", "cli")
+
+
+def __getattr__(name):
+    if name in _LAZY_SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY_SUBMODULES))
+
 __all__ = [
     "alpha_metric",
     "alpha_quadratic_form",

@@ -1,4 +1,4 @@
-"""environment.yml (conda) and pyproject.toml (pip) list the same packages."""
+"""The environment: environment.yml (conda) and pyproject.toml (pip) list the same packages; what `import shapelib` loads."""
 import re
 import tomllib
 
@@ -23,3 +23,22 @@ def test_environment_yml_in_sync_with_pyproject():
             conda_names.add(_name(m.group(1)))
     conda_names -= {"python", "pip"}  # conda-only conveniences
     assert pip_names == conda_names
+
+
+def test_import_shapelib_is_light_and_its_other_modules_load_on_use():
+    """`import shapelib` brings the mathematics only (the math never imports IO or Dask); the
+    README's `shapelib.io.read_landmarks(...)` and `shapelib.pairwise.open_store(...)` work after
+    it, loading those modules on first use."""
+    import subprocess
+    import sys
+
+    code = ("import sys, shapelib\n"
+            "heavy = [m for m in ('dask', 'distributed', 'zarr', 'shapelib.io', 'shapelib.pairwise', 'shapelib.stats')"
+            " if m in sys.modules]\n"
+            "assert not heavy, heavy\n"
+            "assert callable(shapelib.io.read_landmarks) and callable(shapelib.pairwise.open_store)\n"
+            "assert callable(shapelib.stats.permanova) and 'io' in dir(shapelib)\n"
+            "try:\n    shapelib.no_such_thing\nexcept AttributeError as e:\n    print(e)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "has no attribute 'no_such_thing'" in proc.stdout
