@@ -232,9 +232,11 @@ def cmd_distances(args) -> int:
     if args.store and Path(args.store).exists() and not Path(args.store).is_dir():
         raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
     try:
-        result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
-                                    store=args.store, block_size=args.block_size, progress=not args.no_progress,
-                                    rtol=args.rtol, return_result=True, **params)
+        with warnings.catch_warnings():  # printed below with the specimens' ids instead
+            warnings.filterwarnings("ignore", message=r".* pairs did not converge")
+            result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
+                                        store=args.store, block_size=args.block_size, progress=not args.no_progress,
+                                        rtol=args.rtol, return_result=True, **params)
     except PairError as exc:  # name the specimens, as every other input error does
         note = " (the metric counts landmarks from 0)" if re.search(r"landmarks? \d", exc.reason) else ""
         raise CLIError(f"{args.file}: specimens {ids[exc.i]!r} (#{exc.i + 1}) and {ids[exc.j]!r} (#{exc.j + 1}), "

@@ -62,7 +62,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import as_shapes, check_positive_int
+from ._validate import as_shapes, check_positive_int, check_scale
 from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record
 
 __all__ = ["PairwiseResult", "PairError", "compute_pairwise", "open_store", "compute_block", "block_pairs",
@@ -223,14 +223,17 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol,
     ``xi``, ``xj`` are the block's row and column shapes, starting at rows/columns ``offset`` of
     the matrix (used to name a pair in a :class:`PairError`). On a diagonal block only the pairs
     ``i ≠ j`` are computed (``i < j``, then mirrored, for symmetric metrics) and the diagonal is
-    zero. Solver warnings are not emitted: convergence is recorded per pair instead.
+    zero. Solver warnings are not emitted: convergence is recorded per pair instead; nor are
+    scale warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     from .geodesic import GeodesicWarning
+    from .scale import ScaleWarning
 
     bi, bj = len(xi), len(xj)
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
     with _one_blas_thread(), warnings.catch_warnings():
         warnings.simplefilter("ignore", GeodesicWarning)
+        warnings.simplefilter("ignore", ScaleWarning)  # compute_pairwise warned once for all shapes
         for a in range(bi):
             for b in range(bj):
                 if diagonal and (a == b or (symmetric and b < a)):
@@ -521,10 +524,12 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
     first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
     the calls took under ``budget`` seconds, and the fastest call counts."""
     from .geodesic import GeodesicWarning
+    from .scale import ScaleWarning
 
     times = []
     with _one_blas_thread(), warnings.catch_warnings():
         warnings.simplefilter("ignore", GeodesicWarning)
+        warnings.simplefilter("ignore", ScaleWarning)
         # a pair far above TASK_SECONDS gets a block of its own either way: no second call
         while not times or (len(times) < 2 and times[0] < 10 * TASK_SECONDS) or (
                 len(times) < 3 and sum(times) < budget):
@@ -560,9 +565,13 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     """
     from . import __version__
 
+    from .geodesic import METRICS as SCALED_METRICS
+
     check_metric_params(metric, params, rtol=rtol)
     x = as_shapes(shapes, name="shapes")
     n, k, d = x.shape
+    if metric in SCALED_METRICS and "sigma2" in params:  # once for all the shapes, not once per pair
+        check_scale(x, params["sigma2"], stacklevel=4)
     symmetric = metric in SYMMETRIC
     if client is not None and scheduler is not None:
         raise ValueError("give client or scheduler, not both")

@@ -274,6 +274,17 @@ def test_distances_labelled_matrix_equals_the_library(files):
                    "-o", "d.txt", ".csv")
 
 
+def test_a_scale_problem_is_one_warning_for_the_whole_file(files):
+    # raw pixel coordinates with sigma2 = 0.5: sigma is far below the landmark spacing
+    out = files["dir"] / "raw.csv"
+    proc = run("distances", files["tps"], "--metric", "alpha", "--sigma2", 0.5, "--param", "n_steps=2", "--param",
+               "max_iter=2", "--jobs", 1, "--no-progress", "-o", out, check=0)
+    lines = proc.stderr.splitlines()
+    assert sum("shapelib: warning: sigma = 0.707" in ln for ln in lines) == 1, proc.stderr
+    assert not any("nonconverged_pairs()" in ln for ln in lines), proc.stderr  # the library's hint, not the CLI's
+    assert all(ln.startswith("shapelib: warning:") for ln in lines), proc.stderr
+
+
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_a_degenerate_specimen_is_named(files, jobs):
     # sp_c's landmarks 5 and 6 coincide: the spline metrics cannot use it as the source (u)
