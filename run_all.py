@@ -713,9 +713,12 @@ def main(argv=None) -> int:
             parser.error(str(exc))
         return 0
     if args.list:
+        print("parameters as a full run passes them to each notebook (--quick's values in brackets):")
         for name in NOTEBOOKS:
-            declared = declared_parameters(name)
-            print(name + "  " + " ".join(f"{k}={v!s}" for k, v in declared.items() if k != "output_dir"))
+            full = {**declared_parameters(name), **notebook_parameters(name, quick=False)}
+            quick = {**full, **notebook_parameters(name, quick=True)}
+            print(name + "  " + " ".join(f"{k}={v!s}" + (f" [{quick[k]!s}]" if quick[k] != v else "")
+                                         for k, v in full.items() if k != "output_dir"))
         return 0
     names = list(NOTEBOOKS)
     if args.only:

@@ -393,3 +393,11 @@ def test_papermill_reads_every_declared_parameter(name):
     nb = jupytext.read(run_all.NOTEBOOK_DIR / f"{name}.py")
     (cell,) = [c for c in nb.cells if "parameters" in c.metadata.get("tags", [])]
     assert [p.name for p in PythonTranslator.inspect(cell)] == list(run_all.declared_parameters(name))
+
+
+def test_list_shows_what_a_full_and_a_quick_run_pass(toy, capsys, monkeypatch):
+    # the toy notebook declares value = 1.0; the registry passes 2.0, and 3.0 with --quick
+    monkeypatch.setattr(run_all, "NOTEBOOKS", {"toy": run_all.NOTEBOOKS["toy"]})
+    assert run_all.main(["--list"]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("toy "))
+    assert "value=2.0 [3.0]" in line and "sleep=0.0" in line and "sleep=0.0 [" not in line
