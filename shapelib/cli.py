@@ -106,6 +106,8 @@ def _metric_params(args):
     try:
         check_metric_params(args.metric, params, rtol=getattr(args, "rtol", None))
     except ValueError as exc:
+        if re.search(r"needs (.*, )?sigma2=\.\.\.", str(exc)):  # the library names its keyword, we the option
+            raise CLIError(f"--metric {args.metric} needs --sigma2 (σ² of the Gaussian mixture, eq. 5)") from None
         raise CLIError(f"--metric {args.metric}: {exc}") from None
     return params
 
@@ -203,7 +205,7 @@ def cmd_align(args) -> int:
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*negative.*", category=UserWarning)
         io.write_landmarks(out, aligned, spec, **kw)
-    print(f"aligned {len(aligned)} specimens (generalized Procrustes, {'full' if args.scaling else 'unit-size'} "
+    print(f"aligned {len(aligned)} specimen{'s' if len(aligned) != 1 else ''} (generalized Procrustes, {'full' if args.scaling else 'unit-size'} "
           f"scaling, centroid size {args.size or 1:g}) -> {out}")
     if fmt == "tps":
         print(f"note: aligned coordinates are centred, so some are negative; tpsDig reads negative values as "
@@ -219,6 +221,8 @@ def cmd_distances(args) -> int:
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     diag = _output_path(args.pairs, suffixes=(".csv",), option="--pairs") if args.pairs else None
+    if diag is not None and diag.resolve() == out.resolve():
+        raise CLIError(f"--pairs {args.pairs}: the same file as -o; give the pair table its own name")
     params = _metric_params(args)
     if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
         raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")

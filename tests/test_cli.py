@@ -272,6 +272,10 @@ def test_distances_labelled_matrix_equals_the_library(files):
                    "--param 'n_steps': expected NAME=VALUE, e.g. --param n_steps=16")
     one_line_error(run("distances", files["tps"], "--metric", "procrustes", "-o", files["dir"] / "d.txt"),
                    "-o", "d.txt", ".csv")
+    one_line_error(run("distances", files["tps"], "--metric", "fisher_rao_bound", "-o", out),
+                   "--metric fisher_rao_bound needs --sigma2")
+    one_line_error(run("distances", files["tps"], "--metric", "procrustes", "-o", out, "--pairs", out),
+                   "--pairs", "the same file as -o")
 
 
 def test_a_scale_problem_is_one_warning_for_the_whole_file(files):
