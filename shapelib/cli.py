@@ -53,7 +53,22 @@ def _read(args, *, missing="error"):
         kw["layout"] = "pkn"
     elif args.pkn:
         raise CLIError(f"--pkn applies to .npy/.npz files only; {args.file} is {fmt}")
-    return io.read_landmarks(args.file, **kw)
+    try:
+        return io.read_landmarks(args.file, **kw)
+    except ValueError as exc:
+        raise CLIError(_cli_advice(str(exc), negative_read_as_missing=fmt == "tps" and not args.negative_coordinates)
+                       ) from None
+
+
+def _cli_advice(message: str, *, negative_read_as_missing: bool) -> str:
+    """The readers' advice names Python keywords; say it with the command line's options."""
+    missing = re.search(r"; pass missing='nan' to keep (them as NaN|it).*$", message)
+    if missing:
+        message = message[:missing.start()] + "; estimate or drop the missing landmarks first"
+        if negative_read_as_missing and "negative" in message:
+            message += " (or, if negative values are coordinates, e.g. aligned shapes, add --negative-coordinates)"
+    return (message.replace("scale=True", "--scale")
+            .replace("convert it with shapelib.io.from_pkn", "read it with --pkn"))
 
 
 def _output_path(path, *, suffixes, option):

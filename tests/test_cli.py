@@ -278,6 +278,22 @@ def test_distances_labelled_matrix_equals_the_library(files):
                    "--pairs", "the same file as -o")
 
 
+def test_reader_advice_names_the_command_line_options(files):
+    al = files["dir"] / "al.tps"
+    run("align", files["tps"], "-o", al, "--size", 20, check=0)
+    out = files["dir"] / "d.csv"
+    line = one_line_error(run("distances", al, "--metric", "procrustes", "-o", out),
+                          "is missing", "estimate or drop the missing landmarks first", "add --negative-coordinates")
+    assert "missing='nan'" not in line
+    plain = files["dir"] / "plain.tps"
+    plain.write_text(files["tps"].read_text().replace("SCALE=0.01\n", ""))
+    one_line_error(run("info", "--scale", plain), "--scale but specimen #1")
+    pkn = files["dir"] / "pkn.npy"
+    np.save(pkn, np.transpose(files["x"], (1, 2, 0)))  # geomorph's p x k x n
+    line = one_line_error(run("info", pkn), "read it with --pkn")
+    assert "from_pkn" not in line
+
+
 def test_a_scale_problem_is_one_warning_for_the_whole_file(files):
     # raw pixel coordinates with sigma2 = 0.5: sigma is far below the landmark spacing
     out = files["dir"] / "raw.csv"
