@@ -589,8 +589,10 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
     """
     n = check_positive_int(n_steps, name="n_steps")
     window = check_positive_int(window, name="window")
-    if int(max_iter) != max_iter or max_iter < 0:
-        raise ValueError(f"max_iter must be a non-negative integer; got {max_iter!r}")
+    try:  # 0: evaluate the start only
+        max_iter = 0 if max_iter == 0 and not isinstance(max_iter, bool) else check_positive_int(max_iter, name="")
+    except ValueError:
+        raise ValueError(f"max_iter must be a non-negative integer; got {max_iter!r}") from None
     tol = check_positive(tol, name="tol")
     if hessian not in (None, "exact", "model"):
         raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")

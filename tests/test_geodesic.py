@@ -125,6 +125,9 @@ def test_errors(pair):
         geodesic(u, v, metric="euclid", sigma2=1.0)
     with pytest.raises(ValueError, match="n_steps"):
         geodesic(u, v, sigma2=1.0, n_steps=0)
+    for bad in (True, -1, 2.5, "3", None):
+        with pytest.raises(ValueError, match=r"max_iter must be a non-negative integer; got"):
+            geodesic(u, v, sigma2=1.0, max_iter=bad)
     with pytest.raises(ValueError, match="sigma2"):
         geodesic(u, v, sigma2=-1.0)
     with pytest.raises(ValueError, match="same number of landmarks"):
