@@ -3,14 +3,27 @@
 Hausdorff (paper ref. [41])
     ``H(u, v) = max(h(u, v), h(v, u))``, ``h(u, v) = max_a min_b |u_a − v_b|``.
 
-Thin-plate spline bending energy (Bookstein 1989, paper ref. [5])
-    The TPS ``f`` with ``f(u_a) = v_a`` minimises ``∫ (f_xx² + 2 f_xy² + f_yy²)`` (per coordinate).
+Thin-plate spline bending energy (2-D: Bookstein 1989, paper ref. [5]; 3-D: biharmonic Green's function)
+    The TPS ``f`` with ``f(u_a) = v_a`` minimises ``∫ Σ_ij (∂_i∂_j f)²`` over ``R^d`` (per
+    coordinate; in 2-D ``∫ (f_xx² + 2 f_xy² + f_yy²)``). It is ``f(x) = Σ_a w_a U(|x − u_a|)`` plus
+    an affine part, with ``U`` the fundamental solution of the biharmonic operator ``Δ²`` in
+    ``R^d`` (up to a positive constant): ``U(r) = r² log r²`` in 2-D (Bookstein's form) and
+    ``U(r) = −r`` in 3-D (``Δ²(−r) = 8π δ`` there).
     With the kernel matrix ``K_ab = U(|u_a − u_b|)``, ``P = [1, u]`` and
-    ``L = [[K, P], [Pᵀ, 0]]``, let ``B`` be the upper-left K×K block of ``L⁻¹``. The bending
-    energy is ``tr(Dᵀ B D)`` with ``D = v − u`` the displacements (equal to ``tr(vᵀ B v)``,
-    since ``B`` annihilates affine maps). For ``U(r) = r² log r`` the integral above equals
-    ``8π tr(DᵀBD)``; for ``U(r) = r² log r²`` (the default, Bookstein's form) ``16π tr(DᵀBD)``
-    holds with the B of that kernel. It is affine invariant in the target and not symmetric.
+    ``L = [[K, P], [Pᵀ, 0]]``, let ``B`` be the upper-left K×K block of ``L⁻¹`` (positive
+    semidefinite, null space the affine functions of ``u``). The bending energy is
+    ``tr(Dᵀ B D)`` with ``D = v − u`` the displacements (equal to ``tr(vᵀ B v)``, since ``B``
+    annihilates affine maps).
+
+    * 2-D (default kernel ``"r2logr2"``): for ``U(r) = r² log r`` the integral above equals
+      ``8π tr(DᵀBD)``; for ``U(r) = r² log r²`` ``16π tr(DᵀBD)`` holds with the B of that
+      kernel. The energy is scale invariant: scaling ``u`` and ``v`` by ``s`` leaves it unchanged.
+    * 3-D (default kernel ``"r"``, ``U(r) = −r``): the integral equals ``8π tr(DᵀBD)``
+      (checked by an independent quadrature of the interpolant's second derivatives in the
+      tests). The energy scales linearly with size: scaling ``u`` and ``v`` by ``s``
+      multiplies it by ``s``.
+
+    It is affine invariant in the target and not symmetric.
 
 Wendland spline bending energy (Fornefett, Rohr & Stiehl 2001, paper ref. [42])
     Same construction with the compactly supported, positive-definite Wendland function
@@ -44,15 +57,50 @@ def hausdorff_distance(u, v) -> float:
     return float(max(d.min(axis=1).max(), d.min(axis=0).max()))
 
 
+#: Radial functions accepted by :func:`tps_kernel` (``kernel=``).
+_TPS_KERNELS = ("r2logr2", "r2logr", "r")
+
+#: Default TPS kernel per dimension (``kernel=None``): the biharmonic fundamental solution.
+_DEFAULT_KERNEL = {2: "r2logr2", 3: "r"}
+
+
 def tps_kernel(r: np.ndarray, *, kernel: str = "r2logr2") -> np.ndarray:
-    """TPS radial function: ``r² log r²`` (``"r2logr2"``) or ``r² log r`` (``"r2logr"``), 0 at r = 0."""
-    if kernel not in ("r2logr2", "r2logr"):
-        raise ValueError(f"kernel must be 'r2logr2' or 'r2logr'; got {kernel!r}")
+    """Thin-plate spline radial function ``U(r)``.
+
+    Parameters
+    ----------
+    r : array_like
+        Distances (>= 0).
+    kernel : {"r2logr2", "r2logr", "r"}
+        ``"r2logr2"``: ``r² log r²`` (2-D, Bookstein's form; 0 at r = 0); ``"r2logr"``:
+        ``r² log r`` (2-D; 0 at r = 0); ``"r"``: ``−r`` (3-D).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``U(r)``, float64, same shape as ``r``.
+    """
+    if kernel not in _TPS_KERNELS:
+        raise ValueError(f"kernel must be one of {', '.join(repr(k) for k in _TPS_KERNELS)}; got {kernel!r}")
     r = np.asarray(r, dtype=np.float64)
+    if kernel == "r":
+        return -r
     out = np.zeros_like(r)
     pos = r > 0
     out[pos] = r[pos] ** 2 * np.log(r[pos] ** (2 if kernel == "r2logr2" else 1))
     return out
+
+
+def _default_kernel(kernel, d: int) -> str:
+    if kernel is not None:
+        return kernel
+    try:
+        return _DEFAULT_KERNEL[d]
+    except KeyError:
+        raise ValueError(
+            f"no default thin-plate kernel for {d}-D landmarks (defaults: 'r2logr2' in 2-D, 'r' in 3-D); "
+            f"pass kernel= one of {', '.join(repr(k) for k in _TPS_KERNELS)}"
+        ) from None
 
 
 def _bending_matrix(kmat: np.ndarray, u: np.ndarray, affine: bool) -> np.ndarray:
@@ -67,7 +115,8 @@ def _bending_matrix(kmat: np.ndarray, u: np.ndarray, affine: bool) -> np.ndarray
     try:
         inv = np.linalg.inv(lmat)
     except np.linalg.LinAlgError:
-        raise ValueError("the landmarks are degenerate (collinear or coincident): the spline system is singular") from None
+        raise ValueError("the landmarks are degenerate (collinear in 2-D, coplanar in 3-D, or coincident): "
+                         "the spline system is singular") from None
     return inv[:k, :k]
 
 
@@ -79,9 +128,25 @@ def _check_distinct(u, name="u"):
         raise ValueError(f"{name} has coincident landmarks {i} and {j}: a spline cannot interpolate them")
 
 
-def tps_bending_matrix(u, *, kernel: str = "r2logr2") -> np.ndarray:
-    """Bookstein's bending-energy matrix ``B`` (upper-left K×K block of ``L⁻¹``) of the landmarks ``u``."""
+def tps_bending_matrix(u, *, kernel: str | None = None) -> np.ndarray:
+    """Bookstein's bending-energy matrix ``B`` (upper-left K×K block of ``L⁻¹``) of the landmarks ``u``.
+
+    Parameters
+    ----------
+    u : array_like, shape (K, d)
+        Landmarks (K >= d + 1, distinct, not all on one hyperplane).
+    kernel : {"r2logr2", "r2logr", "r"}, optional
+        Radial function (see :func:`tps_kernel`). Default: the thin-plate kernel of the
+        dimension, ``"r2logr2"`` for d = 2 and ``"r"`` (``U(r) = −r``) for d = 3; other
+        dimensions need an explicit kernel.
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, K)
+        Symmetric positive semidefinite; annihilates affine functions of ``u``.
+    """
     u = as_shape(u, name="u")
+    kernel = _default_kernel(kernel, u.shape[1])
     _check_affine_count(u)
     _check_distinct(u)
     return _bending_matrix(tps_kernel(cdist(u, u), kernel=kernel), u, True)
@@ -93,14 +158,24 @@ def _check_affine_count(u):
         raise ValueError(f"an affine part in {d} dimensions needs at least {d + 1} landmarks; got shape {u.shape}")
 
 
-def tps_bending_energy(u, v, *, kernel: str = "r2logr2") -> float:
+def tps_bending_energy(u, v, *, kernel: str | None = None) -> float:
     """Thin-plate spline bending energy ``tr(Dᵀ B D)`` of the map taking ``u`` onto ``v`` (see module doc).
 
     Parameters
     ----------
-    u, v : array_like, shape (K, 2)
-        Source and target landmarks (K >= 3, not collinear).
-    kernel : {"r2logr2", "r2logr"}
+    u, v : array_like, shape (K, d)
+        Source and target landmarks, d = 2 or 3 with the default kernel (K >= d + 1,
+        distinct, not all on one line in 2-D or one plane in 3-D).
+    kernel : {"r2logr2", "r2logr", "r"}, optional
+        Radial function (see :func:`tps_kernel`). Default: ``"r2logr2"`` for d = 2 (scale
+        invariant energy) and ``"r"`` (``U(r) = −r``) for d = 3 (energy linear in size);
+        other dimensions need an explicit kernel.
+
+    Returns
+    -------
+    float
+        The bending energy; ``∫ Σ_ij (∂_i∂_j f)²`` of the interpolant is ``16π`` times it
+        for ``"r2logr2"`` (2-D) and ``8π`` times it for ``"r2logr"`` (2-D) and ``"r"`` (3-D).
     """
     u, v = as_shape_pair(u, v)
     b = tps_bending_matrix(u, kernel=kernel)

@@ -75,8 +75,11 @@ def test_kernels():
     assert tps_kernel(np.array([2.0]))[0] == pytest.approx(4 * np.log(4))
     assert tps_kernel(np.array([2.0]), kernel="r2logr")[0] == pytest.approx(4 * np.log(2))
     assert wendland_psi31(np.array([0.0, 1.0, 2.0])).tolist() == [1.0, 0.0, 0.0]
-    with pytest.raises(ValueError, match="kernel"):
+    assert tps_kernel(np.array([0.0, 2.0]), kernel="r").tolist() == [0.0, -2.0]
+    with pytest.raises(ValueError, match="'r2logr2', 'r2logr', 'r'; got 'gauss'"):
         tps_kernel(np.array([1.0]), kernel="gauss")
+    with pytest.raises(ValueError, match="'r2logr2', 'r2logr', 'r'; got 'gauss'"):
+        tps_bending_energy(np.eye(4, 3), np.eye(4, 3), kernel="gauss")
 
 
 def test_errors():
@@ -89,3 +92,134 @@ def test_errors():
         tps_bending_energy(np.array([[0.0, 0], [1, 0], [2, 0], [3, 0]]), np.zeros((4, 2)))
     with pytest.raises(ValueError, match="support"):
         wendland_bending_energy(np.eye(3, 2), np.eye(3, 2), support=0)
+
+
+# --- 3-D thin-plate spline: kernel U(r) = −r ------------------------------------------------
+
+
+@pytest.fixture
+def pair3(rng):
+    u = rng.normal(size=(10, 3))
+    return u, u + 0.15 * rng.normal(size=u.shape)
+
+
+def test_3d_default_kernel_is_minus_r(pair3):
+    u, v = pair3
+    e = tps_bending_energy(u, v)
+    assert e == tps_bending_energy(u, v, kernel="r")
+    assert np.array_equal(tps_bending_matrix(u), tps_bending_matrix(u, kernel="r"))
+    assert e != pytest.approx(tps_bending_energy(u, v, kernel="r2logr2"), rel=1e-3)
+    assert e > 0
+
+
+def test_2d_default_kernel_unchanged(pair):
+    u, v = pair
+    assert tps_bending_energy(u, v) == tps_bending_energy(u, v, kernel="r2logr2")
+    assert np.array_equal(tps_bending_matrix(u), tps_bending_matrix(u, kernel="r2logr2"))
+    assert tps_bending_energy(u, v) != pytest.approx(tps_bending_energy(u, v, kernel="r"), rel=1e-3)
+
+
+def test_no_default_kernel_outside_2d_and_3d(rng):
+    u = rng.normal(size=(8, 4))
+    v = u + 0.1 * rng.normal(size=u.shape)
+    with pytest.raises(ValueError, match="no default thin-plate kernel for 4-D"):
+        tps_bending_energy(u, v)
+    assert tps_bending_energy(u, v, kernel="r") > 0  # an explicit kernel is still honoured
+
+
+@pytest.mark.parametrize("energy", [tps_bending_energy, wendland_bending_energy])
+def test_3d_bending_energy_vanishes_on_affine_maps(pair3, rng, energy):
+    u, _ = pair3
+    a = rng.normal(size=(3, 3))
+    v = u @ a.T + rng.normal(size=3)
+    assert abs(energy(u, v)) < 1e-10 * np.sum((v - u) ** 2)
+    assert energy(u, v + 0.1 * rng.normal(size=u.shape)) > 1e-3  # ... but not on non-affine ones
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_bending_matrix_is_positive_semidefinite_with_affine_null_space(rng, d):
+    for k in (d + 2, 7, 15, 30):
+        for spread in (0.01, 1.0, 100.0):
+            u = spread * rng.normal(size=(k, d))
+            b = tps_bending_matrix(u)
+            assert np.allclose(b, b.T, atol=1e-12 * np.abs(b).max())
+            eig = np.linalg.eigvalsh(b)
+            assert eig[0] >= -1e-10 * eig[-1], (k, spread, eig[:d + 2])
+            # exactly d + 1 null directions (the affine functions of u), the rest positive
+            assert np.sum(eig > 1e-10 * eig[-1]) == k - d - 1
+            assert np.allclose(b @ np.hstack([np.ones((k, 1)), u]), 0, atol=1e-9 * eig[-1] * max(spread, 1))
+
+
+def test_bending_energy_scaling_3d_linear_2d_invariant(pair, pair3):
+    for (u, v), power in ((pair, 0), (pair3, 1)):
+        e = tps_bending_energy(u, v)
+        for s in (0.01, 0.5, 3.0, 250.0):
+            assert tps_bending_energy(s * u, s * v) == pytest.approx(s**power * e, rel=1e-8)
+    u, v = pair3  # the 2-D kernel in 3-D would not scale linearly (log term)
+    ratio = tps_bending_energy(3 * u, 3 * v, kernel="r2logr2") / tps_bending_energy(u, v, kernel="r2logr2")
+    assert ratio != pytest.approx(3.0, rel=1e-3)
+
+
+def test_3d_tps_bending_energy_equals_8pi_times_the_integral_of_second_derivatives(rng):
+    """∫ Σ_ij (∂_i∂_j f)² over R³ = 8π tr(DᵀBD) for U = −r (independent quadrature).
+
+    The interpolant is f(x) = Σ_a w_a U(|x − u_a|) + affine with w = B D (checked to
+    interpolate). Its Hessian is Σ_a w_a H_a, H_a = −(I − n nᵀ)/r_a (n, r_a: direction and
+    distance from u_a): singular like 1/r at the landmarks, decaying like r⁻³ far away (the side
+    conditions cancel the monopole and dipole terms). The integral is split with the partition
+    of unity φ_a = r_a⁻⁴ / Σ_b r_b⁻⁴ and each ∫ φ_a F is done in spherical coordinates centred on
+    u_a (the r² Jacobian removes the 1/r² singularity; φ_a damps the other landmarks'), with
+    Gauss–Legendre in r = t/(1 − t) on t ∈ (0, 1) (all of R³, no truncation), in cos θ, and the
+    midpoint rule in φ.
+    """
+    k = 6
+    u = rng.uniform(-1, 1, size=(k, 3))
+    v = u + 0.2 * rng.normal(size=u.shape)
+    dsp = v - u
+    b = tps_bending_matrix(u)
+    w = b @ dsp
+    # w are the interpolant's kernel weights: v − u − K w is affine in u and Pᵀ w = 0
+    p = np.hstack([np.ones((k, 1)), u])
+    resid = dsp - tps_kernel(np.linalg.norm(u[:, None] - u, axis=-1), kernel="r") @ w
+    coef = np.linalg.lstsq(p, resid, rcond=None)[0]
+    assert np.allclose(p @ coef, resid, atol=1e-10)
+    assert np.allclose(p.T @ w, 0, atol=1e-10)
+
+    def integrand(x):  # Σ_coord Σ_ij (∂_i∂_j f_coord)², x of shape (..., 3)
+        hess = 0.0
+        for ua, wa in zip(u, w):
+            d = x - ua
+            r = np.linalg.norm(d, axis=-1)[..., None, None]
+            n = d[..., :, None] * d[..., None, :] / r**2
+            ha = -(np.eye(3) - n) / r
+            hess = hess + wa[:, None, None] * ha[..., None, :, :]
+        return np.sum(hess**2, axis=(-3, -2, -1))
+
+    nr, nt, nphi = 48, 32, 64
+    t, wt = np.polynomial.legendre.leggauss(nr)
+    t, wt = (t + 1) / 2, wt / 2
+    r = t / (1 - t)
+    wr = wt / (1 - t) ** 2 * r**2
+    ct, wct = np.polynomial.legendre.leggauss(nt)
+    phi = (np.arange(nphi) + 0.5) * 2 * np.pi / nphi
+    st = np.sqrt(1 - ct**2)
+    dirs = np.stack([st[:, None] * np.cos(phi), st[:, None] * np.sin(phi), np.repeat(ct[:, None], nphi, 1)], -1)
+    weights = wr[:, None, None] * wct[None, :, None] * (2 * np.pi / nphi)
+    total = 0.0
+    for a in range(k):
+        x = u[a] + r[:, None, None, None] * dirs  # (nr, nt, nphi, 3)
+        g = np.linalg.norm(x[..., None, :] - u, axis=-1) ** -4.0
+        total += np.sum(weights * g[..., a] / g.sum(-1) * integrand(x))
+    assert total == pytest.approx(8 * np.pi * tps_bending_energy(u, v), rel=1e-4)
+    # the energy of the other sign convention/kernel is not what the integral measures
+    assert total != pytest.approx(8 * np.pi * tps_bending_energy(u, v, kernel="r2logr2"), rel=1e-2)
+
+
+def test_wendland_unchanged_in_3d(pair3):
+    """The Wendland energy is still ψ₃,₁ with the diameter as support (no TPS kernel involved)."""
+    u, v = pair3
+    dist = np.linalg.norm(u[:, None] - u, axis=-1)
+    kmat = wendland_psi31(dist / dist.max())
+    dsp = v - u
+    assert wendland_bending_energy(u, v, affine=False) == pytest.approx(np.trace(dsp.T @ np.linalg.solve(kmat, dsp)), rel=1e-10)
+    assert wendland_bending_energy(u, v) != pytest.approx(tps_bending_energy(u, v), rel=1e-3)
