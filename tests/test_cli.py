@@ -319,16 +319,6 @@ def test_a_degenerate_specimen_is_named(files, jobs):
     assert not out.exists(), line
 
 
-def _spawned():
-    import psutil
-
-    out = set()
-    for p in psutil.process_iter(["pid", "cmdline"]):
-        if "spawn_main" in " ".join(p.info["cmdline"] or []):
-            out.add(p.info["pid"])
-    return out
-
-
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_distances_resume_after_interrupt_through_the_store(files, jobs):
     """Fault injection with the real CLI: Ctrl-C mid-run, rerun with the same store, same matrix.
@@ -336,6 +326,8 @@ def test_distances_resume_after_interrupt_through_the_store(files, jobs):
     sends it: still one line, no worker traceback, no process left behind."""
     import signal
     import time
+
+    import psutil
 
     from shapelib.io import write_landmarks
     from shapelib.pairwise import open_store
@@ -354,7 +346,6 @@ def test_distances_resume_after_interrupt_through_the_store(files, jobs):
         store = files["dir"] / f"alpha{attempt}.zarr"
         args = ["distances", al, "--negative-coordinates", "--metric", "alpha", "--sigma2", 0.5, "--param",
                 "n_steps=6", "--jobs", jobs, "--block-size", 1, "--store", store, "-o", out]
-        before = _spawned()
         proc = subprocess.Popen([sys.executable, "-m", "shapelib", *map(str, args)], env=env, text=True,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
         deadline = time.monotonic() + 120
@@ -366,6 +357,7 @@ def test_distances_resume_after_interrupt_through_the_store(files, jobs):
             except (ValueError, OSError):
                 continue
             if n_done >= 2:
+                kids = psutil.Process(proc.pid).children(recursive=True)  # the run's worker processes
                 if jobs == 1:
                     proc.send_signal(signal.SIGINT)
                 else:
@@ -380,8 +372,9 @@ def test_distances_resume_after_interrupt_through_the_store(files, jobs):
     assert proc.returncode == 130 and "shapelib: interrupted" in err and "Traceback" not in err, (proc.returncode, err)
     assert "KeyboardInterrupt" not in err and "CancelledError" not in err, err  # nothing from the workers
     assert not out.exists()  # no half-written matrix
-    time.sleep(0.5)
-    assert not (_spawned() - before), "worker processes left behind"
+    assert jobs == 1 or kids, "the LocalCluster's workers should have been running"
+    _, alive = psutil.wait_procs(kids, timeout=15)
+    assert not alive, f"worker processes left behind: {alive}"
     partial = open_store(store)
     assert not partial.complete and 2 <= partial.computed[off].sum() < n * (n - 1)
     proc = run(*args, check=0)
