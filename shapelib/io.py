@@ -44,9 +44,12 @@ geomorph ``p × k × n`` arrays
 
 from __future__ import annotations
 
+import codecs
+import csv
 import math
 import re
 import warnings
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -102,8 +105,13 @@ def _report_missing(shapes, specimens, path, missing, hint="", lines=None):
             "(shapelib's distances do not accept NaN: estimate or drop them first)")
 
 
+class _NotFinite(ValueError):
+    """A number that is not finite (``inf``, ``-Infinity``, ``1e400``): numeric, but not a coordinate."""
+
+
 def _parse_number(token: str):
-    """float, or None for a missing-value token; raises ValueError for anything else."""
+    """float, or None for a missing-value token; raises :class:`_NotFinite` for an infinite
+    number (``inf``, or one that overflows, like ``1e400``) and ValueError for anything else."""
     t = token.strip()
     if t.lower() in _MISSING_TOKENS:
         return None
@@ -111,7 +119,7 @@ def _parse_number(token: str):
     if not math.isfinite(x):
         if math.isnan(x):
             return None
-        raise ValueError(token)
+        raise _NotFinite(token)
     return x
 
 
@@ -142,7 +150,8 @@ def _read_text(path) -> str:
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
-        text = raw.decode("latin-1")  # tpsDig on Windows writes the ANSI code page
+        # tpsDig on Windows writes the ANSI code page; a UTF-8 byte-order mark may still lead it
+        text = raw.removeprefix(codecs.BOM_UTF8).decode("latin-1")
     return text.replace("\r\n", "\n").replace("\r", "\n")
 
 
@@ -162,10 +171,12 @@ def _parse_tps(path):
         m = _KEY_LINE.match(s)
         if m is None:
             # a coordinate row
+            if cur is None:
+                raise ValueError(f"{path}: line {lineno}: coordinate row {s!r} appears before the first LM= line "
+                                 "(each specimen starts with LM=<number of landmarks>, or LM3= for 3-D)")
             if pending == 0:
-                where = cur.label() if cur else "before any LM= line"
-                raise ValueError(f"{path}: line {lineno}: unexpected data {s!r} in {where}: "
-                                 f"more coordinate rows than its {block or 'LM='} header declares")
+                raise ValueError(f"{path}: line {lineno}: unexpected data {s!r} in {cur.label()}: "
+                                 f"more coordinate rows than its {block} header declares")
             dim = cur.dim
             tokens = s.replace(",", " ").split()
             index = len(target) + 1
@@ -176,6 +187,9 @@ def _parse_tps(path):
             for t in tokens:
                 try:
                     values.append(_parse_number(t))
+                except _NotFinite:
+                    raise ValueError(f"{path}: line {lineno}, {cur.label()}, {block} point {index}: "
+                                     f"non-finite coordinate {t!r} (coordinates must be finite numbers)") from None
                 except ValueError:
                     raise ValueError(f"{path}: line {lineno}, {cur.label()}, {block} point {index}: "
                                      f"non-numeric coordinate {t!r}") from None
@@ -208,6 +222,9 @@ def _parse_tps(path):
                 curves_left = int(value.split()[0])
             except (ValueError, IndexError):
                 raise ValueError(f"{path}: line {lineno}: {key}= needs a count; got {value!r}") from None
+            if curves_left < 0:
+                raise ValueError(f"{path}: line {lineno}: {cur.label()}: {key}= needs a non-negative count; "
+                                 f"got {curves_left}")
             cur.meta.setdefault("CURVE_KIND", key)
         elif key == "POINTS":
             if curves_left <= 0:
@@ -217,6 +234,9 @@ def _parse_tps(path):
                 n = int(value.split()[0])
             except (ValueError, IndexError):
                 raise ValueError(f"{path}: line {lineno}: POINTS= needs a point count; got {value!r}") from None
+            if n < 0:
+                raise ValueError(f"{path}: line {lineno}: {cur.label()}: POINTS= needs a non-negative point count; "
+                                 f"got {n}")
             curves_left -= 1
             cur.curves.append([])
             pending, target, block = n, cur.curves[-1], f"curve {len(cur.curves)} (POINTS={n})"
@@ -504,6 +524,9 @@ def _csv_layout(columns) -> str:
 def _cell(value, path, line, specimen, landmark, column):
     try:
         return _parse_number(value)
+    except _NotFinite:
+        raise ValueError(f"{path}: line {line}, specimen {specimen!r}, landmark {landmark}: "
+                         f"non-finite value {value!r} in column {column!r} (coordinates must be finite numbers)") from None
     except ValueError:
         raise ValueError(f"{path}: line {line}, specimen {specimen!r}, landmark {landmark}: "
                          f"non-numeric value {value!r} in column {column!r}") from None
@@ -549,10 +572,20 @@ def read_csv(path, *, layout: str = "auto", missing: str = "error", id_column: s
     if df.empty:
         raise ValueError(f"{path}: no data rows under the header {list(df.columns)}")
     df.columns = [str(c).strip() for c in df.columns]
-    if len(set(df.columns)) != len(df.columns):
-        raise ValueError(f"{path}: duplicate column names {df.columns[df.columns.duplicated()].tolist()}")
     # line numbers in the file (header = line 1), ignoring blank lines as pandas does
-    data_lines = [i for i, ln in enumerate(text.split("\n"), start=1) if ln.strip()][1:]
+    nonblank = [i for i, ln in enumerate(text.split("\n"), start=1) if ln.strip()]
+    data_lines = nonblank[1:]
+    # pandas renames a repeated header (x2, x2 -> x2, x2.1), so look for repeats in the header as
+    # written; a column genuinely named x2.1 is not one. Blank names become "Unnamed: n" and lose nothing.
+    rest = text.split("\n", nonblank[0] - 1)[-1]      # from the header line on
+    header = next(csv.reader(_io.StringIO(rest), skipinitialspace=True), [])
+    names = [c.strip() for c in header if c.strip()]
+    repeated = [c for c, n in Counter(names).items() if n > 1]
+    if not repeated and len(set(df.columns)) != len(df.columns):
+        repeated = df.columns[df.columns.duplicated()].tolist()
+    if repeated:
+        raise ValueError(f"{path}: line {nonblank[0]}: duplicate column names {repeated} in the header "
+                         "(each column may appear once)")
     if layout == "auto":
         layout = _csv_layout(df.columns)
     if layout == "long":

@@ -114,6 +114,16 @@ def test_missing_landmarks_negative_or_na_name_file_specimen_and_landmark(tmp_pa
      r"bad\.tps: specimen #1 \(ID=0\) \(LM= at line 1\): SCALE='abc' is not a number"),
     (lambda t: t.replace("ID=1", "ID=1\nID=2"),
      r"bad\.tps: line 17: specimen #2 \(ID=1\) \(LM= at line 10\) has a second ID= line"),
+    (lambda t: "1 1\n2 2\n" + t,
+     r"bad\.tps: line 1: coordinate row '1 1' appears before the first LM= line"),
+    (lambda t: t.replace("IMAGE=fish_01.jpg", "CURVES=1\nPOINTS=-2\n3 3\n4 4\nIMAGE=fish_01.jpg", 1),
+     r"bad\.tps: line 7: specimen #1 \(LM= at line 1\): POINTS= needs a non-negative point count; got -2$"),
+    (lambda t: t.replace("IMAGE=fish_01.jpg", "CURVES=-1\nIMAGE=fish_01.jpg", 1),
+     r"bad\.tps: line 6: specimen #1 \(LM= at line 1\): CURVES= needs a non-negative count; got -1$"),
+    (lambda t: t.replace("398.50000 240.00000", "398.5 inf", 1),
+     r"bad\.tps: line 3, specimen #1 \(LM= at line 1\), LM=4 point 2: non-finite coordinate 'inf' \(coordinates must be finite numbers\)"),
+    (lambda t: t.replace("398.50000 240.00000", "1e400 240", 1),
+     r"bad\.tps: line 3, specimen #1 \(LM= at line 1\), LM=4 point 2: non-finite coordinate '1e400'"),
 ])
 def test_malformed_tps_names_file_line_specimen_and_landmark(tmp_path, mutate, pattern):
     p = _write(tmp_path / "bad.tps", mutate(TPSDIG))
@@ -263,11 +273,48 @@ def test_csv_long(tmp_path):
      r"bad\.csv: line 3: specimen 'A' has landmark '1' twice"),
     ("specimen,landmark,x,y\nA,1,0,0\nA,2,x,1\n",
      r"bad\.csv: line 3, specimen 'A', landmark 2: non-numeric value 'x' in column 'x'"),
+    # a repeated header: pandas renames the second copy x2.1/y2.1, which must not become metadata
+    ("id,x1,y1,x2,y2,x2,y2,x3,y3\nA,10,10,20,10,25,15,20,20\nB,11,10,21,11,26,16,20,21\n",
+     r"bad\.csv: line 1: duplicate column names \['x2', 'y2'\]"),
+    ("\nspecimen,snout_x,snout_y,tail_x,tail_y,snout_x,snout_y\nA,1,2,3,4,5,6\n",
+     r"bad\.csv: line 2: duplicate column names \['snout_x', 'snout_y'\]"),
+    ("specimen,landmark,x,y,y\nA,1,0,0,0\n",
+     r"bad\.csv: line 1: duplicate column names \['y'\]"),
+    ("id,x1,y1,x2,y2\nA,1,2,3,4\nB,1,2,inf,4\n",
+     r"bad\.csv: line 3, specimen 'B', landmark 2 \('2'\): non-finite value 'inf' in column 'x2' \(coordinates must be finite numbers\)"),
+    ("id,x1,y1,x2,y2\nA,1,2,3,4\nB,1,2,3,-1e400\n",
+     r"bad\.csv: line 3, specimen 'B', landmark 2 \('2'\): non-finite value '-1e400' in column 'y2'"),
+    ("specimen,landmark,x,y\nA,1,0,0\nA,2,-Infinity,1\n",
+     r"bad\.csv: line 3, specimen 'A', landmark 2: non-finite value '-Infinity' in column 'x'"),
 ])
 def test_malformed_csv(tmp_path, text, pattern):
     p = _write(tmp_path / "bad.csv", text)
     with pytest.raises(ValueError, match=pattern):
         io.read_landmarks(p)
+
+
+def test_csv_column_named_like_a_pandas_renamed_duplicate_is_metadata(tmp_path):
+    # no repeated header here: 'x2.1' is an ordinary metadata column, not a second copy of x2
+    _write(tmp_path / "m.csv", "id,x2.1,x1,y1,x2,y2,y2.1\nA,left,1,2,3,4,7\nB,right,5,6,7,8,9\n")
+    shapes, spec = io.read_landmarks(tmp_path / "m.csv")
+    np.testing.assert_array_equal(shapes, [[[1, 2], [3, 4]], [[5, 6], [7, 8]]])
+    assert spec["x2.1"].tolist() == ["left", "right"] and spec["y2.1"].tolist() == ["7", "9"]
+    # blank header cells (trailing commas) are not duplicates: pandas names them Unnamed: n
+    _write(tmp_path / "t.csv", "id,x1,y1,,\nA,1,2,,\n")
+    assert io.read_landmarks(tmp_path / "t.csv")[0].shape == (1, 1, 2)
+
+
+def test_utf8_bom_with_latin1_bytes_is_stripped(tmp_path):
+    # a BOM, then ANSI (latin-1) text: not valid UTF-8, read as latin-1 without the BOM's bytes
+    p = tmp_path / "bom.tps"
+    p.write_bytes(b"\xef\xbb\xbfLM=3\r\n1 1\r\n2 1\r\n2 2\r\nID=caf\xe9\r\n")
+    shapes, spec = io.read_tps(p)
+    np.testing.assert_array_equal(shapes, [[[1, 1], [2, 1], [2, 2]]])
+    assert spec["id"].tolist() == ["caf\u00e9"]
+    q = tmp_path / "bom.csv"
+    q.write_bytes(b"\xef\xbb\xbfid,x1,y1\r\ncaf\xe9,1,2\r\n")
+    shapes, spec = io.read_landmarks(q)
+    assert spec.columns.tolist()[0] == "id" and spec["id"].tolist() == ["caf\u00e9"]
 
 
 # ------------------------------------------------------------------------------------ round trips
