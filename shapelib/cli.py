@@ -159,7 +159,14 @@ def cmd_info(args) -> int:
     n_missing = int(spec["n_missing"].sum())
     if n_missing:
         bad = spec.loc[spec["n_missing"] > 0]
-        listed = ", ".join(f"{i} ({m})" for i, m in zip(bad["id"].iloc[:5], bad["n_missing"].iloc[:5]))
+
+        def which(row):  # landmark numbers from 1, as in the file
+            lms = np.flatnonzero(np.isnan(shapes[row]).any(axis=1)) + 1
+            return "landmark" + ("s " if len(lms) > 1 else " ") + ", ".join(map(str, lms[:6])) + (
+                ", …" if len(lms) > 6 else "")
+
+        rows = np.flatnonzero(spec["n_missing"].to_numpy() > 0)
+        listed = ", ".join(f"{i} ({which(r)})" for i, r in zip(bad["id"].iloc[:5], rows))
         more = ", …" if len(bad) > 5 else ""
         print(f"missing     {n_missing} landmark(s) in {len(bad)} specimen(s): {listed}{more}")
         if spec.attrs.get("format") == "tps" and not args.negative_coordinates:

@@ -94,7 +94,7 @@ def test_info(files):
     broken = files["dir"] / "miss.tps"
     broken.write_text(files["tps"].read_text().replace(f"{files['x'][2, 4, 0]:.5f} {files['x'][2, 4, 1]:.5f}", "-1 -1"))
     out = run("info", broken, check=0).stdout
-    assert "missing     1 landmark(s) in 1 specimen(s): sp_c (1)" in out
+    assert "missing     1 landmark(s) in 1 specimen(s): sp_c (landmark 5)" in out
 
 
 def test_align_tps_and_csv(files):
@@ -197,7 +197,7 @@ def test_every_reading_command_fails_the_same_way(files):
     # info reports missing landmarks where the other commands refuse them
     missing = files["dir"] / "missing.csv"
     missing.write_text(re.sub(r"^(sp_b,B,[^,]+),[^,]+,", r"\1,NA,", files["csv"].read_text(), flags=re.M))
-    assert "missing     1 landmark(s) in 1 specimen(s): sp_b (1)" in run("info", missing, check=0).stdout
+    assert "missing     1 landmark(s) in 1 specimen(s): sp_b (landmark 1)" in run("info", missing, check=0).stdout
     one_line_error(run("geodesic", missing, "--from", "sp_a", "--to", "sp_b", "--metric", "alpha", "--sigma2", 0.5,
                        "-o", files["dir"] / "p.csv"), "missing.csv: line 3, specimen 'sp_b' (#2): landmark 1 is missing")
 
