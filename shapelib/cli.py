@@ -473,8 +473,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     def add(name, help_):
-        return sub.add_parser(name, help=help_, description=help_, epilog=EXAMPLES.get(name),
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
+        sp = sub.add_parser(name, help=help_, description=help_, epilog=EXAMPLES.get(name),
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+        sp.set_defaults(subparser=sp)  # a stray option is reported with this command's usage
+        return sp
 
     p = add("info", "specimens, landmarks, dimension, missing values, scale of a landmark file")
     _file_options(p)
@@ -546,7 +548,9 @@ def main(argv=None) -> int:
     if argv[:1] == ["study"]:  # run_all.py parses its own options
         run = lambda: cmd_study(argv[1:])  # noqa: E731
     else:
-        args = build_parser().parse_args(argv)
+        args, extra = build_parser().parse_known_args(argv)
+        if extra:
+            args.subparser.error(f"unrecognized arguments: {' '.join(extra)}")
         run = lambda: args.func(args)  # noqa: E731
     warnings.showwarning = _one_line_warnings
     try:

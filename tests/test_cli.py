@@ -385,3 +385,11 @@ def test_distances_resume_after_interrupt_through_the_store(files, jobs):
     np.testing.assert_allclose(resumed, _matrix(files["dir"] / "fresh.csv").to_numpy(), rtol=1e-10, atol=0)
     # the same store with other parameters is refused, naming the store and what differs
     one_line_error(run(*[a if a != 0.5 else 0.7 for a in args]), store.name, "sigma2")
+
+
+def test_a_stray_option_is_reported_with_its_command_usage(files):
+    proc = run("geodesic", files["tps"], "--from", "sp_a", "--to", "sp_b", "--metric", "alpha", "-o",
+               files["dir"] / "p.csv", "--rtol", "1e-3")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "usage: shapelib geodesic" in proc.stderr
+    assert "shapelib geodesic: error: unrecognized arguments: --rtol 1e-3" in proc.stderr
