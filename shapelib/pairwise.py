@@ -46,6 +46,7 @@ The store
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import inspect
 import itertools
@@ -119,8 +120,6 @@ def _pair_record(x_u, x_v, i, j, **kw):
     """:func:`~shapelib.distances.pair_record` naming the pair in its input errors."""
     try:
         return pair_record(x_u, x_v, **kw)
-    except PairError:
-        raise
     except ValueError as exc:
         raise PairError(i, j, exc) from exc
 
@@ -226,14 +225,9 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol,
     zero. Solver warnings are not emitted: convergence is recorded per pair instead; nor are
     scale warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
-    from .geodesic import GeodesicWarning
-    from .scale import ScaleWarning
-
     bi, bj = len(xi), len(xj)
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
-    with _one_blas_thread(), warnings.catch_warnings():
-        warnings.simplefilter("ignore", GeodesicWarning)
-        warnings.simplefilter("ignore", ScaleWarning)  # compute_pairwise warned once for all shapes
+    with _pair_work():
         for a in range(bi):
             for b in range(bj):
                 if diagonal and (a == b or (symmetric and b < a)):
@@ -510,11 +504,19 @@ def _n_cores() -> int:
         return os.cpu_count() or 1
 
 
-def _one_blas_thread():
-    """BLAS on one thread inside a task: workers are single-threaded processes, one per core."""
-    from threadpoolctl import threadpool_limits
+@contextlib.contextmanager
+def _pair_work():
+    """Around the engine's per-pair calls (a block's, the timing pair's): BLAS on one thread
+    (workers are single-threaded processes, one per core), and no per-pair warnings — solver
+    convergence is recorded per pair, and :func:`compute_pairwise` gives the scale warning once
+    for all the shapes."""
+    from .geodesic import GeodesicWarning, _one_blas_thread
+    from .scale import ScaleWarning
 
-    return threadpool_limits(limits=1, user_api="blas")
+    with _one_blas_thread(), warnings.catch_warnings():
+        warnings.simplefilter("ignore", GeodesicWarning)
+        warnings.simplefilter("ignore", ScaleWarning)
+        yield
 
 
 def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
@@ -523,13 +525,8 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
     bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice (once if the
     first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
     the calls took under ``budget`` seconds, and the fastest call counts."""
-    from .geodesic import GeodesicWarning
-    from .scale import ScaleWarning
-
     times = []
-    with _one_blas_thread(), warnings.catch_warnings():
-        warnings.simplefilter("ignore", GeodesicWarning)
-        warnings.simplefilter("ignore", ScaleWarning)
+    with _pair_work():
         # a pair far above TASK_SECONDS gets a block of its own either way: no second call
         while not times or (len(times) < 2 and times[0] < 10 * TASK_SECONDS) or (
                 len(times) < 3 and sum(times) < budget):
