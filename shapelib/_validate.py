@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 
 __all__ = ["as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_positive_int",
-           "check_dimension", "check_scale"]
+           "check_nonnegative_int", "check_dimension", "check_scale"]
 
 
 def as_shape(x, *, name: str = "shape", min_landmarks: int = 1) -> np.ndarray:
@@ -98,10 +98,19 @@ def check_positive(value, *, name: str) -> float:
 def check_positive_int(value, *, name: str) -> int:
     """Return ``value`` as an int if it is an integer ``>= 1`` (an integral float such as ``5.0``
     passes; ``True``, ``None``, ``"99"`` and ``2.5`` do not), else raise ``ValueError``."""
+    return _check_int(value, name=name, minimum=1, kind="a positive integer")
+
+
+def check_nonnegative_int(value, *, name: str) -> int:
+    """As :func:`check_positive_int`, with 0 allowed."""
+    return _check_int(value, name=name, minimum=0, kind="a non-negative integer")
+
+
+def _check_int(value, *, name, minimum, kind):
     ok = (not isinstance(value, bool) and isinstance(value, (numbers.Real, np.integer, np.floating))
-          and np.isfinite(value) and float(value).is_integer() and value >= 1)
+          and np.isfinite(value) and float(value).is_integer() and value >= minimum)
     if not ok:
-        raise ValueError(f"{name} must be a positive integer; got {value!r}")
+        raise ValueError(f"{name} must be {kind}; got {value!r}")
     return int(value)
 
 

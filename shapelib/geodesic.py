@@ -69,7 +69,8 @@ from scipy.linalg.lapack import dpotrf
 from threadpoolctl import ThreadpoolController
 
 from . import _kernels
-from ._validate import as_shape_pair, check_dimension, check_positive, check_positive_int, check_scale, check_sigma2
+from ._validate import (as_shape_pair, check_dimension, check_nonnegative_int, check_positive, check_positive_int,
+                        check_scale, check_sigma2)
 from .gmm import l2_distance
 from .metrics import (
     _alpha_qform_hessian,
@@ -589,10 +590,7 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
     """
     n = check_positive_int(n_steps, name="n_steps")
     window = check_positive_int(window, name="window")
-    try:  # 0: evaluate the start only
-        max_iter = 0 if max_iter == 0 and not isinstance(max_iter, bool) else check_positive_int(max_iter, name="")
-    except ValueError:
-        raise ValueError(f"max_iter must be a non-negative integer; got {max_iter!r}") from None
+    max_iter = check_nonnegative_int(max_iter, name="max_iter")  # 0: evaluate the start only
     tol = check_positive(tol, name="tol")
     if hessian not in (None, "exact", "model"):
         raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")

@@ -454,14 +454,15 @@ def classical_mds(distances, *, n_components: int = 2):
     total = float(np.sum(d * d) / (2 * len(d)))
     if total == 0:
         raise ValueError("distances are all zero: there is nothing to ordinate")
-    eig = np.linalg.eigvalsh(gower_centered(d))[::-1]
+    mds = ClassicalMDS(n_components=n_components, metric="precomputed")
+    with np.errstate(invalid="ignore"):  # √ of a non-positive eigenvalue: refused just below
+        coords = mds.fit_transform(d)
+    eig = np.asarray(mds.eigenvalues_, dtype=np.float64)  # the largest n_components, descending
     n_pos = int(np.count_nonzero(eig > 1e-12 * eig[0]))
     if n_components > n_pos:
         raise ValueError(f"n_components = {n_components} but Gower's matrix has only {n_pos} positive "
                          "eigenvalues: ask for at most that many axes")
-    mds = ClassicalMDS(n_components=n_components, metric="precomputed")
-    coords = mds.fit_transform(d)
-    return coords, np.asarray(mds.eigenvalues_, dtype=np.float64) / total
+    return coords, eig / total
 
 
 def mantel_test(x, y, *, method: str = "spearman", permutations: int = 999, seed: int | None = 0):

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from shapelib._validate import as_shape, as_shape_pair, as_shapes, check_positive_int, check_sigma2
+from shapelib._validate import as_shape, as_shape_pair, as_shapes, check_nonnegative_int, check_positive_int, check_sigma2
 
 
 def test_as_shape_returns_float64_copy_of_valid_input():
@@ -60,3 +60,10 @@ def test_positive_int_accepts_integral_numbers_and_returns_int():
     for ok in (1, 999, np.int64(7), 5.0, np.float32(3.0)):
         out = check_positive_int(ok, name="n")
         assert type(out) is int and out == ok
+
+
+def test_nonnegative_int_allows_zero_only_in_addition():
+    assert check_nonnegative_int(0, name="max_iter") == 0 and check_nonnegative_int(3.0, name="max_iter") == 3
+    for bad in (-1, True, False, 0.5, None):
+        with pytest.raises(ValueError, match=r"max_iter must be a non-negative integer; got"):
+            check_nonnegative_int(bad, name="max_iter")
