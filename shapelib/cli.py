@@ -158,17 +158,16 @@ def cmd_info(args) -> int:
     print(f"dimension   {d}")
     n_missing = int(spec["n_missing"].sum())
     if n_missing:
-        bad = spec.loc[spec["n_missing"] > 0]
+        rows = np.flatnonzero(spec["n_missing"].to_numpy() > 0)
 
         def which(row):  # landmark numbers from 1, as in the file
             lms = np.flatnonzero(np.isnan(shapes[row]).any(axis=1)) + 1
             return "landmark" + ("s " if len(lms) > 1 else " ") + ", ".join(map(str, lms[:6])) + (
                 ", …" if len(lms) > 6 else "")
 
-        rows = np.flatnonzero(spec["n_missing"].to_numpy() > 0)
-        listed = ", ".join(f"{i} ({which(r)})" for i, r in zip(bad["id"].iloc[:5], rows))
-        more = ", …" if len(bad) > 5 else ""
-        print(f"missing     {n_missing} landmark(s) in {len(bad)} specimen(s): {listed}{more}")
+        listed = ", ".join(f"{spec['id'].iloc[r]} ({which(r)})" for r in rows[:5])
+        more = ", …" if len(rows) > 5 else ""
+        print(f"missing     {n_missing} landmark(s) in {len(rows)} specimen(s): {listed}{more}")
         if spec.attrs.get("format") == "tps" and not args.negative_coordinates:
             print("            (NA or negative coordinates, tpsDig's code for a missing landmark; if the "
                   "coordinates are genuinely negative, e.g. aligned shapes, add --negative-coordinates)")
