@@ -6,7 +6,7 @@ in under a second on the corpus callosum pair (paper shapes 1 and 2; K = 63, σ�
 n_steps = 16). One iteration of the library's solver costs ~90 ms, so that needs about ten
 iterations; it takes ~200. This script measures whether another second-order method does
 better on the same problem. Every method minimises the same piecewise-linear path energy
-(:func:`shapelib.geodesic._energy`, exact Hessian of the α metric) from the same straight-line
+(:func:`shapelib.solver.geodesic._energy`, exact Hessian of the α metric) from the same straight-line
 start and stops on the same certificate as the library: the exact Hessian is positive
 definite and the Newton decrement ``½ gᵀH⁻¹g`` is below ``tol · E``.
 
@@ -47,9 +47,9 @@ from scipy.optimize import minimize
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from shapelib.datasets import load_corpus_callosum  # noqa: E402
-from shapelib.study import paper_scale  # noqa: E402
+from shapelib import to_centroid_size  # noqa: E402
 
-G = importlib.import_module("shapelib.geodesic")  # the module (the package exports the function)
+G = importlib.import_module("shapelib.solver.geodesic")  # the module (the package exports the function)
 
 METHODS = ("lm", "coarse_to_fine", "trust_exact", "saddle_free", "polynomial")
 
@@ -265,14 +265,14 @@ def main(argv=None):
     if args.quick:
         args.n_steps, args.max_iter = 4, 3
     shapes, ids = load_corpus_callosum()
-    x = paper_scale(shapes)
+    x = to_centroid_size(shapes)
     u, v = x[list(ids).index(1)], x[list(ids).index(2)]
     bound2 = G._AlphaModel(args.sigma2).lower_bound(u, v) ** 2
     report = {"sigma2": args.sigma2, "n_steps": args.n_steps, "tol": args.tol, "max_iter": args.max_iter,
               "K": len(u), "lower_bound_squared": bound2, "methods": {}}
     print(f"α geodesic, CC 1–2, K = {len(u)}, σ² = {args.sigma2}, n_steps = {args.n_steps}, "
           f"certificate: Newton decrement < {args.tol:g}·E, at most {args.max_iter} iterations")
-    with warnings.catch_warnings(), G._one_blas_thread():
+    with warnings.catch_warnings(), G.one_blas_thread():
         warnings.simplefilter("ignore", G.GeodesicWarning)
         for name in args.methods:
             t0 = time.perf_counter()

@@ -1,5 +1,5 @@
 """One entry point for every shape distance in the study: :func:`distance`, :func:`pair_record`
-and :func:`pairwise_distances`.
+(the matrix of a whole population: :func:`shapelib.pairwise_distances`).
 
 ``metric`` names and what they compute (keyword options in brackets):
 
@@ -7,15 +7,15 @@ and :func:`pairwise_distances`.
     Geodesic length under the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
     :func:`shapelib.geodesic` [``sigma2`` (required), ``n_steps``, ``tol``, ``max_iter``, ...];
     with ``rtol=x``, the upper end of the certified bracket of
-    :func:`shapelib.bracket.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
+    :func:`shapelib.solver.bracket.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
 ``"alpha_bound"``
     Closed-form lower bound ``‖p_u − p_v‖`` on the α geodesic distance (the L² distance of the
-    eq. 5 densities, :func:`shapelib.gmm.l2_distance`) [``sigma2``].
+    eq. 5 densities, :func:`shapelib.geometry.gmm.l2_distance`) [``sigma2``].
 ``"fisher_rao_bound"``
     Great-circle lower bound ``2 arccos ∫√(p_u p_v)`` on the Fisher–Rao geodesic distance
-    (:func:`shapelib.geodesic.fisher_rao_lower_bound`) [``sigma2``, ``grid_spacing``, ``grid_margin``].
+    (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`) [``sigma2``, ``grid_spacing``, ``grid_margin``].
 ``"diffeomorphism"``
-    Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.diffeomorphism`
+    Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.comparison.diffeomorphism`
     [``lam`` (default 10), ``kernel_width``, ``n_steps``, ...].
 ``"procrustes"``
     Procrustes distance [``kind`` = "angle" (default), "full", "partial"].
@@ -39,7 +39,7 @@ import time
 
 from ._validate import as_shape_pair
 
-__all__ = ["distance", "pair_record", "pairwise_distances", "path_result", "check_metric_params",
+__all__ = ["distance", "pair_record", "path_result", "check_metric_params",
            "METRICS", "SYMMETRIC", "PATH_METRICS", "RECORD_FIELDS"]
 
 
@@ -51,7 +51,7 @@ RECORD_FIELDS = ("value", "lower", "upper", "energy", "converged", "n_iter", "se
 
 
 def path_result(u, v, *, metric: str, **params):
-    """The full :class:`~shapelib.geodesic.GeodesicResult` of a path metric (``"alpha"``,
+    """The full :class:`~shapelib.solver.geodesic.GeodesicResult` of a path metric (``"alpha"``,
     ``"fisher_rao"``: :func:`shapelib.geodesic`; ``"diffeomorphism"``:
     :func:`shapelib.landmark_diffeomorphism`) — what :func:`distance` reduces to its length."""
     if metric not in PATH_METRICS:
@@ -64,7 +64,7 @@ def path_result(u, v, *, metric: str, **params):
 
 
 def _alpha_bound(u, v, *, sigma2):
-    from .gmm import l2_distance
+    from .geometry.gmm import l2_distance
 
     return l2_distance(u, v, sigma2)
 
@@ -73,21 +73,22 @@ def _function(metric: str):
     """The library function that computes ``metric`` (imported on first use): the one place that
     names it; :data:`METRICS`, :func:`path_result` and the parameter check all go through here."""
     if metric in ("alpha", "fisher_rao"):
-        from .geodesic import geodesic
+        from .solver.geodesic import geodesic
 
         return geodesic
     if metric == "diffeomorphism":
-        from .diffeomorphism import landmark_diffeomorphism
+        from .comparison.diffeomorphism import landmark_diffeomorphism
 
         return landmark_diffeomorphism
     if metric == "alpha_bound":
         return _alpha_bound
     if metric == "fisher_rao_bound":
-        from .geodesic import fisher_rao_lower_bound
+        from .solver.geodesic import fisher_rao_lower_bound
 
         return fisher_rao_lower_bound
-    from .procrustes import procrustes_distance
-    from .splines import hausdorff_distance, tps_bending_energy, wendland_bending_energy
+    from .geometry.procrustes import procrustes_distance
+    from .comparison.hausdorff import hausdorff_distance
+    from .comparison.splines import tps_bending_energy, wendland_bending_energy
 
     return {"procrustes": procrustes_distance, "hausdorff": hausdorff_distance,
             "tps": tps_bending_energy, "wendland": wendland_bending_energy}[metric]
@@ -107,10 +108,10 @@ SYMMETRIC = {"alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao
              "hausdorff"}
 
 
-def _target(metric: str, rtol):
+def target_function(metric: str, rtol):
     """The library function whose keyword options ``metric`` (with ``rtol``) accepts."""
     if rtol is not None:
-        from .bracket import distance_bracket
+        from .solver.bracket import distance_bracket
 
         return distance_bracket
     return _function(metric)
@@ -130,7 +131,7 @@ def check_metric_params(metric: str, params: dict, *, rtol=None) -> None:
             raise ValueError(f"rtol applies to the certified metrics {BRACKET_METRICS}, not {metric!r}")
         if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not (math.isfinite(rtol) and rtol > 0):
             raise ValueError(f"rtol must be a finite number > 0; got {rtol!r}")
-    sig = inspect.signature(_target(metric, rtol))
+    sig = inspect.signature(target_function(metric, rtol))
     fixed = {"u", "v", "metric", "rtol"}
     if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
         return
@@ -156,7 +157,7 @@ def distance(u, v, *, metric: str, rtol: float | None = None, **params) -> float
     rtol : float, optional
         ``"alpha"``, ``"fisher_rao"`` only. ``None``: the length of the geodesic computed by
         :func:`shapelib.geodesic` (eqs. 8–12). A number: the upper end of the certified bracket
-        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.bracket.distance_bracket`).
+        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.solver.bracket.distance_bracket`).
     **params
         Options of that metric (e.g. ``sigma2`` for the information metrics).
     """
@@ -194,7 +195,7 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
     u, v = as_shape_pair(u, v)
     t0 = time.perf_counter()
     if rtol is not None:
-        from .bracket import distance_bracket
+        from .solver.bracket import distance_bracket
 
         b = distance_bracket(u, v, metric=metric, rtol=rtol, **params)
         rec = (b.upper, b.lower, b.upper, b.energy, b.converged, b.n_iter)
@@ -208,53 +209,3 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
     value, lower, upper, energy, converged, n_iter = rec
     return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
             "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
-
-
-def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
-                       store=None, block_size: int | None = None, progress: bool = True,
-                       rtol: float | None = None, return_result: bool = False, **params):
-    """Matrix of distances between every pair of ``shapes`` (N, K, d), on Dask, with a resumable store.
-
-    Symmetric metrics are computed once per unordered pair; for the bending energies (``"tps"``,
-    ``"wendland"``) entry ``[i, j]`` is the energy of the map taking shape ``i`` onto shape ``j``.
-    The work is done by :func:`shapelib.pairwise.compute_pairwise` (blocks of pairs, one Dask task
-    per block; see there for how the local cluster and the block size are chosen).
-
-    Parameters
-    ----------
-    shapes : array_like, shape (N, K, d)
-    metric : str
-        One of :data:`METRICS`.
-    n_jobs : int, optional
-        ``1``: in this process. ``k > 1``: a local cluster of ``k`` worker processes. ``None`` or
-        ``-1``: chosen from a measured pair (in this process when the whole matrix takes a few
-        seconds, else one worker per core).
-    client : distributed.Client, optional
-        Run on this Dask cluster.
-    scheduler : str, optional
-        Address of a running Dask scheduler (``"tcp://host:8786"``).
-    store : path-like, optional
-        Zarr directory the finished blocks are written to; rerunning with the same store resumes.
-    block_size : int, optional
-        Shapes per block side (a task computes up to ``block_size²`` pairs). Default from the
-        measured cost of one pair.
-    progress : bool
-        Progress bar (pairs done, pairs/s, ETA).
-    rtol : float, optional
-        Certified relative tolerance for ``"alpha"`` / ``"fisher_rao"`` (see :func:`distance`).
-    return_result : bool
-        Return the :class:`shapelib.pairwise.PairwiseResult` (bounds, convergence, iterations,
-        seconds per pair) instead of the matrix.
-    **params
-        Options of the metric.
-
-    Returns
-    -------
-    ndarray, shape (N, N), or PairwiseResult
-        Zero diagonal.
-    """
-    from .pairwise import compute_pairwise
-
-    result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
-                              store=store, block_size=block_size, progress=progress, rtol=rtol, **params)
-    return result if return_result else result.matrix

@@ -63,10 +63,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import as_shapes, check_positive_int, check_scale
-from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record
+from ._validate import as_shapes, check_positive_int
+from ._version import __version__
+from .geometry.scale import ScaleWarning, check_scale
+from .solver.geodesic import METRICS as SCALED_METRICS
+from .solver.geodesic import GeodesicWarning, one_blas_thread
+from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record, target_function
 
-__all__ = ["PairwiseResult", "PairError", "compute_pairwise", "open_store", "compute_block", "block_pairs",
+__all__ = ["PairwiseResult", "PairError", "compute_pairwise", "pairwise_distances", "open_store", "compute_block", "block_pairs",
            "local_cluster", "default_block_size", "ARRAYS"]
 
 #: seconds one task should take (sets the default block size)
@@ -280,10 +284,8 @@ def _jsonable(name, value):
 
 def _full_params(metric: str, rtol, params: dict) -> dict:
     """``params`` with the computing function's defaults filled in (so n_steps=16 == omitted)."""
-    from .distances import _target
-
     full = {}
-    for name, p in inspect.signature(_target(metric, rtol)).parameters.items():
+    for name, p in inspect.signature(target_function(metric, rtol)).parameters.items():
         if name in ("u", "v", "metric", "rtol") or p.kind in (p.VAR_KEYWORD, p.VAR_POSITIONAL):
             continue
         if name in params:
@@ -510,10 +512,7 @@ def _pair_work():
     (workers are single-threaded processes, one per core), and no per-pair warnings — solver
     convergence is recorded per pair, and :func:`compute_pairwise` gives the scale warning once
     for all the shapes."""
-    from .geodesic import GeodesicWarning, _one_blas_thread
-    from .scale import ScaleWarning
-
-    with _one_blas_thread(), warnings.catch_warnings():
+    with one_blas_thread(), warnings.catch_warnings():
         warnings.simplefilter("ignore", GeodesicWarning)
         warnings.simplefilter("ignore", ScaleWarning)
         yield
@@ -554,16 +553,12 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
                      store=None, block_size: int | None = None, progress: bool = True,
                      rtol: float | None = None, **params) -> PairwiseResult:
     """Distances (and diagnostics) of every pair of ``shapes``; see the module docstring and
-    :func:`shapelib.distances.pairwise_distances` for the parameters.
+    :func:`pairwise_distances` for the parameters.
 
     Returns
     -------
     PairwiseResult
     """
-    from . import __version__
-
-    from .geodesic import METRICS as SCALED_METRICS
-
     check_metric_params(metric, params, rtol=rtol)
     x = as_shapes(shapes, name="shapes")
     n, k, d = x.shape
@@ -638,12 +633,58 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     result = _result(st, data, computed, log)
     bad = result.nonconverged_pairs()
     if bad:
-        from .geodesic import GeodesicWarning
-
         warnings.warn(f"{len(bad)} of {total_pairs} {metric} pairs did not converge "
                       f"(first: {bad[:3]}); see PairwiseResult.nonconverged_pairs()", GeodesicWarning,
                       stacklevel=3)
     return result
+
+
+def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
+                       store=None, block_size: int | None = None, progress: bool = True,
+                       rtol: float | None = None, return_result: bool = False, **params):
+    """Matrix of distances between every pair of ``shapes`` (N, K, d), on Dask, with a resumable store.
+
+    Symmetric metrics are computed once per unordered pair; for the bending energies (``"tps"``,
+    ``"wendland"``) entry ``[i, j]`` is the energy of the map taking shape ``i`` onto shape ``j``.
+    The work is done by :func:`compute_pairwise` (blocks of pairs, one Dask task
+    per block; see there for how the local cluster and the block size are chosen).
+
+    Parameters
+    ----------
+    shapes : array_like, shape (N, K, d)
+    metric : str
+        One of :data:`shapelib.distances.METRICS`.
+    n_jobs : int, optional
+        ``1``: in this process. ``k > 1``: a local cluster of ``k`` worker processes. ``None`` or
+        ``-1``: chosen from a measured pair (in this process when the whole matrix takes a few
+        seconds, else one worker per core).
+    client : distributed.Client, optional
+        Run on this Dask cluster.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``"tcp://host:8786"``).
+    store : path-like, optional
+        Zarr directory the finished blocks are written to; rerunning with the same store resumes.
+    block_size : int, optional
+        Shapes per block side (a task computes up to ``block_size²`` pairs). Default from the
+        measured cost of one pair.
+    progress : bool
+        Progress bar (pairs done, pairs/s, ETA).
+    rtol : float, optional
+        Certified relative tolerance for ``"alpha"`` / ``"fisher_rao"`` (see :func:`shapelib.distance`).
+    return_result : bool
+        Return the :class:`PairwiseResult` (bounds, convergence, iterations,
+        seconds per pair) instead of the matrix.
+    **params
+        Options of the metric.
+
+    Returns
+    -------
+    ndarray, shape (N, N), or PairwiseResult
+        Zero diagonal.
+    """
+    result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
+                              store=store, block_size=block_size, progress=progress, rtol=rtol, **params)
+    return result if return_result else result.matrix
 
 
 def _pairs_left(st, n, symmetric) -> int:

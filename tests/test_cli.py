@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from shapelib import io
-from shapelib.procrustes import centroid_size, procrustes_distance
+from shapelib.geometry.procrustes import centroid_size, procrustes_distance
 from tests.conftest import ROOT
 
 
@@ -250,7 +250,7 @@ def _matrix(path):
 
 
 def test_distances_labelled_matrix_equals_the_library(files):
-    from shapelib.splines import wendland_bending_energy
+    from shapelib.comparison.splines import wendland_bending_energy
 
     out = files["dir"] / "d.csv"
     proc = run("distances", files["tps"], "--metric", "procrustes", "--jobs", 1, "--no-progress", "-o", out, check=0)

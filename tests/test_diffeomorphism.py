@@ -1,13 +1,13 @@
 import numpy as np
 import pytest
 
-from shapelib.diffeomorphism import (
+from shapelib.comparison.diffeomorphism import (
     _DiffeomorphismModel,
     diffeomorphism_quadratic_form,
     diffeomorphism_warp,
     landmark_diffeomorphism,
 )
-from shapelib.geodesic import path_length  # noqa: F401  (same solver family)
+from shapelib.solver.geodesic import path_length  # noqa: F401  (same solver family)
 
 
 @pytest.fixture

@@ -3,7 +3,7 @@ import warnings
 import numpy as np
 import pytest
 
-from shapelib.geodesic import (
+from shapelib.solver.geodesic import (
     GeodesicWarning,
     _block_cholesky,
     _block_solve,
@@ -89,8 +89,8 @@ def test_length_decreases_with_n_steps_towards_the_bound(pair):
 
 
 def test_fisher_rao_lower_bound_matches_bhattacharyya_quadrature(pair):
-    from shapelib.gmm import gmm_density
-    from shapelib.quadrature import make_grid
+    from shapelib.geometry.gmm import gmm_density
+    from shapelib.geometry.quadrature import make_grid
 
     u, v = pair
     grid = make_grid(np.stack([u, v]), 0.5, spacing=0.1, margin=10)
@@ -142,7 +142,7 @@ def test_errors(pair):
 def test_shooting_the_geodesic_ode_lands_on_the_target(metric):
     """Independent check: integrate eq. (11) from the solved path's initial velocity (RK4) and
     land near the target; the miss shrinks ~4× when n_steps doubles (second-order velocity)."""
-    from shapelib.geodesic import shoot
+    from shapelib.solver.geodesic import shoot
 
     u = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
     v = u @ rot(-np.pi / 2).T
@@ -242,7 +242,7 @@ def test_model_hessian_reaches_the_exact_hessian_minimum(pair):
 def test_target_energy_stop(pair, metric):
     """minimise_path(target_energy=E): stops on the step that reaches E, reports that path's
     energy (no gradient is evaluated there: grad_norm None), and takes a given lower bound."""
-    from shapelib.geodesic import minimise_path
+    from shapelib.solver.geodesic import minimise_path
 
     u, v = pair
     model = _model(metric, 0.5, 0.35, 6.0)

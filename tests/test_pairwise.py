@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import zarr
 
-from shapelib.distances import pair_record, pairwise_distances
+from shapelib.distances import pair_record
+from shapelib.pairwise import pairwise_distances
 from shapelib.pairwise import block_pairs, compute_pairwise, default_block_size, open_store
 
 

@@ -26,10 +26,10 @@ Solver: Levenberg–Marquardt (a trust-region Newton method) on a block-tridiago
 factorised by block Cholesky in O(n (Kd)³):
 
 * by default the **exact** Hessian of the path energy, assembled from the second derivatives
-  of ``Q = vᵀg(θ)v`` — in closed form for α (:func:`shapelib.metrics._alpha_qform_hessian`, run
+  of ``Q = vᵀg(θ)v`` — in closed form for α (:func:`shapelib.geometry.metrics.alpha_qform_hessian`, run
   as one compiled pass over the path, with the gradient, by
-  :func:`shapelib._kernels.alpha_path_grad_hessian`),
-  by the same quadrature as the metric for Fisher–Rao (:func:`shapelib.metrics._fr_qform_hessian`).
+  :func:`shapelib.geometry._kernels.alpha_path_grad_hessian`),
+  by the same quadrature as the metric for Fisher–Rao (:func:`shapelib.geometry.metrics._fr_qform_hessian`).
   Where it is positive definite the Newton decrement ``½ gᵀH⁻¹g`` estimates the energy still
   to be gained; the solver stops when it falls below ``tol · E`` (``log["stopped_by"] ==
   "newton_decrement"``), which certifies a local minimum, or when the relative energy decrease
@@ -42,7 +42,7 @@ factorised by block Cholesky in O(n (Kd)³):
   iterations, where the exact Hessian certifies 1e-9 in 133.
 
 Gradients are analytic vector–Jacobian products through the densities
-(:mod:`shapelib.metrics`); no Christoffel symbols are needed.
+(:mod:`shapelib.geometry.metrics`); no Christoffel symbols are needed.
 
 Why it takes tens to hundreds of iterations (measured, ``benchmarks/bench_geodesic.py``): the
 energy is strongly non-convex around the straight-line start — for the corpus callosum pair
@@ -68,21 +68,22 @@ from scipy.linalg.blas import dsyrk, dtrsm, dtrsv
 from scipy.linalg.lapack import dpotrf
 from threadpoolctl import ThreadpoolController
 
-from . import _kernels
-from ._validate import (as_shape_pair, check_dimension, check_nonnegative_int, check_positive, check_positive_int,
-                        check_scale, check_sigma2)
-from .gmm import l2_distance
-from .metrics import (
-    _alpha_qform_hessian,
-    _alpha_tensor_batch,
-    _fr_qform_compiled,
-    _fr_qform_grad_compiled,
-    _fr_qform_grad_hessian_compiled,
-    _fr_qform_hessian_compiled,
-    _fr_tensor_batch,
-    _psi_coef,
+from ..geometry import _kernels
+from .._validate import (as_shape_pair, check_dimension, check_nonnegative_int, check_positive, check_positive_int,
+                        check_sigma2)
+from ..geometry.scale import SIGMA_RATIO_MIN, check_scale
+from ..geometry.gmm import l2_distance
+from ..geometry.metrics import (
+    alpha_qform_hessian,
+    alpha_tensor_batch,
+    fr_qform_compiled,
+    fr_qform_grad_compiled,
+    fr_qform_grad_hessian_compiled,
+    fr_qform_hessian_compiled,
+    fr_tensor_batch,
+    psi_coef,
 )
-from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
+from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
 
 __all__ = ["geodesic", "minimise_path", "shoot", "geodesic_acceleration", "GeodesicResult", "GeodesicWarning", "fisher_rao_lower_bound", "path_length"]
 
@@ -202,14 +203,14 @@ class _AlphaModel:
         return _kernels.alpha_qform(np.ascontiguousarray(theta), np.ascontiguousarray(vel), self.s2)
 
     def tensors(self, theta, ctx):
-        return _alpha_tensor_batch(theta, self.s2)
+        return alpha_tensor_batch(theta, self.s2)
 
     def qform_hessian(self, theta, vel, ctx):
-        return _alpha_qform_hessian(theta, vel, self.s2)
+        return alpha_qform_hessian(theta, vel, self.s2)
 
     def path_grad_hessian(self, path, ctx):
         """``qform_grad`` at the segments' Gauss–Legendre nodes and :func:`_exact_path_hessian`, in
-        one compiled pass (:func:`shapelib._kernels.alpha_path_grad_hessian`)."""
+        one compiled pass (:func:`shapelib.geometry._kernels.alpha_path_grad_hessian`)."""
         n = len(path) - 1
         q = path[0].size
         tau, w = _GL3_NODES, _GL3_WEIGHTS
@@ -236,24 +237,24 @@ class _FisherRaoModel:
         return make_grid(points, self.s2, spacing=self.spacing, margin=self.margin)
 
     def qform_grad(self, theta, vel, grid):
-        return _fr_qform_grad_compiled(theta, vel, self.s2, grid)
+        return fr_qform_grad_compiled(theta, vel, self.s2, grid)
 
     def qform(self, theta, vel, grid):
-        return _fr_qform_compiled(theta, vel, self.s2, grid)
+        return fr_qform_compiled(theta, vel, self.s2, grid)
 
     def tensors(self, theta, grid):
-        return _fr_tensor_batch(theta, self.s2, grid)
+        return fr_tensor_batch(theta, self.s2, grid)
 
     def qform_hessian(self, theta, vel, grid):
-        return _fr_qform_hessian_compiled(theta, vel, self.s2, grid)
+        return fr_qform_hessian_compiled(theta, vel, self.s2, grid)
 
     def qform_grad_hessian(self, theta, vel, grid):
-        return _fr_qform_grad_hessian_compiled(theta, vel, self.s2, grid)
+        return fr_qform_grad_hessian_compiled(theta, vel, self.s2, grid)
 
     def lower_bound(self, u, v):
         grid = self.prepare(np.stack([u, v]))
-        pu, _ = _psi_coef(u, self.s2, grid)
-        pv, _ = _psi_coef(v, self.s2, grid)
+        pu, _ = psi_coef(u, self.s2, grid)
+        pv, _ = psi_coef(v, self.s2, grid)
         c = np.sqrt(grid.integrate((pu - pv) ** 2))
         # great circle on the sphere of radius 2: 4 arcsin(c/4) = 2 arccos ∫√(p_u p_v)
         return float(4.0 * np.arcsin(min(c / 4.0, 1.0)))
@@ -368,7 +369,7 @@ def _blas_controller():
     return ThreadpoolController()
 
 
-def _one_blas_thread():
+def one_blas_thread():
     """Context manager: BLAS/LAPACK on one thread for the solver's small dense blocks.
 
     The path Hessian is factorised block by block ((K d)² blocks, 126² for K = 63); with the
@@ -477,8 +478,8 @@ def fisher_rao_lower_bound(u, v, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
 
 
 def _check_entry(u, v, s2, *, metric, stacklevel):
-    """Checks shared by :func:`geodesic` and :func:`shapelib.bracket.distance_bracket` at entry:
-    landmark dimension 2 or 3 and σ against the landmarks' scale (:mod:`shapelib.scale`).
+    """Checks shared by :func:`geodesic` and :func:`shapelib.solver.bracket.distance_bracket` at entry:
+    landmark dimension 2 or 3 and σ against the landmarks' scale (:mod:`shapelib.geometry.scale`).
     ``stacklevel`` counts from here (3: the caller of the entry point)."""
     if metric not in METRICS:
         raise ValueError(f"metric must be one of {METRICS}; got {metric!r}")
@@ -490,12 +491,11 @@ def _underflow(result, ratio):
     """Why a "converged" result is not, or None.
 
     A solver that stops before its first step on a path of several landmarks far longer than the
-    bound, with σ below :data:`shapelib.scale.SIGMA_RATIO_MIN` landmark spacings, has not found a
+    bound, with σ below :data:`shapelib.geometry.scale.SIGMA_RATIO_MIN` landmark spacings, has not found a
     geodesic: the Gaussians of different landmarks do not interact (their overlaps underflow), so
     the gradient that would bend the path is zero to machine precision. Same for an energy that
     underflows to zero between distinct shapes.
     """
-    from .scale import SIGMA_RATIO_MIN
 
     if not result.converged or result.log.get("stopped_by") == "trivial":
         return None
@@ -540,7 +540,7 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
     init : array_like, shape (n_steps + 1, K, d), optional
         Initial path (default: the straight line in landmark space, as in the paper's figures).
     grid_spacing, grid_margin : float
-        Fisher–Rao quadrature grid step and margin in units of σ (:mod:`shapelib.quadrature`).
+        Fisher–Rao quadrature grid step and margin in units of σ (:mod:`shapelib.geometry.quadrature`).
     hessian : {"exact", "model"}
         Newton steps on the exact Hessian of the path energy (certified stop by the Newton
         decrement), or on the model Hessian that freezes the metric at each segment's midpoint
@@ -568,7 +568,7 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
         result.log["reason"] = reason
         if warn:
             warnings.warn(f"{metric} geodesic not converged: {reason}. Bring the shapes to a scale that fits "
-                          f"sigma2 (shapelib.scale.to_centroid_size) or choose a larger sigma2.",
+                          f"sigma2 (shapelib.to_centroid_size) or choose a larger sigma2.",
                           GeodesicWarning, stacklevel=2)
     return result
 
@@ -581,10 +581,10 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
     gradients, batched), ``tensors`` (metric tensors for the model Hessian), ``lower_bound`` and
     ``settings`` — see :class:`_AlphaModel`; models with ``qform_hessian`` get exact Newton
     steps unless ``hessian="model"``. The α-order, Fisher–Rao and landmark-diffeomorphism
-    (:mod:`shapelib.diffeomorphism`) metrics all go through here.
+    (:mod:`shapelib.comparison.diffeomorphism`) metrics all go through here.
 
     ``target_energy``: stop as soon as the energy is at or below it (``stopped_by ==
-    "target_energy"``, counted as converged) — :func:`shapelib.bracket.distance_bracket` passes
+    "target_energy"``, counted as converged) — :func:`shapelib.solver.bracket.distance_bracket` passes
     ``(lower · (1 + rtol))²``, since ``length ≤ √E``. ``lower_bound``: ``model.lower_bound(u, v)``
     when the caller has it already (the bracket computes it once per pair, not once per level).
     """
@@ -605,7 +605,7 @@ def minimise_path(model, u, v, *, n_steps, tol, max_iter, window, init, warn, le
         if not np.all(np.isfinite(path)):
             raise ValueError("init contains non-finite values")
         path[0], path[-1] = u, v
-    with _one_blas_thread():  # many small dense blocks: see _one_blas_thread
+    with one_blas_thread():  # many small dense blocks: see one_blas_thread
         t0 = time.perf_counter()
         energies, dampings = [], []
         converged = n == 1 or np.array_equal(u, v)

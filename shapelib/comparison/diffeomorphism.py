@@ -12,7 +12,7 @@ Green's function of ``L*L`` and ``K_ab = k(φ_a − φ_b)``. Substituting it, th
     ∫ λ φ̇ᵀ (K(φ) + λI)⁻¹ φ̇ dt,
 
 a Riemannian metric on landmark configurations: the same boundary-value problem as the GMM
-geodesics, solved by the same path minimiser (:func:`shapelib.geodesic.minimise_path`). The
+geodesics, solved by the same path minimiser (:func:`shapelib.solver.geodesic.minimise_path`). The
 kernel must be positive definite; we use the Gaussian ``k(r) = exp(−|r|² / (2 s²))`` (with a
 thin-plate kernel and a free affine part, affine motions cost nothing and an optimised path
 collapses the shape). Since ``K ≼ K_max I`` with ``K_max ≤`` the number of landmarks, the metric
@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import as_shape, as_shape_pair, check_positive
-from .geodesic import GeodesicResult, minimise_path
+from .._validate import as_shape, as_shape_pair, check_positive
+from ..solver.geodesic import GeodesicResult, minimise_path
 
 __all__ = ["landmark_diffeomorphism", "diffeomorphism_warp", "diffeomorphism_quadratic_form"]
 
