@@ -21,6 +21,7 @@ from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorph
 from .distances import distance, pair_record
 from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
 from .geometry.gmm import gmm_density, l2_distance
+from .geometry.bound_matrices import alpha_bound_matrix, bound_matrix_sweep, fisher_rao_bound_matrix
 from .geometry.metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
 from .geometry.procrustes import (
     centroid_size,
@@ -63,6 +64,9 @@ def __dir__():
 __all__ = [
     "alpha_metric",
     "alpha_quadratic_form",
+    "alpha_bound_matrix",  # shapelib.geometry.bound_matrices
+    "fisher_rao_bound_matrix",
+    "bound_matrix_sweep",
     "centroid_size",
     "diffeomorphism_warp",
     "distance",
