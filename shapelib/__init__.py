@@ -31,6 +31,7 @@ from .geometry.procrustes import (
     procrustes_distance,
 )
 from .geometry.scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
+from .geometry.scale import Sigma2Estimate, estimate_sigma2
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
@@ -67,6 +68,8 @@ __all__ = [
     "alpha_bound_matrix",  # shapelib.geometry.bound_matrices
     "fisher_rao_bound_matrix",
     "bound_matrix_sweep",
+    "estimate_sigma2",  # shapelib.geometry.scale
+    "Sigma2Estimate",
     "centroid_size",
     "diffeomorphism_warp",
     "distance",
