@@ -4,9 +4,9 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
 
     shapelib info FILE
     shapelib align FILE -o OUT [--size S]
-    shapelib distances FILE --metric M [--sigma2 S] [--rtol R] [--jobs N | --scheduler ADDRESS]
+    shapelib distances FILE --metric M [--sigma2 S|auto] [--rtol R] [--jobs N | --scheduler ADDRESS]
                            [--store D.zarr] [--no-progress] -o D.csv
-    shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S -o path.csv [--plot P.png] [--animate A.gif]
+    shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S|auto -o path.csv [--plot P.png] [--animate A.gif]
     shapelib study [run_all.py options: --quick, --only NAME, -p NAME=VALUE, -j N, --force, --list, ...]
 
 Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
@@ -117,7 +117,7 @@ def _metric_params(args):
         if value is not None:
             if name in params:
                 raise CLIError(f"--{name} given twice (also as --param {name}=...)")
-            params[name] = value
+            params[name] = 1.0 if value == "auto" else value  # auto: estimated once the shapes are read
     try:
         check_metric_params(args.metric, params, rtol=getattr(args, "rtol", None))
     except ValueError as exc:
@@ -125,6 +125,34 @@ def _metric_params(args):
             raise CLIError(f"--metric {args.metric} needs --sigma2 (σ² of the Gaussian mixture, eq. 5)") from None
         raise CLIError(f"--metric {args.metric}: {exc}") from None
     return params
+
+
+def _sigma2_arg(text: str):
+    """``--sigma2``: a positive number, or ``auto`` (estimated from the file's shapes)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'auto', got {text!r}") from None
+
+
+def _auto_sigma2(args, params, shapes):
+    """``--sigma2 auto``: σ² from the landmarks' scatter (:func:`shapelib.estimate_sigma2`), said on stdout."""
+    if getattr(args, "sigma2", None) != "auto":
+        return params
+    from .geometry.scale import estimate_sigma2
+
+    try:
+        est = estimate_sigma2(shapes)
+    except ValueError as exc:
+        raise CLIError(f"--sigma2 auto: {exc}") from None
+    print(f"sigma2 = {est.sigma2:.6g} (auto: the landmarks' scatter around the mean shape, sigma = "
+          f"{est.sigma_over_spacing:.2g} landmark spacings)")
+    if est.pose_share > 0.1:
+        warnings.warn(f"--sigma2 auto: {est.pose_share:.0%} of the landmarks' scatter in {args.file} is position and "
+                      "orientation; the distances see the shapes as given: align them first (shapelib align)")
+    return {**params, "sigma2": float(f"{est.sigma2:.6g}")}
 
 
 def _index_of(specimens, ident, option):
@@ -190,8 +218,21 @@ def cmd_info(args) -> int:
             from .geometry.scale import landmark_spacing
 
             h = landmark_spacing(shapes[ok])
-            print(f"spacing     {h:.6g} mean nearest-landmark distance (sigma2 = {h * h:.3g} puts sigma at one "
-                  "spacing; align --size rescales)")
+            print(f"spacing     {h:.6g} mean nearest-landmark distance")
+            if ok.sum() >= 2:
+                from .geometry.scale import estimate_sigma2
+
+                try:
+                    est = estimate_sigma2(shapes[ok])
+                except ValueError as exc:
+                    print(f"sigma2      not estimated: {exc}")
+                else:
+                    print(f"sigma2      {est.sigma2:.4g} ± {est.standard_error:.2g} from the landmarks' scatter around "
+                          f"the mean shape (sigma = {est.sigma_over_spacing:.2g} spacings; `--sigma2 auto` uses it; "
+                          "align --size rescales it by size²)")
+                    if est.pose_share > 0.1:
+                        print(f"            {est.pose_share:.0%} of the scatter as given is position and orientation: "
+                              "align the shapes (shapelib align) before computing distances")
     shown = ", ".join(spec["id"].astype(str).iloc[:8])
     print(f"ids         {shown}" + (f", … ({n} in all)" if n > 8 else ""))
     return 0
@@ -256,6 +297,7 @@ def cmd_distances(args) -> int:
         raise CLIError(f"--block-size must be >= 1; got {args.block_size}")
     if args.store and Path(args.store).exists() and not Path(args.store).is_dir():
         raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
+    params = _auto_sigma2(args, params, shapes)
     try:
         with warnings.catch_warnings():  # printed below with the specimens' ids instead
             warnings.filterwarnings("ignore", message=r".* pairs did not converge")
@@ -315,6 +357,7 @@ def cmd_geodesic(args) -> int:
         params["n_steps"] = args.n_steps
     params.setdefault("n_steps", 16)
     shapes, spec = _read(args)
+    params = _auto_sigma2(args, params, shapes)
     if (plot or anim) and shapes.shape[2] != 2:
         raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
     i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
@@ -422,8 +465,9 @@ def _file_options(p):
 
 def _metric_options(p, *, metrics, required_sigma2=False):
     p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics))
-    p.add_argument("--sigma2", type=float, metavar="S", required=required_sigma2,
-                   help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
+    p.add_argument("--sigma2", type=_sigma2_arg, metavar="S", required=required_sigma2,
+                   help="σ² of the Gaussian mixture (eq. 5), or 'auto': estimated from the landmarks' scatter "
+                        "around the mean shape (`shapelib info` shows it); alpha and fisher_rao need it")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
 
