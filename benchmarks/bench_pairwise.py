@@ -127,6 +127,7 @@ def bound_rows(x, *, sigma2, sweep_points, repeat, sample_pairs, seed):
                                                                 return_result=True), repeat)
         rng = np.random.default_rng(seed)
         pairs = [tuple(rng.choice(n, 2, replace=False)) for _ in range(sample_pairs)]
+        pair_record(x[0], x[1], metric=name, sigma2=sigma2)  # first call: compiled kernels load
         t0 = time.perf_counter()
         per_pair = [pair_record(x[i], x[j], metric=name, sigma2=sigma2)["value"] for i, j in pairs]
         per_pair_s = (time.perf_counter() - t0) / len(pairs)
