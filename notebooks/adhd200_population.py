@@ -32,6 +32,7 @@ sweep_min = 0.2
 sweep_max = 10.0
 sweep_permutations = 999  # permutations of the sweep tests: the min-P test needs 50 or more per σ value
 mosquito_min_genus = 7  # mosquito wings: genera with at least this many specimens
+mosquito_per_genus = 0  # at most this many wings per genus, drawn at random; 0: all of them
 
 # %%
 import hashlib
@@ -459,7 +460,8 @@ curves_adhd.pivot_table(index="sigma_over_spacing", columns="metric", values=["F
 # ### The same curves on another population: mosquito wings
 #
 # 127 mosquito wings with 18 landmarks each (Rohlf & Slice 1990), shipped with `ktch`, labelled by
-# genus. We keep the genera with at least `mosquito_min_genus` wings, align them and scale them to
+# genus. We keep the genera with at least `mosquito_min_genus` wings (all their wings, or
+# `mosquito_per_genus` of each at random), align them and scale them to
 # centroid size 20 as the corpus callosum shapes, and follow PERMANOVA of genus, k-NN accuracy of
 # genus and the Mantel correlation with Procrustes across the same range of σ.
 
@@ -471,6 +473,11 @@ wing_raw = wings.coords.to_numpy(dtype=np.float64).reshape(len(wings.meta), -1, 
 genus_all = wings.meta["genus"].astype(str).to_numpy()
 counts_genus = pd.Series(genus_all).value_counts()
 keep_wing = pd.Series(genus_all).map(counts_genus).to_numpy() >= mosquito_min_genus
+if mosquito_per_genus:
+    wing_rng = np.random.default_rng(seed)
+    keep_wing = np.isin(np.arange(len(genus_all)), np.concatenate([
+        wing_rng.choice(np.flatnonzero(keep_wing & (genus_all == g)), size=min(int(mosquito_per_genus), n_g), replace=False)
+        for g, n_g in counts_genus.items() if n_g >= mosquito_min_genus]))
 wing_raw, genus = wing_raw[keep_wing], genus_all[keep_wing]
 wing_shapes = to_centroid_size(wing_raw)
 wing_spacing = landmark_spacing(wing_shapes)

@@ -125,7 +125,7 @@ def predictive_sigma2(shapes, *, partners: int | None = None, seed: int = 0) -> 
         correspondence is used for that only).
     partners : int, optional
         Shapes ``j`` each shape ``i`` is predicted from (drawn at random without replacement);
-        default all the others up to 8 million landmark pairs in all.
+        default all the others up to 2 million landmark pairs in all.
     seed : int
         Seed of the draw of partners.
 
@@ -139,7 +139,7 @@ def predictive_sigma2(shapes, *, partners: int | None = None, seed: int = 0) -> 
     n, k, d = x.shape
     most = n - 1
     if partners is None:
-        partners = int(np.clip(2 ** 23 // (n * k * k), 1, most))
+        partners = int(np.clip(2 ** 21 // (n * k * k), 1, most))
     partners = min(check_positive_int(partners, name="partners"), most)
     rng = np.random.default_rng(seed)
     i = np.repeat(np.arange(n), partners)
