@@ -134,7 +134,7 @@ def tps_bending_matrix(u, *, kernel: str | None = None) -> np.ndarray:
     numpy.ndarray, shape (K, K)
         Symmetric positive semidefinite; annihilates affine functions of ``u``.
     """
-    u = as_shape(u, name="u")
+    u = as_shape(u, name="u", dims=None)  # any d with an explicit kernel
     kernel = _default_kernel(kernel, u.shape[1])
     _check_affine_count(u)
     _check_distinct(u)
@@ -166,7 +166,7 @@ def tps_bending_energy(u, v, *, kernel: str | None = None) -> float:
         The bending energy; ``∫ Σ_ij (∂_i∂_j f)²`` of the interpolant is ``16π`` times it
         for ``"r2logr2"`` (2-D) and ``8π`` times it for ``"r2logr"`` (2-D) and ``"r"`` (3-D).
     """
-    u, v = as_shape_pair(u, v)
+    u, v = as_shape_pair(u, v, dims=None)  # any d with an explicit kernel
     b = tps_bending_matrix(u, kernel=kernel)
     dsp = v - u
     return float(np.einsum("ai,ab,bi->", dsp, b, dsp))

@@ -115,8 +115,7 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
     (every shape is one blob). Returns ``σ / spacing``. ``stacklevel`` is counted from this
     function, as :func:`warnings.warn` counts it (3: the caller of its caller).
     """
-    x = np.asarray(shapes, dtype=np.float64)
-    x = x.reshape((-1,) + x.shape[-2:])
+    x = _as_collection(shapes)
     sigma = float(np.sqrt(sigma2))
     if x.shape[1] < 2:
         return float("inf")
