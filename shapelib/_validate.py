@@ -6,12 +6,14 @@ the offending shape or value, so that a researcher sees what is wrong with their
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import numbers
 
 import numpy as np
 
 __all__ = ["as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_positive_int",
-           "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS"]
+           "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked"]
 
 #: landmark dimensions every shape-taking entry point accepts (``dims=`` of :func:`as_shape`)
 LANDMARK_DIMS = (2, 3)
@@ -153,3 +155,22 @@ def check_dimension(x: np.ndarray, *, name: str = "u", allowed=(2, 3)) -> np.nda
             f"(specimens, landmarks, coordinates); a shape stored as (d, K) must be transposed{hint}"
         )
     return x
+
+
+_SET_CHECKED = contextvars.ContextVar("shapelib_set_checked", default=False)
+
+
+@contextlib.contextmanager
+def set_checked():
+    """Within this context the per-pair pose and scale warnings are skipped: the caller (the
+    pairwise engine) has checked the whole set of shapes once, and warned once."""
+    token = _SET_CHECKED.set(True)
+    try:
+        yield
+    finally:
+        _SET_CHECKED.reset(token)
+
+
+def set_was_checked() -> bool:
+    """True inside :func:`set_checked`."""
+    return _SET_CHECKED.get()

@@ -64,9 +64,9 @@ def path_result(u, v, *, metric: str, **params):
 
 
 def _alpha_bound(u, v, *, sigma2):
-    from .geometry.gmm import l2_distance
+    from .solver.geodesic import alpha_lower_bound
 
-    return l2_distance(u, v, sigma2)
+    return alpha_lower_bound(u, v, sigma2=sigma2)
 
 
 def _function(metric: str):
@@ -209,3 +209,15 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
     value, lower, upper, energy, converged, n_iter = rec
     return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
             "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
+
+
+#: metrics whose value changes when one shape of a pair is rotated or moved (the others — Procrustes,
+#: and the bending energies, whose matrices annihilate the affine part — do not): the pairwise engine
+#: checks the shapes' pose for them (:func:`shapelib.geometry.procrustes.check_pose`), the CLI aligns
+POSE_DEPENDENT = ("alpha", "fisher_rao", "alpha_bound", "fisher_rao_bound", "diffeomorphism", "hausdorff")
+
+
+def pose_dependent(metric: str, params: dict) -> bool:
+    """Whether ``metric`` with ``params`` depends on the pose of the shapes (:data:`POSE_DEPENDENT`;
+    ``"wendland"`` too with ``affine=False``, whose energy then includes the affine part)."""
+    return metric in POSE_DEPENDENT or (metric == "wendland" and params.get("affine", True) is False)

@@ -63,12 +63,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import as_shapes, check_positive_int
+from ._validate import as_shapes, check_positive_int, set_checked
 from ._version import __version__
+from .geometry.procrustes import PoseWarning, check_pose
 from .geometry.scale import ScaleWarning, check_scale
-from .solver.geodesic import METRICS as SCALED_METRICS
 from .solver.geodesic import GeodesicWarning, one_blas_thread
-from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record, target_function
+from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record, pose_dependent, target_function
 
 __all__ = ["PairwiseResult", "PairError", "compute_pairwise", "pairwise_distances", "open_store", "compute_block", "block_pairs",
            "local_cluster", "default_block_size", "ARRAYS"]
@@ -227,7 +227,7 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol,
     the matrix (used to name a pair in a :class:`PairError`). On a diagonal block only the pairs
     ``i ≠ j`` are computed (``i < j``, then mirrored, for symmetric metrics) and the diagonal is
     zero. Solver warnings are not emitted: convergence is recorded per pair instead; nor are
-    scale warnings, which :func:`compute_pairwise` gives once for all the shapes.
+    scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     bi, bj = len(xi), len(xj)
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
@@ -510,11 +510,12 @@ def _n_cores() -> int:
 def _pair_work():
     """Around the engine's per-pair calls (a block's, the timing pair's): BLAS on one thread
     (workers are single-threaded processes, one per core), and no per-pair warnings — solver
-    convergence is recorded per pair, and :func:`compute_pairwise` gives the scale warning once
-    for all the shapes."""
-    with one_blas_thread(), warnings.catch_warnings():
+    convergence is recorded per pair, and :func:`compute_pairwise` gives the scale and pose
+    warnings once for all the shapes."""
+    with one_blas_thread(), set_checked(), warnings.catch_warnings():
         warnings.simplefilter("ignore", GeodesicWarning)
         warnings.simplefilter("ignore", ScaleWarning)
+        warnings.simplefilter("ignore", PoseWarning)
         yield
 
 
@@ -562,8 +563,10 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     check_metric_params(metric, params, rtol=rtol)
     x = as_shapes(shapes, name="shapes")
     n, k, d = x.shape
-    if metric in SCALED_METRICS and "sigma2" in params:  # once for all the shapes, not once per pair
+    if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
         check_scale(x, params["sigma2"], stacklevel=4)
+    if pose_dependent(metric, params):  # likewise (check_pose: a pair, or a whole set to align)
+        check_pose(x, metric=metric, stacklevel=4)
     symmetric = metric in SYMMETRIC
     if client is not None and scheduler is not None:
         raise ValueError("give client or scheduler, not both")

@@ -83,3 +83,97 @@ def test_every_metric_refuses_a_transposed_pair(nkd, metric):
         sl.distance(u, v, metric=metric, **params)
     with pytest.raises(ValueError, match=r"8 dimensions.*\(K, d\)"):
         sl.pair_record(u, v, metric=metric, **params)
+
+
+# ---------------------------------------------------------------------------------------------
+# Pose: the pose-dependent metrics say so when the shapes are not aligned
+# ---------------------------------------------------------------------------------------------
+
+#: metric -> options for a quick evaluation on 8-landmark shapes at centroid size 20
+POSE_CASES = {
+    "alpha_bound": {"sigma2": 25.0},
+    "fisher_rao_bound": {"sigma2": 25.0},
+    "alpha": {"sigma2": 25.0, "n_steps": 4},
+    "fisher_rao": {"sigma2": 25.0, "n_steps": 2, "max_iter": 1, "warn": False},
+    "diffeomorphism": {"n_steps": 4, "kernel_width": 5.0},
+    "hausdorff": {},
+    "wendland": {"affine": False},
+}
+#: pose-invariant metrics (and options): no warning, the same value for a rotated, moved copy
+INVARIANT_CASES = {"procrustes": {}, "tps": {}, "wendland": {"affine": True}}
+
+
+def rotation(angle_deg):
+    a = np.deg2rad(angle_deg)
+    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+
+
+@pytest.fixture
+def aligned_set(rng):
+    """Twelve 8-landmark outlines, aligned (generalised Procrustes), centroid size 20; sigma2 = 25
+    puts sigma at about one landmark spacing."""
+    return sl.to_centroid_size(population(12, 8, rng, size=1.0, noise=0.05))
+
+
+@pytest.mark.parametrize("metric", sorted(POSE_CASES))
+def test_a_rotated_copy_warns_for_every_pose_dependent_metric(aligned_set, metric):
+    u = aligned_set[0]
+    v = aligned_set[1] @ rotation(30).T + [3.0, -2.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sl.PoseWarning)
+        before = sl.distance(u, aligned_set[1], metric=metric, **POSE_CASES[metric])  # aligned: silent
+    with pytest.warns(sl.PoseWarning, match=rf"{metric}.* depends on the pose.*not aligned.*procrustes_align"):
+        after = sl.distance(u, v, metric=metric, **POSE_CASES[metric])
+    assert after != pytest.approx(before, rel=1e-3)  # the metric does depend on the pose
+    assert sl.pose_align(np.stack([u, v]))[1].max() > 0.1
+
+
+@pytest.mark.parametrize("metric", sorted(INVARIANT_CASES))
+def test_pose_invariant_metrics_neither_warn_nor_change(aligned_set, metric):
+    u, v = aligned_set[0], aligned_set[1]
+    moved = v @ rotation(30).T + [3.0, -2.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sl.PoseWarning)
+        before = sl.distance(u, v, metric=metric, **INVARIANT_CASES[metric])
+        after = sl.distance(u, moved, metric=metric, **INVARIANT_CASES[metric])
+    assert after == pytest.approx(before, rel=1e-9)
+
+
+def test_pairs_from_one_aligned_set_pass_though_not_aligned_to_each_other(aligned_set):
+    """Generalised Procrustes aligns each shape to the mean, not to every other shape: that
+    leftover is of second order in the shape difference and must not warn."""
+    from shapelib.geometry.procrustes import pose_change
+
+    assert max(pose_change(a, b)[0] for a in aligned_set for b in aligned_set) > 1e-6  # not exactly aligned
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sl.PoseWarning)
+        for i in range(len(aligned_set)):
+            for j in range(i + 1, len(aligned_set)):
+                sl.distance(aligned_set[i], aligned_set[j], metric="alpha_bound", sigma2=25.0)
+
+
+def test_the_pairwise_engine_warns_once_for_an_unaligned_set(rng, aligned_set):
+    raw = aligned_set @ rotation(20).T
+    raw[3] = raw[3] @ rotation(40).T + 5.0  # one specimen out of pose
+    with pytest.warns(sl.PoseWarning, match=r"not aligned.*shapes\[3\] by 1\d\d %.*pose_align") as rec:
+        sl.pairwise_distances(raw, metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False)
+    assert sum(issubclass(w.category, sl.PoseWarning) for w in rec) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sl.PoseWarning)
+        sl.pairwise_distances(sl.pose_align(raw)[0], metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False)
+        sl.pairwise_distances(raw, metric="procrustes", n_jobs=1, progress=False)  # pose-invariant: silent
+
+
+def test_pose_align_removes_pose_and_keeps_sizes(rng, aligned_set):
+    sizes = rng.uniform(10, 30, size=len(aligned_set))
+    x = aligned_set * (sizes / 20.0)[:, None, None]
+    raw = np.stack([s @ rotation(a).T + t for s, a, t in zip(x, rng.uniform(0, 360, len(x)),
+                                                               rng.normal(0, 50, (len(x), 2)))])
+    a1, moved = sl.pose_align(raw)
+    assert moved.max() > 0.1
+    assert np.allclose([sl.centroid_size(s) for s in a1], sizes)
+    assert sl.pose_align(a1)[1].max() < 1e-9  # aligned shapes stay put
+    # the pose-dependent distances of the aligned raw shapes are those of the aligned set
+    d_raw = sl.pairwise_distances(a1, metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False)
+    d_ref = sl.pairwise_distances(sl.pose_align(x)[0], metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False)
+    np.testing.assert_allclose(d_raw, d_ref, rtol=1e-7, atol=1e-12)

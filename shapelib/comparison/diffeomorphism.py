@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validate import as_shape, as_shape_pair, check_positive
+from ..geometry.procrustes import check_pose
 from ..solver.geodesic import GeodesicResult, minimise_path
 
 __all__ = ["landmark_diffeomorphism", "diffeomorphism_warp", "diffeomorphism_quadratic_form"]
@@ -113,6 +114,7 @@ def landmark_diffeomorphism(u, v, *, lam: float = 10.0, kernel_width: float = 1.
         landmark trajectories; ``lower_bound`` = √(λ/(λ + K))‖v − u‖.
     """
     u, v = as_shape_pair(u, v)
+    check_pose(np.stack([u, v]), metric="diffeomorphism")  # the kernel sees where the landmarks are
     width = check_positive(kernel_width, name="kernel_width")
     model = _DiffeomorphismModel(check_positive(lam, name="lam"), width)
     return minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,

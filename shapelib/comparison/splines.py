@@ -36,6 +36,7 @@ import numpy as np
 from scipy.spatial.distance import cdist
 
 from .._validate import as_shape, as_shape_pair, check_positive
+from ..geometry.procrustes import check_pose
 
 __all__ = [
     "tps_kernel",
@@ -191,6 +192,8 @@ def wendland_bending_energy(u, v, *, support: float | None = None, affine: bool 
         Leave the affine part free (side conditions), as for the TPS.
     """
     u, v = as_shape_pair(u, v)
+    if not affine:  # the energy then includes the affine part, so it depends on pose
+        check_pose(np.stack([u, v]), metric="wendland (affine=False)")
     if affine:
         _check_affine_count(u)
     _check_distinct(u)

@@ -116,6 +116,7 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
     function, as :func:`warnings.warn` counts it (3: the caller of its caller).
     """
     x = _as_collection(shapes)
+    sigma2 = check_sigma2(sigma2)
     sigma = float(np.sqrt(sigma2))
     if x.shape[1] < 2:
         return float("inf")

@@ -70,7 +70,8 @@ from threadpoolctl import ThreadpoolController
 
 from ..geometry import _kernels
 from .._validate import (as_shape_pair, check_dimension, check_nonnegative_int, check_positive, check_positive_int,
-                        check_sigma2)
+                        check_sigma2, set_was_checked)
+from ..geometry.procrustes import check_pose
 from ..geometry.scale import SIGMA_RATIO_MIN, check_scale
 from ..geometry.gmm import l2_distance
 from ..geometry.metrics import (
@@ -85,7 +86,7 @@ from ..geometry.metrics import (
 )
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
 
-__all__ = ["geodesic", "minimise_path", "shoot", "geodesic_acceleration", "GeodesicResult", "GeodesicWarning", "fisher_rao_lower_bound", "path_length"]
+__all__ = ["geodesic", "minimise_path", "shoot", "geodesic_acceleration", "GeodesicResult", "GeodesicWarning", "fisher_rao_lower_bound", "alpha_lower_bound", "path_length"]
 
 METRICS = ("alpha", "fisher_rao")
 
@@ -467,9 +468,26 @@ def fisher_rao_lower_bound(u, v, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
     ``2√p`` lies on the sphere of radius 2 in L² and the Fisher–Rao metric is the pull-back of
     L² by ``θ ↦ 2√p``, so no path of GMMs is shorter than the great circle. Computed stably as
     ``4 arcsin(‖√p_u − √p_v‖ / 2)`` by quadrature.
+
+    Checked at entry as :func:`geodesic` is: landmark dimension, σ against the landmarks' scale
+    (:class:`~shapelib.geometry.scale.ScaleWarning`) and their pose
+    (:class:`~shapelib.geometry.procrustes.PoseWarning`).
     """
     u, v = as_shape_pair(u, v)
-    return _FisherRaoModel(check_sigma2(sigma2), grid_spacing, grid_margin).lower_bound(u, v)
+    s2 = check_sigma2(sigma2)
+    _check_entry(u, v, s2, metric="fisher_rao", stacklevel=3, what="fisher_rao_bound")
+    return _FisherRaoModel(s2, check_positive(grid_spacing, name="grid_spacing"),
+                           check_positive(grid_margin, name="grid_margin")).lower_bound(u, v)
+
+
+def alpha_lower_bound(u, v, *, sigma2) -> float:
+    """Closed-form lower bound ``‖p_u − p_v‖`` on the α-order geodesic distance (eq. 22): the L²
+    distance of the eq. 5 densities (:func:`shapelib.geometry.gmm.l2_distance`), checked at entry
+    as :func:`geodesic` is (landmark dimension, scale, pose)."""
+    u, v = as_shape_pair(u, v)
+    s2 = check_sigma2(sigma2)
+    _check_entry(u, v, s2, metric="alpha", stacklevel=3, what="alpha_bound")
+    return l2_distance(u, v, s2)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -477,14 +495,21 @@ def fisher_rao_lower_bound(u, v, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
 # ---------------------------------------------------------------------------------------------
 
 
-def _check_entry(u, v, s2, *, metric, stacklevel):
-    """Checks shared by :func:`geodesic` and :func:`shapelib.solver.bracket.distance_bracket` at entry:
-    landmark dimension 2 or 3 and σ against the landmarks' scale (:mod:`shapelib.geometry.scale`).
-    ``stacklevel`` counts from here (3: the caller of the entry point)."""
+def _check_entry(u, v, s2, *, metric, stacklevel, what=None):
+    """Checks shared by :func:`geodesic`, :func:`shapelib.solver.bracket.distance_bracket` and the
+    two bounds at entry: landmark dimension 2 or 3, σ against the landmarks' scale
+    (:mod:`shapelib.geometry.scale`) and their pose (:func:`shapelib.geometry.procrustes.check_pose`:
+    both metrics depend on it). ``stacklevel`` counts from here (3: the caller of the entry point);
+    ``what``: a bound's name in the warnings. Returns σ / spacing (the bounds, which do not use it,
+    skip the scale check where the pairwise engine has checked the whole set)."""
     if metric not in METRICS:
         raise ValueError(f"metric must be one of {METRICS}; got {metric!r}")
     check_dimension(u, name="u")
-    return check_scale(np.stack([u, v]), s2, stacklevel=stacklevel + 1)
+    pair = np.stack([u, v])
+    check_pose(pair, metric=what or metric, stacklevel=stacklevel + 1)
+    if what is not None and set_was_checked():
+        return None
+    return check_scale(pair, s2, stacklevel=stacklevel + 1)
 
 
 def _underflow(result, ratio):
