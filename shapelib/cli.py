@@ -141,6 +141,25 @@ def _index_of(specimens, ident, option):
     return int(hits[0])
 
 
+def _align_pose(args, shapes, params):
+    """The shapes a pose-dependent metric sees: aligned by rotations and translations (sizes kept,
+    so σ² keeps its meaning), unless --no-align or they are aligned already (within
+    :data:`~shapelib.geometry.procrustes.POSE_TOL`); a note on stderr says how far that moved them."""
+    from .distances import pose_dependent
+    from .geometry.procrustes import POSE_TOL, pose_align
+
+    if args.no_align or not pose_dependent(args.metric, params) or shapes.shape[1] < 2:
+        return shapes
+    aligned, moved = pose_align(shapes)
+    if moved.max() <= POSE_TOL:
+        return shapes  # aligned already (e.g. by `shapelib align`): the file's values as they are
+    if moved.max() > POSE_TOL:
+        print(f"{PROG}: note: {args.metric} depends on the pose of the shapes: aligned the {len(shapes)} specimens of "
+              f"{args.file} first (generalized Procrustes rotations and translations, sizes kept), which moved them "
+              f"by up to {100 * moved.max():.3g} % of their size; --no-align uses the file's pose", file=sys.stderr)
+    return aligned
+
+
 # ---------------------------------------------------------------------------------------------
 # subcommands
 # ---------------------------------------------------------------------------------------------
@@ -256,6 +275,7 @@ def cmd_distances(args) -> int:
         raise CLIError(f"--block-size must be >= 1; got {args.block_size}")
     if args.store and Path(args.store).exists() and not Path(args.store).is_dir():
         raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
+    shapes = _align_pose(args, shapes, params)
     try:
         with warnings.catch_warnings():  # printed below with the specimens' ids instead
             warnings.filterwarnings("ignore", message=r".* pairs did not converge")
@@ -318,6 +338,7 @@ def cmd_geodesic(args) -> int:
     if (plot or anim) and shapes.shape[2] != 2:
         raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
     i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
+    shapes = _align_pose(args, shapes, params)  # the whole file, as `shapelib distances` aligns it
     result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
     n1, k, d = result.path.shape
     t = np.repeat(np.linspace(0.0, 1.0, n1), k)
@@ -404,7 +425,7 @@ EXAMPLES = {
     "distances": ("examples:\n  shapelib distances aligned.tps --negative-coordinates --metric procrustes -o procrustes.csv\n"
                   "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 \\\n"
                   "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
-                  "  shapelib distances fish.csv --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
+                  "  shapelib distances aligned.tps --negative-coordinates --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
                   "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
     "geodesic": ("example:\n  shapelib geodesic aligned.tps --negative-coordinates --from fish-1 --to Heart-1 \\\n"
                  "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
@@ -426,6 +447,10 @@ def _metric_options(p, *, metrics, required_sigma2=False):
                    help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
+    p.add_argument("--no-align", action="store_true",
+                   help="use the file's pose: by default the specimens are aligned first (rotations and "
+                        "translations, sizes kept) for the metrics that depend on pose (alpha, fisher_rao, their "
+                        "bounds, diffeomorphism, hausdorff)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -498,7 +523,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _one_line_warnings(message, category, filename, lineno, file=None, line=None):
-    print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr)
+    text = " ".join(str(message).split())
+    from .geometry.procrustes import PoseWarning
+
+    if issubclass(category, PoseWarning):  # only --no-align gets here: say it in command-line terms
+        text = text.split(" Align them first")[0] + " Drop --no-align to align them (rotations and translations, sizes kept)."
+    print(f"{PROG}: warning: {text}", file=sys.stderr)
 
 
 def _interrupted(exc: BaseException) -> bool:

@@ -1,0 +1,84 @@
+"""What the command line checks for the user (docs/guide/checks.md), run as users run it: pose
+(aligned by default for pose-dependent metrics), scale, convergence words, round trips of the
+files it writes, plots. Library-level cases: tests/test_checks.py."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import shapelib as sl
+from shapelib import io
+from tests.test_cli import _matrix, one_line_error, run
+
+
+def _rotated_population(rng, n=5, k=9):
+    """Ellipses in pixel coordinates (positive, as tpsDig writes them), each turned by its own
+    angle about its own centre: raw specimens in different poses."""
+    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
+    out = []
+    for i in range(n):
+        base = np.column_stack([120 * np.cos(t), 60 * np.sin(t)]) + rng.normal(scale=6, size=(k, 2))
+        a = np.deg2rad(25 * i)
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        out.append(base @ rot.T + [300 + 10 * i, 250 - 5 * i])
+    return np.round(np.stack(out), 4)
+
+
+@pytest.fixture
+def raw(tmp_path, rng):
+    x = _rotated_population(rng)
+    ids = [f"sp{i}" for i in range(len(x))]
+    path = io.write_tps(tmp_path / "raw.tps", x, ids)
+    return {"x": x, "ids": ids, "tps": path, "dir": tmp_path}
+
+
+SIGMA2 = 3600.0  # sigma of about one landmark spacing (~80 px): no scale warning
+
+
+def test_distances_align_by_default_for_a_pose_dependent_metric(raw):
+    out = raw["dir"] / "d.csv"
+    proc = run("distances", raw["tps"], "--metric", "alpha_bound", "--sigma2", SIGMA2, "--jobs", 1, "--no-progress",
+               "-o", out, check=0)
+    notes = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(notes) == 1 and notes[0].startswith("shapelib: note: alpha_bound depends on the pose"), proc.stderr
+    assert "--no-align" in notes[0]
+    aligned = sl.pose_align(raw["x"])[0]
+    want = sl.pairwise_distances(aligned, metric="alpha_bound", sigma2=SIGMA2, n_jobs=1, progress=False)
+    np.testing.assert_allclose(_matrix(out).to_numpy(), want, rtol=1e-12, atol=1e-15)
+    # --no-align: the file's pose, and one warning saying what that means and what to do
+    proc = run("distances", raw["tps"], "--metric", "alpha_bound", "--sigma2", SIGMA2, "--jobs", 1, "--no-progress",
+               "--no-align", "-o", out, check=0)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("shapelib: warning: alpha_bound depends on the pose"), proc.stderr
+    assert "Drop --no-align" in lines[0] and "pose_align" not in lines[0]
+    with pytest.warns(sl.PoseWarning):
+        want = sl.pairwise_distances(raw["x"], metric="alpha_bound", sigma2=SIGMA2, n_jobs=1, progress=False)
+    np.testing.assert_allclose(_matrix(out).to_numpy(), want, rtol=1e-12, atol=1e-15)
+    # a pose-invariant metric is computed on the file's shapes, with nothing to say
+    proc = run("distances", raw["tps"], "--metric", "procrustes", "--jobs", 1, "--no-progress", "-o", out, check=0)
+    assert proc.stderr == ""
+
+
+def test_geodesic_aligns_the_whole_file_as_distances_does(raw):
+    out = raw["dir"] / "path.csv"
+    proc = run("geodesic", raw["tps"], "--from", "sp0", "--to", "sp3", "--metric", "alpha", "--sigma2", SIGMA2,
+               "--n-steps", 4, "-o", out, check=0)
+    assert "shapelib: note: alpha depends on the pose" in proc.stderr and "warning" not in proc.stderr
+    aligned = sl.pose_align(raw["x"])[0]
+    path = pd.read_csv(out)
+    np.testing.assert_allclose(path[path.step == 0][["x", "y"]].to_numpy(), aligned[0], rtol=1e-12)
+    np.testing.assert_allclose(path[path.step == 4][["x", "y"]].to_numpy(), aligned[3], rtol=1e-12)
+    proc = run("geodesic", raw["tps"], "--from", "sp0", "--to", "sp3", "--metric", "alpha", "--sigma2", SIGMA2,
+               "--n-steps", 4, "--no-align", "-o", out, check=0)
+    assert "shapelib: warning: alpha depends on the pose" in proc.stderr
+    path = pd.read_csv(out)
+    np.testing.assert_allclose(path[path.step == 0][["x", "y"]].to_numpy(), raw["x"][0], rtol=1e-12)
+
+
+def test_help_examples_run_no_pose_dependent_metric_on_raw_coordinates():
+    for command in ("distances", "geodesic"):
+        text = run(command, "--help", check=0).stdout
+        examples = text.split("example")[-1]
+        for line in examples.replace("\\\n", " ").splitlines():
+            if any(m in line for m in ("alpha", "fisher_rao", "hausdorff", "diffeomorphism")):
+                assert "aligned." in line, line
