@@ -4,7 +4,7 @@ tests/test_metrics.py and tests/test_geodesic.py)."""
 import numpy as np
 import pytest
 
-from shapelib import _kernels
+from shapelib.geometry import _kernels
 from shapelib.solver.geodesic import _GL3_NODES, _AlphaModel, _energy, _exact_path_hessian, _segment_nodes
 from shapelib.geometry.metrics import _alpha_qform, _alpha_qform_grad
 
