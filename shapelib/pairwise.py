@@ -66,7 +66,7 @@ import numpy as np
 from ._validate import as_shapes, check_positive_int, set_checked
 from ._version import __version__
 from .geometry.procrustes import PoseWarning, check_pose
-from .geometry.scale import ScaleWarning, check_scale
+from .geometry.scale import ScaleWarning, check_fisher_rao_scale, check_scale
 from .solver.geodesic import GeodesicWarning, one_blas_thread
 from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record, pose_dependent, target_function
 
@@ -564,7 +564,9 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     x = as_shapes(shapes, name="shapes")
     n, k, d = x.shape
     if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
-        check_scale(x, params["sigma2"], stacklevel=4)
+        ratio = check_scale(x, params["sigma2"], stacklevel=4)
+        if metric in ("fisher_rao", "fisher_rao_bound"):  # a degenerate quadrature: an error before any work
+            check_fisher_rao_scale(x, params["sigma2"], metric=metric, ratio=ratio)
     if pose_dependent(metric, params):  # likewise (check_pose: a pair, or a whole set to align)
         check_pose(x, metric=metric, stacklevel=4)
     symmetric = metric in SYMMETRIC

@@ -177,3 +177,60 @@ def test_pose_align_removes_pose_and_keeps_sizes(rng, aligned_set):
     d_raw = sl.pairwise_distances(a1, metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False)
     d_ref = sl.pairwise_distances(sl.pose_align(x)[0], metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False)
     np.testing.assert_allclose(d_raw, d_ref, rtol=1e-7, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# Scale: every sigma2 metric checks sigma against the landmarks; a degenerate Fisher-Rao
+# quadrature is a ValueError before any work, never a ZeroDivisionError
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def pixels(rng):
+    """Raw pixel coordinates (landmark spacing ~100 px), in one pose."""
+    x = population(6, 8, rng)
+    return sl.pose_align(x)[0]
+
+
+@pytest.mark.parametrize("metric", ["alpha_bound", "fisher_rao_bound"])
+def test_the_bounds_warn_about_scale_like_the_geodesics(pixels, metric):
+    sigma2 = 400.0 if metric == "fisher_rao_bound" else 0.5  # sigma 0.11 spacings (below 0.059: an error)
+    with pytest.warns(sl.ScaleWarning, match=r"times the mean nearest-landmark spacing"):
+        sl.distance(pixels[0], pixels[1], metric=metric, sigma2=sigma2)
+    with pytest.warns(sl.ScaleWarning) as rec:
+        sl.pairwise_distances(pixels, metric=metric, sigma2=sigma2, n_jobs=1, progress=False)
+    assert sum(issubclass(w.category, sl.ScaleWarning) for w in rec) == 1  # once for the set, not per pair
+
+
+@pytest.mark.parametrize("entry", ["geodesic", "bracket", "bound", "distance", "pairwise"])
+def test_a_degenerate_fisher_rao_quadrature_is_a_value_error_before_any_work(pixels, entry, tmp_path):
+    from shapelib.solver.bracket import distance_bracket
+
+    u, v = pixels[0], pixels[1]
+    store = tmp_path / "fr.zarr"
+    calls = {
+        "geodesic": lambda: sl.geodesic(u, v, metric="fisher_rao", sigma2=0.5, n_steps=2, max_iter=2),
+        "bracket": lambda: distance_bracket(u, v, metric="fisher_rao", sigma2=0.5),
+        "bound": lambda: sl.fisher_rao_lower_bound(u, v, sigma2=0.5),
+        "distance": lambda: sl.distance(u, v, metric="fisher_rao", sigma2=0.5, n_steps=2),
+        "pairwise": lambda: sl.pairwise_distances(pixels, metric="fisher_rao", sigma2=0.5, n_steps=2, store=store,
+                                                  n_jobs=1, progress=False),
+    }
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sl.ScaleWarning)
+        with pytest.raises(ValueError, match=r"sigma2 = 0.5 is too small.*below 0.059.*Use sigma2 >= \d"):
+            calls[entry]()
+    assert not store.exists()  # refused before any work
+
+
+def test_far_apart_shapes_give_a_fisher_rao_value_not_a_division_by_zero(aligned_set):
+    """The density underflows far from every landmark (here: where the other shape lies); those
+    quadrature nodes add nothing instead of dividing by zero."""
+    u, v = aligned_set[0], aligned_set[1] + [120.0, 0.0]  # 60 sigma apart
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sl.PoseWarning)
+        r = sl.geodesic(u, v, metric="fisher_rao", sigma2=4.0, n_steps=4, max_iter=5, warn=False)
+        bound = sl.fisher_rao_lower_bound(u, v, sigma2=4.0)
+    assert np.isfinite(r.length) and np.isfinite(r.energy)
+    assert bound == pytest.approx(np.pi, abs=1e-6)  # disjoint densities: the great circle's quarter turn
+    assert r.length >= bound

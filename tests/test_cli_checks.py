@@ -82,3 +82,12 @@ def test_help_examples_run_no_pose_dependent_metric_on_raw_coordinates():
         for line in examples.replace("\\\n", " ").splitlines():
             if any(m in line for m in ("alpha", "fisher_rao", "hausdorff", "diffeomorphism")):
                 assert "aligned." in line, line
+
+
+@pytest.mark.parametrize("command", ["distances", "geodesic"])
+def test_fisher_rao_on_raw_pixels_is_a_one_line_error_not_an_internal_error(raw, command):
+    out = raw["dir"] / "out.csv"
+    where = ["--from", "sp0", "--to", "sp1"] if command == "geodesic" else ["--jobs", 1, "--no-progress"]
+    proc = run(command, raw["tps"], *where, "--metric", "fisher_rao", "--sigma2", 0.5, "--param", "n_steps=2", "-o", out)
+    one_line_error(proc, "sigma2 = 0.5 is too small", "Use sigma2 >=")
+    assert "internal error" not in proc.stderr and not out.exists()

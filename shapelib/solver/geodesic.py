@@ -72,7 +72,7 @@ from ..geometry import _kernels
 from .._validate import (as_shape_pair, check_dimension, check_nonnegative_int, check_positive, check_positive_int,
                         check_sigma2, set_was_checked)
 from ..geometry.procrustes import check_pose
-from ..geometry.scale import SIGMA_RATIO_MIN, check_scale
+from ..geometry.scale import SIGMA_RATIO_MIN, check_fisher_rao_scale, check_scale
 from ..geometry.gmm import l2_distance
 from ..geometry.metrics import (
     alpha_qform_hessian,
@@ -501,15 +501,19 @@ def _check_entry(u, v, s2, *, metric, stacklevel, what=None):
     (:mod:`shapelib.geometry.scale`) and their pose (:func:`shapelib.geometry.procrustes.check_pose`:
     both metrics depend on it). ``stacklevel`` counts from here (3: the caller of the entry point);
     ``what``: a bound's name in the warnings. Returns σ / spacing (the bounds, which do not use it,
-    skip the scale check where the pairwise engine has checked the whole set)."""
+    skip the scale warning where the pairwise engine has checked the whole set); ``ValueError`` for a
+    σ that leaves the Fisher–Rao quadrature nothing to resolve (:func:`~shapelib.geometry.scale.check_fisher_rao_scale`)."""
     if metric not in METRICS:
         raise ValueError(f"metric must be one of {METRICS}; got {metric!r}")
     check_dimension(u, name="u")
     pair = np.stack([u, v])
     check_pose(pair, metric=what or metric, stacklevel=stacklevel + 1)
-    if what is not None and set_was_checked():
+    if metric == "alpha" and what is not None and set_was_checked():
         return None
-    return check_scale(pair, s2, stacklevel=stacklevel + 1)
+    ratio = check_scale(pair, s2, stacklevel=stacklevel + 1)
+    if metric == "fisher_rao":  # degenerate quadrature: an error before any work
+        check_fisher_rao_scale(pair, s2, metric=what or metric, ratio=ratio)
+    return ratio
 
 
 def _underflow(result, ratio):
