@@ -11,7 +11,9 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
 
 Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
 input ends the command with one line ``shapelib: error: …`` on stderr (naming the file, specimen,
-landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does.
+landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does. A geodesic
+(``geodesic``, or a pair of ``distances`` without ``--rtol``) whose solver did not converge is
+written, said in a warning, and the command exits with status 4 (:data:`EXIT_UNCONVERGED`).
 ``shapelib study`` is ``run_all.py`` itself: its help, usage errors and exit codes are run_all's.
 """
 
@@ -32,6 +34,12 @@ PROG = "shapelib"
 
 class CLIError(ValueError):
     """A user-facing error: printed as one line, exit status 1."""
+
+
+#: exit status of ``distances`` and ``geodesic`` when the results are written but the geodesic
+#: solver did not converge on some of them (a warning names them); a bracket that is only wider
+#: than ``--rtol`` is certified, said in its own words, and exits 0
+EXIT_UNCONVERGED = 4
 
 
 # ---------------------------------------------------------------------------------------------
@@ -258,6 +266,7 @@ def cmd_distances(args) -> int:
 
     from .pairwise import pairwise_distances
     from .pairwise import PairError
+    from .solver.geodesic import GeodesicWarning
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     diag = _output_path(args.pairs, suffixes=(".csv",), option="--pairs") if args.pairs else None
@@ -277,8 +286,8 @@ def cmd_distances(args) -> int:
         raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
     shapes = _align_pose(args, shapes, params)
     try:
-        with warnings.catch_warnings():  # printed below with the specimens' ids instead
-            warnings.filterwarnings("ignore", message=r".* pairs did not converge")
+        with warnings.catch_warnings():  # the convergence summary is printed below with the specimens' ids instead
+            warnings.simplefilter("ignore", GeodesicWarning)
             result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
                                         store=args.store, block_size=args.block_size, progress=not args.no_progress,
                                         rtol=args.rtol, return_result=True, **params)
@@ -304,8 +313,19 @@ def cmd_distances(args) -> int:
           + (f" (store {args.store}{resumed})" if args.store else ""))
     if bad:
         listed = ", ".join(f"{ids[i]}–{ids[j]}" for i, j in bad[:5]) + (", …" if len(bad) > 5 else "")
-        print(f"shapelib: warning: {len(bad)} pair(s) did not converge: {listed}"
-              + ("" if diag else " (--pairs FILE.csv writes every pair's diagnostics)"), file=sys.stderr)
+        more = "" if diag else " (--pairs FILE.csv writes every pair's bracket and status)"
+        total = len(result.status())
+        if args.rtol is not None:  # certified, only wider than asked: said as such, exit 0
+            gap = result.rel_gap(*np.array(bad).T)
+            print(f"{PROG}: warning: {len(bad)} of {total} pairs: the certified bracket is wider than --rtol "
+                  f"{args.rtol:g} (relative gap median {100 * float(np.median(gap)):.3g} %, max "
+                  f"{100 * float(np.max(gap)):.3g} %; {listed}): each distance lies in its bracket [lower, upper] "
+                  f"and the matrix holds the upper end; the solver did not fail{more}", file=sys.stderr)
+        else:
+            print(f"{PROG}: warning: {len(bad)} of {total} pairs: solver failed (the geodesic solver stopped before "
+                  f"its tolerance; their values are lengths of unconverged paths, upper bounds only): {listed}{more}; "
+                  f"exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+            return EXIT_UNCONVERGED
     return 0
 
 
@@ -339,7 +359,11 @@ def cmd_geodesic(args) -> int:
         raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
     i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
     shapes = _align_pose(args, shapes, params)  # the whole file, as `shapelib distances` aligns it
-    result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
+    from .solver.geodesic import GeodesicWarning
+
+    with warnings.catch_warnings():  # said below in the command line's words
+        warnings.simplefilter("ignore", GeodesicWarning)
+        result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
     n1, k, d = result.path.shape
     t = np.repeat(np.linspace(0.0, 1.0, n1), k)
     frame = pd.DataFrame({"step": np.repeat(np.arange(n1), k), "t": t, "landmark": np.tile(np.arange(1, k + 1), n1),
@@ -353,6 +377,12 @@ def cmd_geodesic(args) -> int:
         _animate_path(result, anim, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
                       fps=args.fps)
         print(f"animation -> {anim}")
+    if not result.converged:
+        why = result.log.get("reason") or f"stopped by {result.log.get('stopped_by')} after {result.n_iter} iterations"
+        print(f"{PROG}: warning: the {args.metric} geodesic did not converge ({why}): {out} holds the path it had, "
+              f"whose length {result.length:.6g} is an upper bound only (lower bound {result.lower_bound:.6g}); "
+              f"e.g. raise --param max_iter; exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+        return EXIT_UNCONVERGED
     return 0
 
 

@@ -149,6 +149,7 @@ class PairwiseResult:
     seconds : ndarray, shape (N, N)
         Wall time of each pair.
     converged : ndarray of bool, shape (N, N)
+        In words per pair: :meth:`status` (converged / bracket wider than rtol / solver failed).
     n_iter : ndarray of int, shape (N, N)
         Solver iterations (0 for non-path metrics, −1 where not computed).
     metric : str
@@ -193,15 +194,56 @@ class PairwiseResult:
         bad = ~self.converged[i, j]
         return [(int(a), int(b)) for a, b in zip(i[bad], j[bad])]
 
+    def rel_gap(self, i=None, j=None) -> np.ndarray:
+        """``upper / lower − 1`` of pairs ``(i, j)`` (default: every computed pair, as :meth:`to_frame`
+        orders them): the relative width of each certified bracket (0 for non-path metrics, ``inf``
+        where the bound is 0 but the path is not)."""
+        if i is None:
+            i, j = self._pairs()
+        lo, up = self.lower[i, j], self.upper[i, j]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = np.where(lo > 0, up / lo - 1.0, np.where(up > 0, np.inf, 0.0))
+        return np.maximum(gap, 0.0)
+
+    def status(self, i=None, j=None) -> np.ndarray:
+        """Per pair, in words: ``"converged"``; ``"bracket wider than rtol"`` (with ``rtol``: the
+        distance is certified to lie in its bracket ``[lower, upper]``, whose relative width
+        :meth:`rel_gap` is above ``rtol``, the value being its upper end); ``"solver failed"`` (no
+        ``rtol``: the geodesic solver stopped before its tolerance, so ``value`` is the length of
+        the path it had, still an upper bound on the distance)."""
+        if i is None:
+            i, j = self._pairs()
+        bad = "bracket wider than rtol" if self.params.get("rtol") is not None else "solver failed"
+        return np.where(self.converged[i, j], "converged", bad)
+
+    def convergence_summary(self) -> str:
+        """One line on the pairs that did not converge, in :meth:`status`'s words with how wide the
+        brackets are; ``""`` if every computed pair converged."""
+        i, j = self._pairs()
+        bad = ~self.converged[i, j]
+        if not bad.any():
+            return ""
+        n, total = int(bad.sum()), len(bad)
+        first = [(int(a), int(b)) for a, b in zip(i[bad][:3], j[bad][:3])]
+        rtol = self.params.get("rtol")
+        if rtol is None:
+            return (f"{n} of {total} {self.metric} pairs: solver failed (the geodesic solver stopped before its "
+                    f"tolerance; each value is the length of the path it had, an upper bound), first {first}")
+        gap = self.rel_gap(i[bad], j[bad])
+        return (f"{n} of {total} {self.metric} pairs: the certified bracket is wider than rtol = {rtol:g} (relative "
+                f"gap median {100 * float(np.median(gap)):.3g} %, max {100 * float(np.max(gap)):.3g} %): each distance "
+                f"lies in its bracket [lower, upper] and the value is its upper end; not a solver failure")
+
     def to_frame(self):
-        """One row per computed pair (``i < j`` for symmetric metrics) with all diagnostics."""
+        """One row per computed pair (``i < j`` for symmetric metrics) with all diagnostics,
+        :meth:`status` and :meth:`rel_gap` included."""
         import pandas as pd
 
         i, j = self._pairs()
         return pd.DataFrame({"i": i, "j": j, "value": self.matrix[i, j], "lower": self.lower[i, j],
-                             "upper": self.upper[i, j], "energy": self.energy[i, j],
-                             "converged": self.converged[i, j], "n_iter": self.n_iter[i, j],
-                             "seconds": self.seconds[i, j]})
+                             "upper": self.upper[i, j], "rel_gap": self.rel_gap(i, j), "energy": self.energy[i, j],
+                             "converged": self.converged[i, j], "status": self.status(i, j),
+                             "n_iter": self.n_iter[i, j], "seconds": self.seconds[i, j]})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -636,11 +678,9 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if not computed.all():
         raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
     result = _result(st, data, computed, log)
-    bad = result.nonconverged_pairs()
-    if bad:
-        warnings.warn(f"{len(bad)} of {total_pairs} {metric} pairs did not converge "
-                      f"(first: {bad[:3]}); see PairwiseResult.nonconverged_pairs()", GeodesicWarning,
-                      stacklevel=3)
+    words = result.convergence_summary()
+    if words:
+        warnings.warn(f"{words}; see PairwiseResult.to_frame() (status, rel_gap)", GeodesicWarning, stacklevel=3)
     return result
 
 

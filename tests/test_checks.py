@@ -234,3 +234,37 @@ def test_far_apart_shapes_give_a_fisher_rao_value_not_a_division_by_zero(aligned
     assert np.isfinite(r.length) and np.isfinite(r.energy)
     assert bound == pytest.approx(np.pi, abs=1e-6)  # disjoint densities: the great circle's quarter turn
     assert r.length >= bound
+
+
+# ---------------------------------------------------------------------------------------------
+# Convergence words: "bracket wider than rtol" (certified, how wide) apart from "solver failed"
+# ---------------------------------------------------------------------------------------------
+
+
+def test_a_bracket_wider_than_rtol_is_said_as_such_with_its_width(aligned_set):
+    x = aligned_set[:5]
+    with pytest.warns(sl.GeodesicWarning, match=r"10 of 10 alpha pairs: the certified bracket is wider than "
+                                                 r"rtol = 1e-09 \(relative gap median [\d.e+-]+ %, max [\d.e+-]+ %\).*"
+                                                 r"not a solver failure"):
+        res = sl.pairwise_distances(x, metric="alpha", sigma2=25.0, rtol=1e-9, max_n_steps=8, n_jobs=1,
+                                    progress=False, return_result=True)
+    frame = res.to_frame()
+    assert set(frame["status"]) == {"bracket wider than rtol"}
+    np.testing.assert_allclose(frame["rel_gap"], frame["upper"] / frame["lower"] - 1, rtol=1e-12)
+    assert (frame["rel_gap"] > 1e-9).all() and (frame["lower"] <= frame["value"]).all()
+    # the same pairs to a tolerance they reach: converged, and inside the wider brackets
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sl.GeodesicWarning)
+        ok = sl.pairwise_distances(x, metric="alpha", sigma2=25.0, rtol=0.5, n_jobs=1, progress=False,
+                                   return_result=True)
+    assert set(ok.to_frame()["status"]) == {"converged"}
+
+
+def test_a_solver_that_stopped_early_is_a_solver_failure(aligned_set):
+    with pytest.warns(sl.GeodesicWarning, match=r"alpha pairs: solver failed.*upper bound"):
+        res = sl.pairwise_distances(aligned_set[:4], metric="alpha", sigma2=25.0, n_steps=8, max_iter=1, n_jobs=1,
+                                    progress=False, return_result=True)
+    frame = res.to_frame()
+    assert set(frame["status"]) == {"solver failed"} and not frame["converged"].any()
+    assert set(sl.pairwise_distances(aligned_set[:4], metric="procrustes", n_jobs=1, progress=False,
+                                     return_result=True).to_frame()["status"]) == {"converged"}

@@ -91,3 +91,32 @@ def test_fisher_rao_on_raw_pixels_is_a_one_line_error_not_an_internal_error(raw,
     proc = run(command, raw["tps"], *where, "--metric", "fisher_rao", "--sigma2", 0.5, "--param", "n_steps=2", "-o", out)
     one_line_error(proc, "sigma2 = 0.5 is too small", "Use sigma2 >=")
     assert "internal error" not in proc.stderr and not out.exists()
+
+
+def test_distances_say_bracket_wider_than_rtol_apart_from_solver_failed(raw):
+    out, pairs = raw["dir"] / "d.csv", raw["dir"] / "pairs.csv"
+    common = ["--metric", "alpha", "--sigma2", SIGMA2, "--jobs", 1, "--no-progress", "-o", out, "--pairs", pairs]
+    proc = run("distances", raw["tps"], *common, "--rtol", 1e-9, "--param", "max_n_steps=8", check=0)
+    line = [ln for ln in proc.stderr.splitlines() if "warning" in ln]
+    assert len(line) == 1 and "10 of 10 pairs: the certified bracket is wider than --rtol 1e-09 (relative gap median" \
+        in line[0] and "solver did not fail" in line[0], proc.stderr
+    table = pd.read_csv(pairs)
+    assert set(table["status"]) == {"bracket wider than rtol"} and (table["rel_gap"] > 1e-9).all()
+    proc = run("distances", raw["tps"], *common, "--param", "max_iter=1", "--param", "n_steps=8")
+    assert proc.returncode == 4, (proc.returncode, proc.stderr)
+    assert "10 of 10 pairs: solver failed" in proc.stderr and "exit status 4" in proc.stderr
+    assert set(pd.read_csv(pairs)["status"]) == {"solver failed"} and out.exists()
+
+
+def test_an_unconverged_geodesic_is_written_flagged_and_exits_4(raw):
+    out = raw["dir"] / "path.csv"
+    proc = run("geodesic", raw["tps"], "--from", "sp0", "--to", "sp2", "--metric", "alpha", "--sigma2", SIGMA2,
+               "--n-steps", 8, "--param", "max_iter=1", "-o", out)
+    assert proc.returncode == 4, (proc.returncode, proc.stderr)
+    assert "converged False" in proc.stdout and out.exists()
+    warning = [ln for ln in proc.stderr.splitlines() if ln.startswith("shapelib: warning:")]
+    assert len(warning) == 1 and "did not converge (stopped by max_iter after 1 iterations)" in warning[0]
+    assert "upper bound only" in warning[0]
+    proc = run("geodesic", raw["tps"], "--from", "sp0", "--to", "sp2", "--metric", "alpha", "--sigma2", SIGMA2,
+               "--n-steps", 4, "-o", out, check=0)
+    assert "warning" not in proc.stderr
