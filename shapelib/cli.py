@@ -53,7 +53,8 @@ def _read(args, *, missing="error"):
     kw = {"missing": missing}
     fmt = io._format_of(args.file)
     if fmt == "tps":
-        kw.update(scale=args.scale, negative="coordinates" if args.negative_coordinates else "missing")
+        # without the flag, each specimen's own marker decides (files written by shapelib say so)
+        kw.update(scale=args.scale, negative="coordinates" if args.negative_coordinates else None)
     elif args.scale or args.negative_coordinates:
         flag = "--scale" if args.scale else "--negative-coordinates"
         raise CLIError(f"{flag} applies to .tps files only; {args.file} is {fmt}")
@@ -250,14 +251,13 @@ def cmd_align(args) -> int:
         kw["layout"] = "long"
     if fmt == "csv" and spec.attrs.get("landmarks"):
         kw["landmarks"] = spec.attrs["landmarks"]
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*negative.*", category=UserWarning)
-        io.write_landmarks(out, aligned, spec, **kw)
+    io.write_landmarks(out, aligned, spec, **kw)
     print(f"aligned {len(aligned)} specimen{'s' if len(aligned) != 1 else ''} (generalized Procrustes, {'full' if args.scaling else 'unit-size'} "
           f"scaling, centroid size {args.size or 1:g}) -> {out}")
-    if fmt == "tps":
-        print(f"note: aligned coordinates are centred, so some are negative; tpsDig reads negative values as "
-              f"missing landmarks: read {out.name} with --negative-coordinates", file=sys.stderr)
+    if fmt == "tps" and (aligned < 0).any():
+        print(f"{PROG}: note: aligned coordinates are centred, so some are negative: each specimen of {out.name} says "
+              f"so in a COMMENT= line, which shapelib reads back as coordinates (tpsDig itself reads negative values "
+              f"as missing landmarks)", file=sys.stderr)
     return 0
 
 
@@ -452,12 +452,12 @@ def cmd_study(run_all_args) -> int:
 EXAMPLES = {
     "info": "example:\n  shapelib info fish.tps",
     "align": "examples:\n  shapelib align fish.tps -o aligned.tps --size 20\n  shapelib align fish.csv -o aligned.csv",
-    "distances": ("examples:\n  shapelib distances aligned.tps --negative-coordinates --metric procrustes -o procrustes.csv\n"
-                  "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 \\\n"
+    "distances": ("examples:\n  shapelib distances aligned.tps --metric procrustes -o procrustes.csv\n"
+                  "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 \\\n"
                   "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
-                  "  shapelib distances aligned.tps --negative-coordinates --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
+                  "  shapelib distances aligned.tps --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
                   "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
-    "geodesic": ("example:\n  shapelib geodesic aligned.tps --negative-coordinates --from fish-1 --to Heart-1 \\\n"
+    "geodesic": ("example:\n  shapelib geodesic aligned.tps --from fish-1 --to Heart-1 \\\n"
                  "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
 }
 
@@ -467,7 +467,8 @@ def _file_options(p):
     g = p.add_argument_group("reading the file")
     g.add_argument("--scale", action="store_true", help=".tps: multiply coordinates by each specimen's SCALE=")
     g.add_argument("--negative-coordinates", action="store_true",
-                   help=".tps: negative values are coordinates (e.g. aligned shapes), not tpsDig's missing landmarks")
+                   help=".tps: negative values are coordinates (e.g. aligned shapes), not tpsDig's missing landmarks "
+                        "(not needed for files shapelib wrote: they say so themselves)")
     g.add_argument("--pkn", action="store_true", help=".npy/.npz: the array is geomorph's p x k x n layout")
 
 
@@ -490,7 +491,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description="Landmark shape analysis with information geometry (Peter & Rangarajan).",
         epilog="examples:\n  shapelib info fish.tps\n  shapelib align fish.tps -o aligned.tps --size 20\n"
-               "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 -o alpha.csv\n"
+               "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 -o alpha.csv\n"
                "run `shapelib COMMAND --help` for each command's options.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")

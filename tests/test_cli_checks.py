@@ -82,6 +82,7 @@ def test_help_examples_run_no_pose_dependent_metric_on_raw_coordinates():
         for line in examples.replace("\\\n", " ").splitlines():
             if any(m in line for m in ("alpha", "fisher_rao", "hausdorff", "diffeomorphism")):
                 assert "aligned." in line, line
+            assert "--negative-coordinates" not in line, line  # shapelib reads back what it writes
 
 
 @pytest.mark.parametrize("command", ["distances", "geodesic"])
@@ -120,3 +121,34 @@ def test_an_unconverged_geodesic_is_written_flagged_and_exits_4(raw):
     proc = run("geodesic", raw["tps"], "--from", "sp0", "--to", "sp2", "--metric", "alpha", "--sigma2", SIGMA2,
                "--n-steps", 4, "-o", out, check=0)
     assert "warning" not in proc.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# Round trips: every landmark file shapelib writes reads back with the same command line
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("ext", ["tps", "csv", "npz"])
+def test_an_aligned_file_reads_back_with_no_options(raw, ext):
+    src = raw["dir"] / f"raw.{ext}"
+    if ext != "tps":
+        io.write_landmarks(src, raw["x"], raw["ids"])
+    out = raw["dir"] / f"aligned.{ext}"
+    run("align", src, "-o", out, "--size", 20, check=0)
+    info = run("info", out, check=0)
+    assert "missing     none" in info.stdout and "warning" not in info.stderr, (info.stdout, info.stderr)
+    d = raw["dir"] / "d.csv"
+    proc = run("distances", out, "--metric", "alpha_bound", "--sigma2", 25.0, "--jobs", 1, "--no-progress", "-o", d,
+               check=0)
+    assert proc.stderr == ""  # read back as written, already aligned: nothing to say
+    back, _ = io.read_landmarks(out)
+    assert (back < 0).any()  # centred coordinates, read as coordinates
+    np.testing.assert_allclose([sl.centroid_size(s) for s in back], 20.0, rtol=1e-12)
+    want = sl.pairwise_distances(back, metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False)
+    np.testing.assert_allclose(_matrix(d).to_numpy(), want, rtol=1e-12, atol=1e-15)
+    # written again (aligning an aligned file) and read again: the same shapes, up to one rotation
+    # of the whole set (GPA's orientation is arbitrary), which changes no distance
+    again = raw["dir"] / f"again.{ext}"
+    run("align", out, "-o", again, "--size", 20, check=0)
+    np.testing.assert_allclose(sl.pairwise_distances(io.read_landmarks(again)[0], metric="alpha_bound", sigma2=25.0,
+                                                     n_jobs=1, progress=False), want, rtol=1e-9, atol=1e-12)
