@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
+import logging
 import os
 import re
 import sys
@@ -134,6 +136,24 @@ def _metric_params(args):
             raise CLIError(f"--metric {args.metric} needs --sigma2 (σ² of the Gaussian mixture, eq. 5)") from None
         raise CLIError(f"--metric {args.metric}: {exc}") from None
     return params
+
+
+@contextlib.contextmanager
+def _notes_from(name):
+    """Print the INFO records of logger ``name`` (e.g. the engine's run estimate) as ``shapelib: note:`` lines."""
+    class Note(logging.Handler):
+        def emit(self, record):
+            print(f"{PROG}: note: {record.getMessage()}", file=sys.stderr, flush=True)
+
+    lg, handler = logging.getLogger(name), Note(logging.INFO)
+    old = lg.level
+    lg.addHandler(handler)
+    lg.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        lg.removeHandler(handler)
+        lg.setLevel(old)
 
 
 def _index_of(specimens, ident, option):
@@ -286,7 +306,8 @@ def cmd_distances(args) -> int:
         raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
     shapes = _align_pose(args, shapes, params)
     try:
-        with warnings.catch_warnings():  # the convergence summary is printed below with the specimens' ids instead
+        with warnings.catch_warnings(), _notes_from("shapelib.pairwise"):  # the run's estimate, up front
+            # the convergence summary is printed below with the specimens' ids instead
             warnings.simplefilter("ignore", GeodesicWarning)
             result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
                                         store=args.store, block_size=args.block_size, progress=not args.no_progress,

@@ -87,6 +87,11 @@ CLUSTER_OVERHEAD_SECONDS = 5.0
 #: with Dask's, 1,620 with these; α bracket 50 vs 45 pairs/s.
 WORKER_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 64 * 2**20,
                   "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 128 * 2**20}
+#: a run whose estimate (pairs × seconds per pair ÷ workers) reaches this is announced up front:
+#: logged at INFO on the ``shapelib.pairwise`` logger (the CLI prints it) and shown on the progress bar
+LONG_RUN_SECONDS = 10.0
+#: the logger of the engine's run estimates
+logger = logging.getLogger("shapelib.pairwise")
 #: side of the stored chunks (a multiple of the block size near this)
 CHUNK_SIDE = 64
 #: the per-pair arrays of the store: name -> (dtype, fill value)
@@ -160,7 +165,8 @@ class PairwiseResult:
     computed : ndarray of bool, shape (N, N)
         Pairs whose values are present (all, for a finished run).
     log : dict
-        Blocks in total / computed by this call / found done, block size, where it ran, wall seconds.
+        Blocks in total / computed by this call / found done, block size, where it ran, wall seconds,
+        ``estimated_seconds`` (pairs × timed seconds per pair ÷ workers, when a pair was timed).
     """
 
     matrix: np.ndarray
@@ -657,7 +663,9 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     log = {"blocks_total": len(done) + len(todo), "blocks_found_done": len(done), "blocks_computed": 0,
            "block_size": st.b, "mode": mode, "seconds_per_pair_estimate": seconds_per_pair}
     total_pairs = sum(_block_n_pairs(st, a, b) for a, b in block_pairs(n, st.b, symmetric=symmetric))
-    bar = _progress(progress, total=total_pairs, initial=total_pairs - n_todo, metric=metric)
+    workers = n_workers if local else (_cluster_size(client) if client is not None else None)
+    eta = _announce(metric, n_todo, seconds_per_pair or _stored_seconds_per_pair(st), workers, log)
+    bar = _progress(progress, total=total_pairs, initial=total_pairs - n_todo, metric=metric, eta=eta)
     kw = dict(symmetric=symmetric, metric=metric, rtol=rtol, params=params)
     t0 = time.perf_counter()
     try:
@@ -766,11 +774,36 @@ def _block_n_pairs(st: _Store, a: int, b: int) -> int:
     return na * (na - 1) // 2 if st.symmetric else na * (na - 1)
 
 
-def _progress(enabled: bool, *, total: int, initial: int, metric: str):
+def _progress(enabled: bool, *, total: int, initial: int, metric: str, eta: str | None = None):
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, initial=initial, unit="pair", desc=f"{metric} pairs", disable=not enabled,
-                smoothing=0.1, dynamic_ncols=True)
+    return tqdm(total=total, initial=initial, unit="pair", desc=f"{metric} pairs" + (f" (est. {eta})" if eta else ""),
+                disable=not enabled, smoothing=0.1, dynamic_ncols=True)
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.2g} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.2g} min"
+    return f"{seconds / 3600:.2g} h"
+
+
+def _announce(metric, n_pairs, seconds_per_pair, workers, log) -> str | None:
+    """The run's cost up front: ``n_pairs × seconds_per_pair ÷ workers`` into ``log["estimated_seconds"]``,
+    logged at INFO (DEBUG below :data:`LONG_RUN_SECONDS`); returns the duration for the progress bar
+    of a long run. Nothing when no pair was timed (``block_size`` and ``n_jobs`` given, fresh store):
+    the progress bar's ETA follows the first blocks."""
+    if not n_pairs or not seconds_per_pair:
+        return None
+    serial = n_pairs * seconds_per_pair
+    total = serial / workers if workers else serial
+    log["estimated_seconds"] = total
+    per = (f"÷ {workers} worker{'s' if workers != 1 else ''}" if workers else "÷ the cluster's workers")
+    text = (f"{metric}: {n_pairs:,} pairs × {seconds_per_pair:.2g} s per pair (timed) {per} ≈ {_duration(total)}")
+    long = total >= LONG_RUN_SECONDS
+    logger.log(logging.INFO if long else logging.DEBUG, text)
+    return _duration(total) if long else None
 
 
 def local_cluster(n_workers: int):

@@ -152,3 +152,23 @@ def test_an_aligned_file_reads_back_with_no_options(raw, ext):
     run("align", out, "-o", again, "--size", 20, check=0)
     np.testing.assert_allclose(sl.pairwise_distances(io.read_landmarks(again)[0], metric="alpha_bound", sigma2=25.0,
                                                      n_jobs=1, progress=False), want, rtol=1e-9, atol=1e-12)
+
+
+def test_distances_say_the_estimated_time_before_the_run(raw):
+    """The real CLI (its main, in a fresh process) with every run counted as long: the estimate is a
+    note on stderr before the progress bar starts."""
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+
+    out = raw["dir"] / "d.csv"
+    code = ("import sys, shapelib.pairwise as p; p.LONG_RUN_SECONDS = 0.0; from shapelib.cli import main; "
+            f"sys.exit(main(['distances', {str(raw['tps'])!r}, '--metric', 'alpha_bound', '--sigma2', '3600', "
+            f"'--jobs', '1', '-o', {str(out)!r}]))")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    notes = [ln for ln in proc.stderr.splitlines() if "s per pair (timed)" in ln]
+    assert len(notes) == 1 and notes[0].startswith("shapelib: note: alpha_bound: 10 pairs × "), proc.stderr
+    assert "÷ 1 worker ≈ " in notes[0]
+    assert proc.stderr.index(notes[0]) < proc.stderr.index("alpha_bound pairs")  # before the progress bar
