@@ -172,3 +172,61 @@ def test_distances_say_the_estimated_time_before_the_run(raw):
     assert len(notes) == 1 and notes[0].startswith("shapelib: note: alpha_bound: 10 pairs × "), proc.stderr
     assert "÷ 1 worker ≈ " in notes[0]
     assert proc.stderr.index(notes[0]) < proc.stderr.index("alpha_bound pairs")  # before the progress bar
+
+
+# ---------------------------------------------------------------------------------------------
+# Ctrl-C: one line, no warning noise (tracebacks, atexit errors, leaked semaphores)
+# ---------------------------------------------------------------------------------------------
+
+_CTRL_C = '''
+import os, signal, sys
+import distributed
+from shapelib import pairwise
+from shapelib.cli import main
+
+def hooks(second):
+    """Ctrl-C (a real SIGINT) once the second block is on disk, and with `second` again as the
+    engine starts closing its LocalCluster (an impatient user): no timing involved."""
+    written, fired = [], []
+    write = pairwise._Store.write_block
+    def write_block(self, a, b, out):
+        write(self, a, b, out)
+        written.append((a, b))
+        if len(written) == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+    pairwise._Store.write_block = write_block
+    close = distributed.LocalCluster.close
+    def close_once(self, *a, **k):
+        if second and not fired:
+            fired.append(1)
+            os.kill(os.getpid(), signal.SIGINT)
+        return close(self, *a, **k)
+    distributed.LocalCluster.close = close_once
+
+if __name__ == "__main__":
+    hooks(sys.argv[1] == "twice")
+    sys.exit(main(sys.argv[2:]))
+'''
+
+
+@pytest.mark.parametrize("presses", ["once", "twice"])
+def test_ctrl_c_leaves_one_line_and_no_warning_noise(raw, presses):
+    import subprocess
+    import sys
+
+    from shapelib.pairwise import open_store
+    from tests.conftest import ROOT
+
+    script = raw["dir"] / "ctrl_c.py"
+    script.write_text(_CTRL_C)
+    store, out = raw["dir"] / "s.zarr", raw["dir"] / "d.csv"
+    proc = subprocess.run([sys.executable, str(script), presses, "distances", str(raw["tps"]), "--metric", "alpha",
+                           "--sigma2", str(SIGMA2), "--param", "n_steps=8", "--jobs", "2", "--block-size", "1",
+                           "--no-progress", "--store", str(store), "-o", str(out)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip() and not ln.startswith("shapelib: note:")]
+    assert proc.returncode == 130 and lines == ["shapelib: interrupted"], (proc.returncode, proc.stderr)
+    assert not out.exists()
+    partial = open_store(store)  # what was written before the Ctrl-C is kept for the rerun
+    pairs = int(partial.computed[~np.eye(5, dtype=bool)].sum()) // 2  # two blocks: (0, 0) has no pair, (0, 1) one
+    assert 1 <= pairs < 10 and not partial.complete
