@@ -378,6 +378,16 @@ def cmd_geodesic(args) -> int:
     shapes, spec = _read(args)
     if (plot or anim) and shapes.shape[2] != 2:
         raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
+    links = []
+    if args.links is not None:
+        if not (plot or anim):
+            raise CLIError("--links applies to --plot and --animate")
+        from .plotting import parse_links
+
+        try:
+            links = parse_links(args.links, shapes.shape[1])
+        except ValueError as exc:
+            raise CLIError(f"--{exc}") from None
     i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
     shapes = _align_pose(args, shapes, params)  # the whole file, as `shapelib distances` aligns it
     from .solver.geodesic import GeodesicWarning
@@ -392,11 +402,12 @@ def cmd_geodesic(args) -> int:
     _write_frame(frame, out, index=False, float_format=lambda v: repr(float(v)))
     print(f"{spec['id'].iloc[i]} -> {spec['id'].iloc[j]}: {result.summary()} -> {out}")
     if plot:
-        _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}")
+        _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
+                   links=links)
         print(f"figure -> {plot}")
     if anim:
         _animate_path(result, anim, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
-                      fps=args.fps)
+                      fps=args.fps, links=links)
         print(f"animation -> {anim}")
     if not result.converged:
         why = result.log.get("reason") or f"stopped by {result.log.get('stopped_by')} after {result.n_iter} iterations"
@@ -407,24 +418,20 @@ def cmd_geodesic(args) -> int:
     return 0
 
 
-def _plot_path(result, path, *, title):
+def _plot_path(result, path, *, title, links):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .plotting import outline, plot_trajectories
+    from .plotting import plot_geodesic
 
-    fig, ax = plt.subplots(figsize=(5, 5))
-    ax.plot(*outline(result.path[0], True).T, "--", color="0.6", lw=0.8)
-    ax.plot(*outline(result.path[-1], True).T, "-", color="0.6", lw=0.8)
-    plot_trajectories(ax, result.path)
-    ax.set_title(title)
+    fig = plot_geodesic(result, links=links, title=title)
     fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
     plt.close(fig)
 
 
-def _animate_path(result, path, *, title, fps):
+def _animate_path(result, path, *, title, fps, links=()):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -433,7 +440,7 @@ def _animate_path(result, path, *, title, fps):
 
     from .plotting import animate_geodesic
 
-    anim = animate_geodesic(result, title=title)
+    anim = animate_geodesic(result, title=title, links=list(links))
     writer = PillowWriter(fps=fps) if Path(path).suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
     tmp = Path(path).with_name(f".{Path(path).stem}.tmp{Path(path).suffix}")
     try:
@@ -479,7 +486,7 @@ EXAMPLES = {
                   "  shapelib distances aligned.tps --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
                   "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
     "geodesic": ("example:\n  shapelib geodesic aligned.tps --from fish-1 --to Heart-1 \\\n"
-                 "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
+                 "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --links contour --animate path.gif"),
 }
 
 
@@ -566,6 +573,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="path.png", help="landmark trajectories (Figs. 4 and 6 style)")
     p.add_argument("--animate", metavar="path.gif", help="animation of the deforming shape (.gif; .mp4 with ffmpeg)")
     p.add_argument("--fps", type=int, default=8, help="animation frames per second (default 8)")
+    p.add_argument("--links", metavar="L", help="landmarks to join in --plot and --animate: pairs of landmark "
+                   "numbers as in the file, e.g. 1-2,2-3,3-1 (geomorph's and Momocs' links), or 'contour' for a "
+                   "closed outline in landmark order; default: points only")
     p.set_defaults(func=cmd_geodesic)
 
     # listed here for `shapelib --help`; main() hands everything after `study` to run_all.py

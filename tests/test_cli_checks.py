@@ -230,3 +230,63 @@ def test_ctrl_c_leaves_one_line_and_no_warning_noise(raw, presses):
     partial = open_store(store)  # what was written before the Ctrl-C is kept for the rerun
     pairs = int(partial.computed[~np.eye(5, dtype=bool)].sum()) // 2  # two blocks: (0, 0) has no pair, (0, 1) one
     assert 1 <= pairs < 10 and not partial.complete
+
+
+# ---------------------------------------------------------------------------------------------
+# Plots: links as given (points only by default), a legend, axes fitted to the shapes
+# ---------------------------------------------------------------------------------------------
+
+
+def test_parse_links():
+    from shapelib.plotting import parse_links
+
+    assert parse_links("1-2, 2-3,3-1", 3) == [(0, 1), (1, 2), (2, 0)]
+    assert parse_links("contour", 4) == [(0, 1), (1, 2), (2, 3), (3, 0)]
+    with pytest.raises(ValueError, match=r"'2-9' names landmark 9, but the shapes have landmarks 1 to 4"):
+        parse_links("1-2,2-9", 4)
+    with pytest.raises(ValueError, match=r"'1:2' is not a pair of landmark numbers"):
+        parse_links("1:2", 4)
+
+
+def test_plot_geodesic_draws_only_the_links_given_with_a_legend_in_a_fitted_figure():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from shapelib.plotting import plot_geodesic
+
+    # a thin strip (a wing): 10 x 1 units
+    t = np.linspace(0, 1, 8)
+    u = np.c_[10 * t, 0.5 * np.sin(np.pi * t)]
+    v = sl.procrustes_align(u, u + np.c_[0 * t, 0.3 * np.sin(2 * np.pi * t)], scaling=False)  # bent, aligned
+    result = sl.geodesic(u, v, metric="alpha", sigma2=1.0, n_steps=4)
+    points_only = plot_geodesic(result)
+    w, h = points_only.get_size_inches()
+    assert w / h > 2  # wide like the shapes, not a square
+    ax = points_only.axes[0]
+    assert ax.get_aspect() == 1.0
+    lo, hi = ax.get_xlim()
+    assert lo < u[:, 0].min() and hi > u[:, 0].max() and hi - lo < 1.2 * 10  # fitted, with a small margin
+    n_lines = len(ax.lines)
+    [legend] = points_only.legends
+    assert [t.get_text() for t in legend.get_texts()][:2] == ["landmark trajectory", "straight line (initial path)"]
+    with_links = plot_geodesic(result, links=[(0, 1), (1, 2)])
+    assert len(with_links.axes[0].lines) == n_lines + 4  # two links on the start shape, two on the end shape
+    assert "start shape (links)" in [t.get_text() for t in with_links.legends[0].get_texts()]
+
+
+def test_geodesic_plot_takes_links_from_the_command_line(raw, rng):
+    from PIL import Image
+
+    t = np.linspace(0, 2 * np.pi, 9, endpoint=False)
+    strips = np.stack([np.c_[300 + 200 * np.cos(t), 250 + 20 * np.sin(t)] + rng.normal(scale=2, size=(9, 2))
+                       for _ in range(3)])  # thin, wide outlines, in one pose
+    src = io.write_tps(raw["dir"] / "strips.tps", strips, ["sp0", "sp1", "sp2"])
+    out, png = raw["dir"] / "path.csv", raw["dir"] / "path.png"
+    base = ["geodesic", src, "--from", "sp0", "--to", "sp1", "--metric", "alpha", "--sigma2", 400.0,
+            "--n-steps", 4, "-o", out, "--plot", png]
+    run(*base, "--links", "contour", check=0)
+    with Image.open(png) as im:
+        assert im.size[0] > 1.5 * im.size[1]  # the outlines are wide: so is the figure (legend included)
+    run(*base, "--links", "1-2,2-3", check=0)
+    one_line_error(run(*base, "--links", "1-12"), "--links: '1-12' names landmark 12", "landmarks 1 to 9")
+    one_line_error(run(*base[:-2], "--links", "contour"), "--links applies to --plot and --animate")
