@@ -69,7 +69,8 @@ FORMATS = {".tps": "tps", ".csv": "csv", ".npy": "npy", ".npz": "npz"}
 #: What :func:`write_tps` adds, as a ``COMMENT=`` line, to each specimen with negative coordinates
 #: (e.g. aligned shapes), and :func:`read_tps` honours: there a negative value is a coordinate,
 #: not tpsDig's missing-landmark code (missing landmarks are then written ``NA``). A standard tps
-#: field, so tpsDig, geomorph and ktch read such files (tpsDig still takes negatives as missing).
+#: field, which other readers skip or keep as a comment (ktch reads such files; tpsDig still takes
+#: the negative values as missing).
 NEGATIVE_COORDINATES_COMMENT = "shapelib: negative values are coordinates, not missing landmarks"
 _MISSING_TOKENS = {"", "na", "nan", "n/a", "null", "none"}
 _AXES = "xyz"
@@ -452,7 +453,7 @@ def write_tps(path, shapes, specimens=None, *, curves=None, missing_value: float
     (e.g. aligned shapes), every specimen gets the :data:`NEGATIVE_COORDINATES_COMMENT` line, which
     :func:`read_tps` (and so ``shapelib`` commands) honours, and missing landmarks are written
     ``NA``: the file reads back as written, with no options. tpsDig itself would still take the
-    negative values as missing; geomorph's ``readland.tps`` reads them as coordinates by default.
+    negative values as missing.
     """
     path = Path(path)
     x = _as_writable(shapes, path)
