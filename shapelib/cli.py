@@ -410,10 +410,13 @@ def cmd_geodesic(args) -> int:
                       fps=args.fps, links=links)
         print(f"animation -> {anim}")
     if not result.converged:
-        why = result.log.get("reason") or f"stopped by {result.log.get('stopped_by')} after {result.n_iter} iterations"
+        stopped = result.log.get("stopped_by")
+        why = result.log.get("reason") or f"stopped by {stopped} after {result.n_iter} iterations"
+        todo = ("bring the shapes to a scale that fits --sigma2 (shapelib align --size 20) or use a larger --sigma2"
+                if stopped == "underflow" else "raise --param max_iter")
         print(f"{PROG}: warning: the {args.metric} geodesic did not converge ({why}): {out} holds the path it had, "
               f"whose length {result.length:.6g} is an upper bound only (lower bound {result.lower_bound:.6g}); "
-              f"e.g. raise --param max_iter; exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+              f"{todo}; exit status {EXIT_UNCONVERGED}", file=sys.stderr)
         return EXIT_UNCONVERGED
     return 0
 
