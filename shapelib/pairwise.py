@@ -734,6 +734,23 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
     -------
     ndarray, shape (N, N), or PairwiseResult
         Zero diagonal.
+
+    Warns
+    -----
+    ScaleWarning
+        Once, when σ² does not fit the landmarks' spacing (every metric that takes ``sigma2``).
+    PoseWarning
+        Once, when the metric depends on pose (:data:`shapelib.distances.POSE_DEPENDENT`) and the
+        shapes are not aligned (:func:`shapelib.geometry.procrustes.check_pose`; align them with
+        :func:`shapelib.pose_align`).
+    GeodesicWarning
+        When pairs did not converge, in :meth:`PairwiseResult.status`'s words.
+
+    Raises
+    ------
+    ValueError
+        Before any work: shapes not ``(N, K, d)`` with d = 2 or 3; a σ that leaves the
+        Fisher–Rao quadrature nothing to resolve (:func:`shapelib.geometry.scale.check_fisher_rao_scale`).
     """
     result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
                               store=store, block_size=block_size, progress=progress, rtol=rtol, **params)
