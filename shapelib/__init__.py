@@ -20,6 +20,8 @@ from .solver.bracket import DistanceBracket, distance_bracket
 from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
 from .distances import distance, pair_record
 from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
+from .solver.result import BracketStopReason, StopReason
 from .geometry.gmm import gmm_density, l2_distance
 from .geometry.metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
 from .geometry.procrustes import (
@@ -61,6 +63,12 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "AlphaPathMetric",
+    "BracketStopReason",
+    "FisherRaoPathMetric",
+    "PathMetric",
+    "path_metric",
+    "StopReason",
     "alpha_metric",
     "alpha_quadratic_form",
     "centroid_size",

@@ -67,7 +67,8 @@ from ._validate import as_shapes, check_positive_int
 from ._version import __version__
 from .geometry.scale import ScaleWarning, check_scale
 from .solver.geodesic import METRICS as SCALED_METRICS
-from .solver.geodesic import GeodesicWarning, one_blas_thread
+from .solver.geodesic import GeodesicWarning
+from .solver.linalg import one_blas_thread
 from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record, target_function
 
 __all__ = ["PairwiseResult", "PairError", "compute_pairwise", "pairwise_distances", "open_store", "compute_block", "block_pairs",

@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from shapelib import quadrature
+from shapelib.geometry import quadrature
 from shapelib.solver.bracket import distance_bracket
 from shapelib.solver.geodesic import GeodesicWarning, geodesic
 from shapelib.geometry.procrustes import centroid_size
