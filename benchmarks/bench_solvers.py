@@ -51,22 +51,13 @@ from shapelib import to_centroid_size  # noqa: E402
 
 G = importlib.import_module("shapelib.solver.geodesic")  # the module (the package exports the function)
 from shapelib.solver.energy import path_energy  # noqa: E402
-from shapelib.solver.linalg import one_blas_thread  # noqa: E402
+from shapelib.solver.linalg import block_tridiagonal_dense, one_blas_thread  # noqa: E402
 from shapelib.solver.path_metric import AlphaPathMetric  # noqa: E402
 
 METHODS = ("lm", "coarse_to_fine", "trust_exact", "saddle_free", "polynomial")
 
 
-def dense_hessian(diag, upper):
-    """The block-tridiagonal Hessian ``(diag, upper)`` as a dense symmetric matrix."""
-    m, q, _ = diag.shape
-    h = np.zeros((m * q, m * q))
-    for t in range(m):
-        h[t * q:(t + 1) * q, t * q:(t + 1) * q] = diag[t]
-    for t in range(m - 1):
-        h[t * q:(t + 1) * q, (t + 1) * q:(t + 2) * q] = upper[t]
-        h[(t + 1) * q:(t + 2) * q, t * q:(t + 1) * q] = upper[t].T
-    return h
+dense_hessian = block_tridiagonal_dense  # the block-tridiagonal Hessian (diag, upper) as a dense matrix
 
 
 def newton_decrement(h, g):

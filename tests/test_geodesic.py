@@ -7,6 +7,7 @@ from shapelib.solver.energy import path_energy as _energy
 from shapelib.solver.geodesic import GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
 from shapelib.solver.linalg import block_cholesky as _block_cholesky
 from shapelib.solver.linalg import block_solve as _block_solve
+from shapelib.solver.linalg import block_tridiagonal_dense
 from shapelib.solver.linalg import hess_vec as _hess_vec
 from shapelib.solver.path_metric import path_metric
 
@@ -150,15 +151,7 @@ def test_shooting_the_geodesic_ode_lands_on_the_target(metric):
     assert misses[1] < misses[0] / 2.5
 
 
-def _dense(diag, upper):
-    m, q, _ = diag.shape
-    h = np.zeros((m * q, m * q))
-    for t in range(m):
-        h[t * q:(t + 1) * q, t * q:(t + 1) * q] = diag[t]
-        if t < m - 1:
-            h[t * q:(t + 1) * q, (t + 1) * q:(t + 2) * q] = upper[t]
-            h[(t + 1) * q:(t + 2) * q, t * q:(t + 1) * q] = upper[t].T
-    return h
+_dense = block_tridiagonal_dense
 
 
 @pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])

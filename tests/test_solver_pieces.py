@@ -6,18 +6,11 @@ import pytest
 
 import shapelib as sl
 from shapelib.solver.energy import path_energy
+from shapelib.solver.linalg import block_tridiagonal_dense
 from shapelib.solver.minimise import accept_step, damped_newton_step, minimise_path, newton_certificate
 
 
-def _dense(diag, upper):
-    m, q, _ = diag.shape
-    h = np.zeros((m * q, m * q))
-    for t in range(m):
-        h[t * q:(t + 1) * q, t * q:(t + 1) * q] = diag[t]
-        if t < m - 1:
-            h[t * q:(t + 1) * q, (t + 1) * q:(t + 2) * q] = upper[t]
-            h[(t + 1) * q:(t + 2) * q, t * q:(t + 1) * q] = upper[t].T
-    return h
+_dense = block_tridiagonal_dense
 
 
 def _spd_blocks(rng, m=4, q=3, shift=0.0):

@@ -10,7 +10,7 @@ from scipy.linalg.blas import dsyrk, dtrsm, dtrsv
 from scipy.linalg.lapack import dpotrf
 from threadpoolctl import ThreadpoolController
 
-__all__ = ["one_blas_thread", "block_cholesky", "block_solve", "hess_vec"]
+__all__ = ["one_blas_thread", "block_cholesky", "block_solve", "hess_vec", "block_tridiagonal_dense"]
 
 
 @lru_cache(maxsize=1)
@@ -80,3 +80,16 @@ def hess_vec(diag, upper, x):
         hx[:-1] += np.einsum("tij,tj->ti", upper, x[1:])
         hx[1:] += np.einsum("tji,tj->ti", upper, x[:-1])
     return hx
+
+
+def block_tridiagonal_dense(diag, upper) -> np.ndarray:
+    """The symmetric block-tridiagonal matrix ``(diag, upper)`` as a dense array (for checks and
+    small problems; the solver never forms it)."""
+    m, q, _ = diag.shape
+    h = np.zeros((m * q, m * q))
+    for t in range(m):
+        h[t * q:(t + 1) * q, t * q:(t + 1) * q] = diag[t]
+    for t in range(m - 1):
+        h[t * q:(t + 1) * q, (t + 1) * q:(t + 2) * q] = upper[t]
+        h[(t + 1) * q:(t + 2) * q, t * q:(t + 1) * q] = upper[t].T
+    return h
