@@ -48,6 +48,7 @@ nb_execution_mode = "off"
 nb_merge_streams = True
 myst_enable_extensions = ["dollarmath", "colon_fence", "deflist"]
 myst_heading_anchors = 3
+# outputs without an HTML rendering (none so far) fall back to their text
 suppress_warnings = ["mystnb.unknown_mime_type"]
 
 # -- HTML ----------------------------------------------------------------------------------------

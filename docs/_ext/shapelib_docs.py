@@ -7,11 +7,13 @@ Two build steps, both run by ``make docs`` (and by any ``sphinx-build docs ...``
   (``python benchmarks/bench_*.py --record``) and ``python run_all.py --record-timings`` write
   those files; the renderers below are plain functions (:func:`benchmark_tables`), tested without
   Sphinx in ``tests/test_docs.py``.
-* The study notebooks are executed by ``run_all.py`` (papermill, each with its quick parameters,
-  into ``docs/_build/notebook-runs``; unchanged notebooks are not re-run) and the executed
-  ``.ipynb`` files are copied to ``docs/notebooks/`` for myst-nb to render with their figures.
-  ``SHAPELIB_DOCS_NOTEBOOKS=results`` renders those of a full ``python run_all.py`` from
-  ``results/`` instead (a notebook without a full run there is executed quick as above).
+* The study notebooks are executed by ``run_all.py`` (papermill) into ``docs/_build/notebook-runs``
+  — the paper's figures (:data:`FULL_IN_DOCS`, seconds each) with their full parameters, the
+  others with their quick ones; notebooks whose inputs are unchanged are not re-run — and the
+  executed ``.ipynb`` files are copied to ``docs/notebooks/`` for myst-nb to render with their
+  figures. ``SHAPELIB_DOCS_NOTEBOOKS=results`` renders the notebooks of a full
+  ``python run_all.py`` from ``results/`` instead (one without a full run there is executed as
+  above).
 """
 
 from __future__ import annotations
@@ -403,16 +405,23 @@ def _run_all():
     return run_all
 
 
-def _executed(name: str, mode: str, run_all) -> tuple[Path, dict]:
-    """The executed notebook to render and its run record (``.inputs.json``)."""
-    if mode == "results":
-        info_path = run_all.RESULTS_DIR / name / ".inputs.json"
-        if info_path.is_file():
-            info = json.loads(info_path.read_text())
-            if info.get("mode") == "full":
-                return run_all.RESULTS_DIR / name / f"{name}.ipynb", info
-    run_dir = NOTEBOOK_RUNS / name
-    return run_dir / f"{name}.ipynb", json.loads((run_dir / ".inputs.json").read_text())
+#: notebooks the documentation executes with their full parameters: the paper's figures, whose
+#: full runs take seconds each; the others run with their quick parameters
+FULL_IN_DOCS = ("fig01_gmm_representation", "fig02_intrinsic_extrinsic", "fig04_line_bending",
+                "fig06_square_rotation", "fig07_fish_deformations", "fig10_corpus_callosum",
+                "sec3e_extrinsic_warp")
+
+
+def _run_record(folder: Path) -> dict:
+    path = folder / ".inputs.json"
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
+def _executed(name: str, mode: str, run_all) -> tuple[Path, Path, dict]:
+    """The executed notebook to render, the results folder of its run, and its run record."""
+    if mode == "results" and _run_record(run_all.RESULTS_DIR / name).get("mode") == "full":
+        return run_all.RESULTS_DIR / name / f"{name}.ipynb", run_all.RESULTS_DIR, _run_record(run_all.RESULTS_DIR / name)
+    return NOTEBOOK_RUNS / name / f"{name}.ipynb", NOTEBOOK_RUNS, _run_record(NOTEBOOK_RUNS / name)
 
 
 def _clean_paths(text: str, run_dir: Path, name: str) -> str:
@@ -444,7 +453,7 @@ def notebook_page(name: str, source: Path, info: dict, run_dir: Path) -> dict:
                         else _clean_paths(v, run_dir, name)
     overrides = {k: v for k, v in info.get("overrides", {}).items() if k not in ("output_dir", "store_dir")}
     if info.get("mode") == "full":
-        how = "This page shows the notebook as a full run (`python run_all.py`) executed it"
+        how = "This page shows the notebook executed with its full parameters, as `python run_all.py` runs it"
     else:
         shown = ", ".join(f"`{k}={v!r}`" for k, v in overrides.items()) or "its defaults"
         how = (f"This page shows the notebook executed with its quick parameters ({shown}) when the documentation "
@@ -456,35 +465,37 @@ def notebook_page(name: str, source: Path, info: dict, run_dir: Path) -> dict:
 
 
 def prepare_notebooks(app, config) -> None:
-    """Execute the study notebooks (quick, cached by their inputs) and copy them into docs/notebooks/."""
+    """Execute the study notebooks (cached by their inputs) and copy them into docs/notebooks/."""
     from sphinx.errors import ExtensionError
     from sphinx.util import logging
 
     log = logging.getLogger(__name__)
-    mode = os.environ.get(NOTEBOOKS_ENV, "quick")
-    if mode not in ("quick", "results"):
-        raise ExtensionError(f"{NOTEBOOKS_ENV} must be 'quick' or 'results'; got {mode!r}")
+    mode = os.environ.get(NOTEBOOKS_ENV, "build")
+    if mode not in ("build", "results"):
+        raise ExtensionError(f"{NOTEBOOKS_ENV} must be 'build' (execute them now) or 'results' (a full run's "
+                             f"from results/); got {mode!r}")
     run_all = _run_all()
     names = list(run_all.NOTEBOOKS)
     if mode == "results":
-        missing = [n for n in names if json.loads((run_all.RESULTS_DIR / n / ".inputs.json").read_text()
-                                                  if (run_all.RESULTS_DIR / n / ".inputs.json").is_file()
-                                                  else "{}").get("mode") != "full"]
+        names_to_run = [n for n in names if _run_record(run_all.RESULTS_DIR / n).get("mode") != "full"]
     else:
-        missing = names
-    if missing:
-        log.info(f"[shapelib] executing {len(missing)} study notebook(s) with their quick parameters "
-                 f"(run_all.py --quick; unchanged ones are skipped)")
-        cmd = [sys.executable, str(ROOT / "run_all.py"), "--quick", "--no-progress",
-               "--results-dir", str(NOTEBOOK_RUNS)] + [a for n in missing for a in ("--only", n)]
+        names_to_run = names
+    full = [n for n in names_to_run if n in FULL_IN_DOCS]
+    quick = [n for n in names_to_run if n not in FULL_IN_DOCS]
+    for selected, options in ((full, []), (quick, ["--quick"])):
+        if not selected:
+            continue
+        log.info(f"[shapelib] executing {len(selected)} study notebook(s) {'with their quick parameters ' * bool(options)}"
+                 "(run_all.py; notebooks whose inputs are unchanged are not re-run)")
+        cmd = [sys.executable, str(ROOT / "run_all.py"), *options, "--no-progress", "--results-dir", str(NOTEBOOK_RUNS)]
+        cmd += [a for n in selected for a in ("--only", n)]
         proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
         if proc.returncode != 0:
-            raise ExtensionError(f"run_all.py --quick failed (exit {proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
+            raise ExtensionError(f"{' '.join(cmd[1:])} failed (exit {proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
         log.info(proc.stdout.strip())
     NOTEBOOK_PAGES.mkdir(exist_ok=True)
     for name in names:
-        source, info = _executed(name, mode, run_all)
-        run_dir = run_all.RESULTS_DIR if info.get("mode") == "full" else NOTEBOOK_RUNS
+        source, run_dir, info = _executed(name, mode, run_all)
         text = json.dumps(notebook_page(name, source, info, run_dir), indent=1, ensure_ascii=False) + "\n"
         target = NOTEBOOK_PAGES / f"{name}.ipynb"
         if not target.is_file() or target.read_text() != text:  # unchanged pages are not re-read
