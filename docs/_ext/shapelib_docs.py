@@ -435,6 +435,9 @@ def notebook_page(name: str, source: Path, info: dict, run_dir: Path) -> dict:
     """The executed notebook as a documentation page: a note on the parameters it ran with after
     its title cell, the injected parameters without the run's output folder, no absolute paths."""
     nb = json.loads(source.read_text())
+    output_dir = nb["metadata"].get("papermill", {}).get("parameters", {}).get("output_dir")
+    if output_dir:  # the results folder the notebook ran in (run_dir/.tmp-<name>-*), wherever it is now
+        run_dir = Path(output_dir).parent
     nb["metadata"].pop("papermill", None)
     for cell in nb["cells"]:
         cell.get("metadata", {}).pop("papermill", None)
