@@ -41,6 +41,11 @@ numpydoc_show_class_members = False  # the class template lists members itself
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 
+# The summaries in the API tables are the docstrings' first sentences; "eq. (5)", "Fig. 10" do not end one.
+import sphinx.ext.autosummary as _autosummary  # noqa: E402
+
+_autosummary.WELL_KNOWN_ABBREVIATIONS = (*_autosummary.WELL_KNOWN_ABBREVIATIONS, "eq.", "eqs.", "Fig.", "Figs.")
+
 # -- notebooks and Markdown ----------------------------------------------------------------------
 # The study notebooks are executed by run_all.py (papermill, with their parameters) when the docs
 # are built, and rendered from the executed .ipynb: myst-nb never executes them itself.
