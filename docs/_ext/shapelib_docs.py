@@ -505,8 +505,41 @@ def prepare_notebooks(app, config) -> None:
             target.write_text(text)
 
 
+def api_entries(api_dir: Path = DOCS / "api") -> dict[str, set[str]]:
+    """``{current module: names}`` of the autosummary entries in ``docs/api/*.rst``."""
+    entries: dict[str, set[str]] = {}
+    for path in sorted(api_dir.glob("*.rst")):
+        module, in_summary = None, False
+        for line in path.read_text().splitlines():
+            m = re.match(r"\.\. currentmodule:: (\S+)", line)
+            if m:
+                module = m.group(1)
+                continue
+            if line.startswith(".. autosummary::"):
+                in_summary = True
+                continue
+            if in_summary:
+                if not line.strip() or line.lstrip().startswith(":"):
+                    continue
+                if line.startswith("   "):
+                    entries.setdefault(module, set()).add(line.strip())
+                else:
+                    in_summary = False
+    return entries
+
+
+def prune_api_stubs(app, config) -> None:
+    """Remove autosummary pages of names no longer in the API reference (a renamed module's stubs
+    would otherwise stay in docs/api/generated and be built as orphans)."""
+    wanted = {f"{module}.{name}.rst" for module, names in api_entries().items() for name in names}
+    for stub in (DOCS / "api" / "generated").glob("*.rst"):
+        if stub.name not in wanted:
+            stub.unlink()
+
+
 def setup(app):
     app.add_directive("benchmark", _benchmark_directive())
     app.add_directive("cli-help", _cli_help_directive())
+    app.connect("config-inited", prune_api_stubs)
     app.connect("config-inited", prepare_notebooks)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
