@@ -64,9 +64,9 @@ from pathlib import Path
 import numpy as np
 
 from ._validate import as_shapes, check_positive_int, check_scale
-from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record
+from .distances import SYMMETRIC, check_metric_params, metric_info, pair_record
 
-__all__ = ["PairwiseResult", "PairError", "compute_pairwise", "open_store", "compute_block", "block_pairs",
+__all__ = ["PairwiseResult", "PairError", "BlockProgress", "compute_pairwise", "open_store", "compute_block", "block_pairs",
            "local_cluster", "default_block_size", "ARRAYS"]
 
 #: seconds one task should take (sets the default block size)
@@ -155,7 +155,10 @@ class PairwiseResult:
     computed : ndarray of bool, shape (N, N)
         Pairs whose values are present (all, for a finished run).
     log : dict
-        Blocks in total / computed by this call / found done, block size, where it ran, wall seconds.
+        Blocks in total / computed by this call / found done, block size, where it ran, wall
+        seconds, ``stopped`` (True when a ``callback`` stopped the run).
+    symmetric : bool or None
+        Whether the metric is symmetric (pairs ``i < j`` only); None: looked up by name.
     """
 
     matrix: np.ndarray
@@ -170,6 +173,7 @@ class PairwiseResult:
     store: str | None = None
     computed: np.ndarray | None = None
     log: dict = field(default_factory=dict, repr=False)
+    symmetric: bool | None = None
 
     @property
     def complete(self) -> bool:
@@ -178,8 +182,8 @@ class PairwiseResult:
 
     def _pairs(self):
         n = len(self.matrix)
-        i, j = (np.triu_indices(n, 1) if self.metric in SYMMETRIC
-                else np.nonzero(~np.eye(n, dtype=bool)))
+        symmetric = self.metric in SYMMETRIC if self.symmetric is None else self.symmetric
+        i, j = np.triu_indices(n, 1) if symmetric else np.nonzero(~np.eye(n, dtype=bool))
         keep = self.computed[i, j] if self.computed is not None else np.ones(len(i), bool)
         return i[keep], j[keep]
 
@@ -215,9 +219,13 @@ def block_pairs(n: int, block_size: int, *, symmetric: bool) -> list[tuple[int, 
     return [(a, b) for a in range(nb) for b in range(nb) if not symmetric or a <= b]
 
 
-def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol, params: dict,
+def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, params: dict,
                   offset=(0, 0)) -> dict:
     """All pairs of one block through :func:`shapelib.distances.pair_record`: ``{array: (bi, bj)}``.
+
+    ``metric`` is a name or a :class:`~shapelib.distances.MetricInfo` record: the engine sends
+    the record with each task, so a metric registered in the client runs on workers that can
+    import its function's module, registered there or not.
 
     ``xi``, ``xj`` are the block's row and column shapes, starting at rows/columns ``offset`` of
     the matrix (used to name a pair in a :class:`PairError`). On a diagonal block only the pairs
@@ -278,12 +286,10 @@ def _jsonable(name, value):
                      "(numbers, strings, booleans and None only)")
 
 
-def _full_params(metric: str, rtol, params: dict) -> dict:
+def _full_params(metric, rtol, params: dict) -> dict:
     """``params`` with the computing function's defaults filled in (so n_steps=16 == omitted)."""
-    from .distances import _target
-
     full = {}
-    for name, p in inspect.signature(_target(metric, rtol)).parameters.items():
+    for name, p in inspect.signature(metric_info(metric).options_of(rtol)).parameters.items():
         if name in ("u", "v", "metric", "rtol") or p.kind in (p.VAR_KEYWORD, p.VAR_POSITIONAL):
             continue
         if name in params:
@@ -489,12 +495,87 @@ def _result(store: _Store, data: dict, computed, log) -> PairwiseResult:
     return PairwiseResult(matrix=data["matrix"], lower=data["lower"], upper=data["upper"],
                           energy=data["energy"], seconds=data["seconds"], converged=data["converged"],
                           n_iter=data["n_iter"], metric=store.attrs["metric"], params=params,
-                          store=store.path, computed=computed, log=log)
+                          store=store.path, computed=computed, log=log, symmetric=bool(store.symmetric))
 
 
 # ---------------------------------------------------------------------------------------------
 # Running
 # ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BlockProgress:
+    """What ``compute_pairwise(..., callback=)`` is called with after each block is written.
+
+    Attributes
+    ----------
+    block : tuple of int
+        Block indices ``(I, J)`` of the block just written.
+    rows, cols : range
+        Its rows and columns of the matrix.
+    blocks_done, blocks_total : int
+        Blocks in the store now (this run's and those found done) and in all.
+    blocks_computed : int
+        Blocks computed by this call so far.
+    pairs_done, pairs_total : int
+        The same counted in pairs (one per unordered pair for symmetric metrics).
+    """
+
+    block: tuple
+    rows: range
+    cols: range
+    blocks_done: int
+    blocks_total: int
+    blocks_computed: int
+    pairs_done: int
+    pairs_total: int
+
+
+class _Interrupts:
+    """Ctrl-C during a run stops it, whatever code it lands in.
+
+    Python runs a SIGINT handler in the main thread between two bytecodes, wherever the thread
+    is: also inside a finalizer (``__del__``, e.g. of a Dask future the loop lets go, or one the
+    garbage collector runs), where the KeyboardInterrupt it raises is printed as "Exception
+    ignored" and lost — the run then went on to the end. While the engine runs (main thread
+    only) the handler is wrapped: the exception the previous handler raises is recorded as well
+    as raised, and :meth:`check` (after every block, every half second while waiting for Dask,
+    and before returning) raises it again if it was swallowed. A handler that does not raise (a
+    program that ignores Ctrl-C its own way) is left to decide; ``SIG_IGN``/``SIG_DFL`` are kept.
+    """
+
+    def __init__(self):
+        self.exc = None
+        self._previous = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            previous = signal.getsignal(signal.SIGINT)
+            if callable(previous):
+                self._previous = previous
+                signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum, frame):
+        try:
+            self._previous(signum, frame)
+        except BaseException as exc:
+            self.exc = exc
+            raise
+
+    def check(self):
+        """Raise the interrupt recorded if it has not stopped the run yet."""
+        exc, self.exc = self.exc, None
+        if exc is not None:
+            raise exc
+
+    def __exit__(self, kind, value, tb):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+        if kind is None:
+            self.check()  # a Ctrl-C swallowed after the last check
+        return False
 
 
 def _n_cores() -> int:
@@ -552,9 +633,17 @@ def _stored_seconds_per_pair(store: _Store) -> float | None:
 
 def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
                      store=None, block_size: int | None = None, progress: bool = True,
-                     rtol: float | None = None, **params) -> PairwiseResult:
+                     rtol: float | None = None, callback=None, **params) -> PairwiseResult:
     """Distances (and diagnostics) of every pair of ``shapes``; see the module docstring and
     :func:`shapelib.distances.pairwise_distances` for the parameters.
+
+    ``callback(progress)`` is called in this process after each block is written, with a
+    :class:`BlockProgress`; a true return value stops the run: in-flight tasks are cancelled, the
+    local cluster is closed, the store keeps the blocks written (rerun to resume) and the partial
+    result is returned (``complete`` False unless that was the last block, ``log["stopped"]`` True).
+
+    A Ctrl-C (SIGINT) raises KeyboardInterrupt whenever it comes (see :class:`_Interrupts`), with
+    the same clean-up and the finished blocks kept.
 
     Returns
     -------
@@ -564,12 +653,16 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
 
     from .geodesic import METRICS as SCALED_METRICS
 
-    check_metric_params(metric, params, rtol=rtol)
+    info = metric_info(metric)
+    metric = info.name
+    check_metric_params(info, params, rtol=rtol)
+    if callback is not None and not callable(callback):
+        raise ValueError(f"callback must be callable; got {callback!r}")
     x = as_shapes(shapes, name="shapes")
     n, k, d = x.shape
     if metric in SCALED_METRICS and "sigma2" in params:  # once for all the shapes, not once per pair
         check_scale(x, params["sigma2"], stacklevel=4)
-    symmetric = metric in SYMMETRIC
+    symmetric = info.symmetric
     if client is not None and scheduler is not None:
         raise ValueError("give client or scheduler, not both")
     if n_jobs is not None and n_jobs != -1 and (isinstance(n_jobs, bool) or not isinstance(n_jobs, (int, np.integer))
@@ -579,7 +672,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         raise ValueError("n_jobs sizes a local cluster; it cannot be combined with client or scheduler")
     if block_size is not None:
         block_size = check_positive_int(block_size, name="block_size")
-    want = {"format": _FORMAT, "metric": metric, "params": _full_params(metric, rtol, params),
+    want = {"format": _FORMAT, "metric": metric, "params": _full_params(info, rtol, params),
             "rtol": None if rtol is None else float(rtol), "shapes_sha256": shapes_sha256(x),
             "N": int(n), "K": int(k), "d": int(d), "symmetric": symmetric, "shapelib_version": __version__}
 
@@ -597,7 +690,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     seconds_per_pair = None
     if (st is None and block_size is None) or (local and n_jobs in (None, -1)):
         seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
-            _time_one_pair(x, metric, rtol, params) if n > 2 else 0.0)  # one pair: in-process whatever it costs
+            _time_one_pair(x, info, rtol, params) if n > 2 else 0.0)  # one pair: in-process whatever it costs
     if local and n_jobs in (None, -1):
         left = _pairs_left(st, n, symmetric)
         n_workers = 1 if n_workers < 2 or seconds_per_pair * left < (
@@ -613,34 +706,52 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     mode = "in-process" if local and n_workers == 1 else (
         f"LocalCluster({n_workers} processes)" if local else "cluster")
     log = {"blocks_total": len(done) + len(todo), "blocks_found_done": len(done), "blocks_computed": 0,
-           "block_size": st.b, "mode": mode, "seconds_per_pair_estimate": seconds_per_pair}
+           "block_size": st.b, "mode": mode, "seconds_per_pair_estimate": seconds_per_pair, "stopped": False}
     total_pairs = sum(_block_n_pairs(st, a, b) for a, b in block_pairs(n, st.b, symmetric=symmetric))
     bar = _progress(progress, total=total_pairs, initial=total_pairs - n_todo, metric=metric)
-    kw = dict(symmetric=symmetric, metric=metric, rtol=rtol, params=params)
+    kw = dict(symmetric=symmetric, metric=info, rtol=rtol, params=params)  # the record travels with each task
+    pairs_done = [total_pairs - n_todo]
     t0 = time.perf_counter()
-    try:
-        if todo and mode == "in-process":
-            for a, b in todo:
-                out = compute_block(x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b, offset=(a * st.b, b * st.b),
-                                    **kw)
-                st.write_block(a, b, out)
-                log["blocks_computed"] += 1
-                bar.update(_block_n_pairs(st, a, b))
-        elif todo:
-            _run_dask(x, st, todo, kw, client=client, scheduler=scheduler, n_workers=n_workers, bar=bar,
-                      log=log, token=_token(want, st.b))
-    finally:
-        bar.close()
-    log["seconds"] = time.perf_counter() - t0
-    data, computed = found if found is not None and not todo else st.read()  # a finished store is read once
-    if not computed.all():
+    with _Interrupts() as interrupts:
+
+        def written(a, b) -> bool:
+            """After block (a, b) is in the store: progress, Ctrl-C, the callback; True: stop."""
+            log["blocks_computed"] += 1
+            pairs_done[0] += _block_n_pairs(st, a, b)
+            bar.update(_block_n_pairs(st, a, b))
+            interrupts.check()
+            if callback is not None and callback(BlockProgress(
+                    block=(a, b), rows=range(*_rows(st, a).indices(n)), cols=range(*_rows(st, b).indices(n)),
+                    blocks_done=len(done) + log["blocks_computed"], blocks_total=log["blocks_total"],
+                    blocks_computed=log["blocks_computed"], pairs_done=pairs_done[0], pairs_total=total_pairs)):
+                log["stopped"] = True
+            interrupts.check()
+            return log["stopped"]
+
+        try:
+            if todo and mode == "in-process":
+                for a, b in todo:
+                    out = compute_block(x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b,
+                                        offset=(a * st.b, b * st.b), **kw)
+                    st.write_block(a, b, out)
+                    if written(a, b):
+                        break
+            elif todo:
+                _run_dask(x, st, todo, kw, client=client, scheduler=scheduler, n_workers=n_workers,
+                          written=written, interrupts=interrupts, token=_token(want, st.b))
+        finally:
+            bar.close()
+        log["seconds"] = time.perf_counter() - t0
+        data, computed = found if found is not None and not todo else st.read()  # a finished store is read once
+    log["blocks_done"] = len(done) + log["blocks_computed"]
+    if not computed.all() and not log["stopped"]:
         raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
     result = _result(st, data, computed, log)
     bad = result.nonconverged_pairs()
     if bad:
         from .geodesic import GeodesicWarning
 
-        warnings.warn(f"{len(bad)} of {total_pairs} {metric} pairs did not converge "
+        warnings.warn(f"{len(bad)} of {int(computed.sum()) // (2 if symmetric else 1)} {metric} pairs did not converge "
                       f"(first: {bad[:3]}); see PairwiseResult.nonconverged_pairs()", GeodesicWarning,
                       stacklevel=3)
     return result
@@ -732,9 +843,12 @@ def _ignore_sigint():
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token):
-    """Submit the blocks to Dask and write each one as it finishes (client side)."""
-    from distributed import Client, as_completed
+def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, written, interrupts, token):
+    """Submit the blocks to Dask and write each one as it finishes (client side); ``written(a, b)``
+    after each block (True: stop). While waiting, ``interrupts.check()`` every half second."""
+    import queue
+
+    from distributed import Client
 
     cluster = own_client = None
     inflight = {}
@@ -753,32 +867,38 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token)
         # keep a bounded number of blocks in flight (the shapes of each travel with its task)
         limit = max(64, 8 * max(1, sum(client.nthreads().values())))
         pending = iter(todo)
+        finished = queue.SimpleQueue()  # futures, put there by Dask's callback thread as they finish
 
         def submit(a, b):
             fut = client.submit(compute_block, x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b,
                                 offset=(a * st.b, b * st.b), **kw, key=f"shapelib-pairwise-{token}-{a}-{b}")
             inflight[fut.key] = (fut, (a, b))
+            fut.add_done_callback(finished.put)
             return fut
 
-        futures = as_completed([submit(*t) for t in itertools.islice(pending, limit)])
-        for fut in futures:
+        for t in itertools.islice(pending, limit):
+            submit(*t)
+        while inflight:
+            try:
+                fut = finished.get(timeout=0.5)
+            except queue.Empty:
+                interrupts.check()  # a Ctrl-C lost while waiting still stops the run
+                continue
             out = fut.result()
             _, (a, b) = inflight.pop(fut.key)
             fut.release()
             st.write_block(a, b, out)
-            log["blocks_computed"] += 1
-            bar.update(_block_n_pairs(st, a, b))
+            if written(a, b):
+                break
             nxt = next(pending, None)
             if nxt is not None:
-                futures.add(submit(*nxt))
-    except BaseException:
-        if client is not None and inflight:
+                submit(*nxt)
+    finally:
+        if client is not None and inflight:  # stopped, interrupted or failed: nothing more to compute
             try:
                 client.cancel([f for f, _ in inflight.values()])
             except Exception:  # the cluster may be gone already; closing below still runs
                 pass
-        raise
-    finally:
         if own_client is not None:
             own_client.close()
         if cluster is not None:
