@@ -257,10 +257,10 @@ def _alpha_bound(u, v, *, sigma2):
 for _name, _fn, _kw in (
         ("alpha", partial(geodesic, metric="alpha"),
          dict(path=True, bracket=partial(distance_bracket, metric="alpha"),
-              description="α-order geodesic length (eqs. 8, 22); needs sigma2; rtol= certifies it")),
+              description="α-order geodesic length (eqs. 8, 22); needs sigma2; certifiable to a relative tolerance (rtol)")),
         ("fisher_rao", partial(geodesic, metric="fisher_rao"),
          dict(path=True, bracket=partial(distance_bracket, metric="fisher_rao"),
-              description="Fisher–Rao geodesic length (eqs. 6, 8); needs sigma2; rtol= certifies it")),
+              description="Fisher–Rao geodesic length (eqs. 6, 8); needs sigma2; certifiable to a relative tolerance (rtol)")),
         ("diffeomorphism", landmark_diffeomorphism,
          dict(path=True, description="landmark-diffeomorphism (Camion–Younes) geodesic length (eq. 3)")),
         ("alpha_bound", _alpha_bound,
