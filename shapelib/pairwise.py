@@ -41,7 +41,8 @@ The store
     rtol, SHA-256 of the shapes, N, K, d, block size, symmetric, shapelib version. Reopening it with
     other shapes, metric or parameters raises ``ValueError`` saying what differs; rerunning with the
     same ones computes only the blocks not done. A checksum mismatch, unreadable or missing chunk
-    raises ``ValueError`` naming the store, the array and the block.
+    raises ``ValueError`` naming the store, the array and the block. Without a store the same
+    arrays live in memory (NumPy) for the duration of the call.
 """
 
 from __future__ import annotations
@@ -316,13 +317,18 @@ def shapes_sha256(x: np.ndarray) -> str:
 
 
 class _Store:
-    """The zarr group of one matrix (directory, or in memory when no path is given)."""
+    """The zarr group of one matrix in a directory; without a path, the same arrays in memory
+    (NumPy: nothing to resume from, so nothing to gain from zarr's chunks and checksums)."""
 
     def __init__(self, group, path, attrs):
         self.group, self.path, self.attrs = group, path, attrs
         self.n, self.b = attrs["N"], attrs["block_size"]
         self.symmetric = attrs["symmetric"]
         self.nb = _n_blocks(self.n, self.b)
+        if group is None:
+            self.arrays = {name: np.full((self.n, self.n), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
+            self.arrays["done"] = np.zeros((self.nb, self.nb), dtype=bool)
+            return
         # every chunk is written, also one equal to the fill value (e.g. the all-NaN ``energy`` of a
         # non-path metric): a done block's chunk files must exist, which is how truncation is detected
         self.arrays = {name: group[name].with_config({"write_empty_chunks": True}) for name in (*ARRAYS, "done")}
@@ -333,10 +339,12 @@ class _Store:
 
     @classmethod
     def create(cls, path, attrs):
+        if path is None:
+            return cls(None, None, attrs)
         import zarr
         from zarr.codecs import BytesCodec, Crc32cCodec, ZstdCodec
 
-        store = zarr.storage.MemoryStore() if path is None else zarr.storage.LocalStore(str(path))
+        store = zarr.storage.LocalStore(str(path))
         group = zarr.open_group(store, mode="w", zarr_format=3)
         b = attrs["block_size"]
         n = attrs["N"]
@@ -348,7 +356,7 @@ class _Store:
         group.create_array("done", shape=(nb, nb), chunks=(min(nb, CHUNK_SIDE),) * 2, dtype="bool",
                            fill_value=False, **kw)
         group.attrs[_ATTR] = attrs  # written last: a store without it is not a store
-        return cls(group, None if path is None else str(path), attrs)
+        return cls(group, str(path), attrs)
 
     @classmethod
     def open(cls, path):

@@ -180,12 +180,13 @@ def test_the_registry_describes_the_builtin_metrics():
     from shapelib import distances as d
     from shapelib.bracket import distance_bracket
 
-    assert list(d.METRICS) == ["alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound",
-                               "procrustes", "hausdorff", "tps", "wendland"]
-    assert d.PATH_METRICS == ("alpha", "fisher_rao", "diffeomorphism")
+    builtin = ["alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound", "procrustes",
+               "hausdorff", "tps", "wendland"]
+    assert list(d.METRICS)[:9] == builtin  # (other tests register metrics of their own after them)
+    assert d.PATH_METRICS[:3] == ("alpha", "fisher_rao", "diffeomorphism")
     assert d.BRACKET_METRICS == ("alpha", "fisher_rao")
-    assert set(d.METRICS) - set(d.SYMMETRIC) == {"tps", "wendland"}
-    for name in d.METRICS:
+    assert set(builtin) - set(d.SYMMETRIC) == {"tps", "wendland"}
+    for name in builtin:
         info = d.metric_info(name)
         assert info.name == name and info.description and "\n" not in info.description
         assert info.lower_bound is None or info.lower_bound in d.METRICS
