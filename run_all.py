@@ -560,7 +560,7 @@ def run_all(names, *, quick: bool, force: bool, jobs: int, results_dir: Path = R
     On KeyboardInterrupt (Ctrl-C; :class:`Interrupted` for SIGTERM, see :func:`main`) every process
     the run started is stopped and the temporary folders are removed before it propagates.
     """
-    from shapelib.report import write_report
+    from shapelib.study.report import write_report
 
     results_dir.mkdir(parents=True, exist_ok=True)
     _clean_stale(results_dir)

@@ -30,9 +30,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._machine import loadavg  # noqa: E402
 
-from shapelib.bracket import distance_bracket  # noqa: E402
+from shapelib.solver.bracket import distance_bracket  # noqa: E402
 from shapelib.datasets import load_corpus_callosum  # noqa: E402
-from shapelib.study import paper_scale  # noqa: E402
+from shapelib import to_centroid_size  # noqa: E402
 
 #: (name, metric, σ², target pairs/s or None)
 CASES = [
@@ -83,7 +83,7 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
 
     shapes, _ = load_corpus_callosum()
-    x = paper_scale(shapes)
+    x = to_centroid_size(shapes)
     pairs = list(itertools.combinations(range(len(x)), 2))
     if args.quick:
         pairs, args.repeat, args.fisher_rao_pairs = pairs[:2], 1, 1

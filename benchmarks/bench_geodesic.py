@@ -18,7 +18,7 @@ and where an iteration's time goes (energy + gradient + exact Hessian, block Cho
 solves, trial energies, the rest; CPU time), measured by timing the solver's own functions
 during the run. The load average is printed beside every row: the development machine has 2 cores shared
 with other jobs, where wall time is not reproducible (CPU time is steadier, not immune).
-The first geodesic of a process loads the compiled kernels (``shapelib._kernels``) from numba's
+The first geodesic of a process loads the compiled kernels (``shapelib.geometry._kernels``) from numba's
 on-disk cache, or compiles them after installation; it is timed separately (``first call``).
 
 ``--tensor-comparison`` adds the older check of our Fisher–Rao metric tensor against a plain
@@ -46,11 +46,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._machine import loadavg  # noqa: E402
 
 from shapelib.datasets import load_corpus_callosum  # noqa: E402
-from shapelib.metrics import fisher_rao_metric  # noqa: E402
-from shapelib.quadrature import DEFAULT_SPACING  # noqa: E402
-from shapelib.study import paper_scale  # noqa: E402
+from shapelib.geometry.metrics import fisher_rao_metric  # noqa: E402
+from shapelib.geometry.quadrature import DEFAULT_SPACING  # noqa: E402
+from shapelib import to_centroid_size  # noqa: E402
 
-G = importlib.import_module("shapelib.geodesic")  # the module (shapelib.geodesic is also a function)
+G = importlib.import_module("shapelib.solver.geodesic")  # the module (shapelib.geodesic is the function)
+M = importlib.import_module("shapelib.solver.minimise")  # the solver loop, whose calls are timed
 
 ROWS = {  # name: (metric, tol, target seconds)
     "alpha-default": ("alpha", 1e-6, 0.3),
@@ -67,7 +68,7 @@ def timing_solver_parts():
     one): yields the totals dict."""
     totals = {"energy_grad_hessian": 0.0, "trial_energy": 0.0, "cholesky": 0.0, "solve": 0.0,
               "n_energy_grad_hessian": 0, "n_trial_energy": 0, "n_cholesky": 0}
-    orig = G._energy, G._block_cholesky, G._block_solve
+    orig = M.path_energy, M.block_cholesky, M.block_solve
 
     def energy(model, path, *, gradient=True, hessian=None):
         t0 = time.process_time()
@@ -93,11 +94,11 @@ def timing_solver_parts():
         finally:
             totals["solve"] += time.process_time() - t0
 
-    G._energy, G._block_cholesky, G._block_solve = energy, cholesky, solve
+    M.path_energy, M.block_cholesky, M.block_solve = energy, cholesky, solve
     try:
         yield totals
     finally:
-        G._energy, G._block_cholesky, G._block_solve = orig
+        M.path_energy, M.block_cholesky, M.block_solve = orig
 
 
 def run_row(u, v, metric, tol, *, sigma2, n_steps, grid_spacing, max_iter):
@@ -179,7 +180,7 @@ def main(argv=None):
     ap.add_argument("--tensor-comparison", action="store_true")
     args = ap.parse_args(argv)
     shapes, ids = load_corpus_callosum()
-    x = paper_scale(shapes)
+    x = to_centroid_size(shapes)
     u, v = x[list(ids).index(1)], x[list(ids).index(2)]
     report = {"sigma2": args.sigma2, "n_steps": args.n_steps, "K": len(u), "grid_spacing": args.grid_spacing,
               "cpus": os.cpu_count(), "rows": {}}

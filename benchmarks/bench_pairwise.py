@@ -3,7 +3,7 @@
 
 For each metric, a random subset of the 647 ADHD-200 corpus callosum contours (50 landmarks,
 generalised-Procrustes aligned and scaled to centroid size 20 as in the study:
-:func:`shapelib.study.paper_scale`) is run through :func:`shapelib.pairwise.compute_pairwise`
+:func:`shapelib.to_centroid_size`) is run through :func:`shapelib.pairwise.compute_pairwise`
 with 1 worker (in this process, as ``n_jobs=1`` does) and on a ``LocalCluster`` of 2 (or
 ``--workers``) single-threaded processes started once beforehand (its start-up is reported
 separately, not charged to any metric); before timing a metric, one pair is computed in this process
@@ -13,7 +13,7 @@ pairs/s, and the scaling efficiency ``rate_w / (w · rate_1)``; then the project
 full 647-shape matrices (208,981 pairs) of the α and Fisher–Rao geodesic distances on N workers,
 from the mean measured seconds per pair and the measured 2-worker efficiency.
 
-The geodesic metrics use the certified bracket (``--rtol``, :func:`shapelib.bracket.distance_bracket`).
+The geodesic metrics use the certified bracket (``--rtol``, :func:`shapelib.solver.bracket.distance_bracket`).
 Not a test: numbers depend on the machine and its load (the load average, ``os.getloadavg``, is recorded).
 
     python benchmarks/bench_pairwise.py [--sigma2 0.5] [--workers 1 2] [--json out.json] [--quick]
@@ -37,7 +37,7 @@ from benchmarks._machine import loadavg  # noqa: E402
 from shapelib.datasets import load_adhd200  # noqa: E402
 from shapelib.distances import pair_record  # noqa: E402
 from shapelib.pairwise import compute_pairwise  # noqa: E402
-from shapelib.study import paper_scale  # noqa: E402
+from shapelib import to_centroid_size  # noqa: E402
 
 #: shapes per metric (full run): 10-60 s of work each on one core, so task and store overheads show
 #: at their real share; the cheap metrics and the α bound use the whole population
@@ -103,7 +103,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     sizes = QUICK_SIZES if args.quick else SIZES
     contours, _ = load_adhd200()
-    x_all = paper_scale(contours)
+    x_all = to_centroid_size(contours)
     order = np.random.default_rng(args.seed).permutation(len(x_all))
     report = {"machine_cores": os.cpu_count(), "loadavg_start": loadavg(), "sigma2": args.sigma2,
               "geodesics": f"bracket rtol={args.rtol}",

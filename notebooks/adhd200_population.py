@@ -42,9 +42,10 @@ from scipy.stats import false_discovery_control
 
 from shapelib import pairwise_distances, procrustes_distance
 from shapelib.datasets import load_adhd200
-from shapelib.scale import landmark_spacing
-from shapelib.stats import classical_mds, gower_centered, knn_loo_accuracy, mantel_test, permanova
-from shapelib.study import PAPER_CENTROID_SIZE, paper_scale, record_values, save_figure
+from shapelib.geometry.scale import landmark_spacing
+from shapelib.statistics.distance_based import classical_mds, gower_centered, knn_loo_accuracy, mantel_test, permanova
+from shapelib import to_centroid_size
+from shapelib.study import PAPER_CENTROID_SIZE, record_values, save_figure
 
 raw, clinical = load_adhd200()
 labels = pd.DataFrame({
@@ -140,7 +141,7 @@ print(corr_text)
 # ## Scale and σ²
 #
 # The shapes are aligned by generalised Procrustes analysis (rotations) and scaled to centroid
-# size 20, the scale at which the paper's Table I distances were computed (`paper_scale`). σ²
+# size 20, the scale at which the paper's Table I distances were computed (`to_centroid_size`). σ²
 # is a squared length at that scale; we choose it relative to the landmark spacing, so that σ
 # is `sigma_ratio` times the mean nearest-landmark distance — the ratio of the paper's middle
 # setting (σ² = 0.5 on its 63-landmark corpus callosum shapes at the same size).
@@ -159,9 +160,9 @@ def stratified(idx, n, rng):
 rng = np.random.default_rng(seed)
 sel = stratified(np.arange(len(raw)), int(n_shapes), rng)
 sub_local = np.searchsorted(sel, stratified(sel, int(n_subset), rng))  # positions within sel
-shapes = paper_scale(shapes_raw[sel])  # GPA over the analysed shapes, centroid size 20
+shapes = to_centroid_size(shapes_raw[sel])  # GPA over the analysed shapes, centroid size 20
 lab = labels.iloc[sel].reset_index(drop=True)
-spacing = landmark_spacing(shapes)  # mean nearest-landmark distance (shapelib.scale)
+spacing = landmark_spacing(shapes)  # mean nearest-landmark distance (shapelib.geometry.scale)
 sigma2 = float(f"{(sigma_ratio * spacing) ** 2:.2g}")
 values.update({"adhd200/scale/landmark_spacing": spacing, "adhd200/scale/sigma2": sigma2,
                "adhd200/scale/sigma_over_spacing": np.sqrt(sigma2) / spacing})
@@ -208,7 +209,7 @@ matrices["fisher_rao_bound"] = engine(shapes, "fisher_rao_bound", sigma2=sigma2,
                                       grid_spacing=fisher_rao_grid_spacing).matrix
 all_metrics = list(matrices)
 # the coarser quadrature against the library default on a few pairs
-from shapelib.geodesic import fisher_rao_lower_bound
+from shapelib.solver.geodesic import fisher_rao_lower_bound
 
 check = [(i, i + 1) for i in range(0, min(len(shapes) - 1, 20), 2)]
 quad_dev = max(abs(fisher_rao_lower_bound(shapes[i], shapes[j], sigma2=sigma2) / matrices["fisher_rao_bound"][i, j] - 1)

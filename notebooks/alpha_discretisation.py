@@ -45,12 +45,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from shapelib import distance_bracket, geodesic
-from shapelib.bracket import extrapolate_doublings, lower_bound, refine_path
+from shapelib.solver.bracket import extrapolate_doublings, lower_bound, refine_path
 from shapelib.datasets import load_corpus_callosum
-from shapelib.study import pair_key, paper_scale, record_values, save_figure
+from shapelib import to_centroid_size
+from shapelib.study import pair_key, record_values, save_figure
 
 shapes, paper_ids = load_corpus_callosum()
-x = paper_scale(shapes)  # GPA (rotations), centroid size 20, as in Table I
+x = to_centroid_size(shapes)  # GPA (rotations), centroid size 20, as in Table I
 pairs = list(itertools.combinations(range(len(x)), 2))[:n_pairs]
 ns = sorted(int(n) for n in n_steps_list)
 assert len(ns) >= 3 and all(b == 2 * a for a, b in zip(ns, ns[1:])), "n_steps_list: at least 3 successive doublings"
@@ -73,7 +74,7 @@ def refine(u, v):
 
 def richardson(gaps):
     """Limit and order of ``g(n) = g∞ + C n^-p`` from the last three doublings (order fitted,
-    :func:`shapelib.bracket.extrapolate_doublings`); order None if the differences do not
+    :func:`shapelib.solver.bracket.extrapolate_doublings`); order None if the differences do not
     decrease geometrically (then the last gap is returned)."""
     limit, order = extrapolate_doublings(gaps)
     return (gaps[-1], None) if limit is None else (limit, order)

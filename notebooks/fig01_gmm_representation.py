@@ -22,11 +22,12 @@ import numpy as np
 
 from shapelib import gmm_density
 from shapelib.datasets import load_corpus_callosum, mpeg7_landmarks
-from shapelib.quadrature import make_grid
-from shapelib.study import paper_scale, record_values, record_verdict, save_figure
+from shapelib.geometry.quadrature import make_grid
+from shapelib import to_centroid_size
+from shapelib.study import record_values, record_verdict, save_figure
 
 shapes, ids = load_corpus_callosum()
-cc = paper_scale(shapes)[list(ids).index(1)]
+cc = to_centroid_size(shapes)[list(ids).index(1)]
 fish = mpeg7_landmarks(fish_name, 233)
 fish = (fish - fish.min(0)) / np.ptp(fish[:, 0])
 

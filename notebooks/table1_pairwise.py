@@ -38,11 +38,12 @@ import pandas as pd
 
 from shapelib import GeodesicWarning, geodesic, hausdorff_distance, pairwise_distances, procrustes_distance, tps_bending_energy, wendland_bending_energy
 from shapelib.datasets import load_corpus_callosum
-from shapelib.report import fit_constant
-from shapelib.study import PAPER_CENTROID_SIZE, pair_key, paper_scale, record_values, record_verdict
+from shapelib.study.report import fit_constant
+from shapelib import to_centroid_size
+from shapelib.study import PAPER_CENTROID_SIZE, pair_key, record_values, record_verdict
 
 shapes, paper_ids = load_corpus_callosum()
-aligned = paper_scale(shapes)  # GPA (rotations), centroid size 20
+aligned = to_centroid_size(shapes)  # GPA (rotations), centroid size 20
 pairs = list(itertools.combinations(range(len(shapes)), 2))
 ids = lambda i, j: tuple(sorted((int(paper_ids[i]), int(paper_ids[j]))))
 print(len(pairs), "pairs; paper scale: centroid size", PAPER_CENTROID_SIZE)

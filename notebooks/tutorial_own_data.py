@@ -20,7 +20,7 @@ output_dir = default_output_dir("tutorial_own_data")  # run_all.py passes its ow
 classes = ["fish", "Heart", "Bone"]         # MPEG-7 classes sampled into the example .tps file
 per_class = 3                               # specimens per class
 n_landmarks = 24                            # landmarks per outline
-centroid_size = 20.0                        # the study's scale (shapelib.scale.PAPER_CENTROID_SIZE)
+centroid_size = 20.0                        # the study's scale (shapelib.geometry.scale.PAPER_CENTROID_SIZE)
 sigma2 = 0.5                                # σ² of the Gaussian mixture (eq. 5)
 metrics = ["procrustes", "alpha", "fisher_rao"]
 n_steps = 8                                 # time steps of each geodesic
@@ -38,7 +38,7 @@ from IPython.display import Image, display
 from shapelib import io, pairwise_distances
 from shapelib.datasets import mpeg7_landmarks
 from shapelib.distances import path_result
-from shapelib.scale import landmark_spacing, sigma_ratio, to_centroid_size
+from shapelib.geometry.scale import landmark_spacing, sigma_ratio, to_centroid_size
 from shapelib.study import record_values, save_figure
 
 out = Path(output_dir)
@@ -94,8 +94,8 @@ assert values["tutorial/tps_roundtrip_max_abs_diff"] == 0.0
 #
 # Generalized Procrustes analysis removes position, size and rotation. σ² is measured in the
 # units of the coordinates, so the shapes must be brought to a scale that fits it: the study
-# scales every aligned shape to centroid size 20 (`shapelib.scale.to_centroid_size`), where σ = √0.5
-# is of the order of the spacing of neighbouring landmarks (`shapelib.scale.sigma_ratio`, printed
+# scales every aligned shape to centroid size 20 (`shapelib.to_centroid_size`), where σ = √0.5
+# is of the order of the spacing of neighbouring landmarks (`shapelib.geometry.scale.sigma_ratio`, printed
 # below). In pixels, the same σ² would be far below it: the mixture would be isolated spikes.
 
 # %%
@@ -192,13 +192,13 @@ plt.show()
 # ## 6. A geodesic, as a figure and an animation
 #
 # `path_result` returns the whole geodesic (eqs. 8–12): the intermediate shapes are the intrinsic
-# deformation from one specimen to the other. `shapelib.cli.animate_geodesic` turns it into a
+# deformation from one specimen to the other. `shapelib.plotting.animate_geodesic` turns it into a
 # matplotlib animation; `PillowWriter` saves it as a GIF.
 
 # %%
 from matplotlib.animation import PillowWriter
 
-from shapelib.cli import animate_geodesic
+from shapelib.plotting import animate_geodesic
 from shapelib.plotting import plot_trajectories
 
 a, b = 0, per_class  # first specimen of the first two classes

@@ -4,54 +4,71 @@ Shapes are ``(K, d)`` float arrays of landmarks in correspondence; collections a
 
 Where each equation lives:
 
-* eq. (5), the GMM shape density, and closed-form L² quantities: :mod:`shapelib.gmm`
-* eq. (6) Fisher–Rao and eq. (22) α-order metrics: :mod:`shapelib.metrics`
-  (quadrature rules: :mod:`shapelib.quadrature`)
+* eq. (5), the GMM shape density, and closed-form L² quantities: :mod:`shapelib.geometry.gmm`
+* eq. (6) Fisher–Rao and eq. (22) α-order metrics: :mod:`shapelib.geometry.metrics`
+  (quadrature rules: :mod:`shapelib.geometry.quadrature`)
 * eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.geodesic`;
-  certified distance brackets ``lower ≤ d ≤ upper`` to a relative width: :mod:`shapelib.bracket`
-* σ against the landmarks' scale: :mod:`shapelib.scale`
-* comparison distances: :mod:`shapelib.procrustes`, :mod:`shapelib.splines`,
-  :mod:`shapelib.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
-* §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.warp`
+  certified distance brackets ``lower ≤ d ≤ upper`` to a relative width: :mod:`shapelib.solver.bracket`
+* σ against the landmarks' scale: :mod:`shapelib.geometry.scale`
+* comparison distances: :mod:`shapelib.geometry.procrustes`, :mod:`shapelib.comparison.splines`,
+  :mod:`shapelib.comparison.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
+* §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
 """
 
-from .bracket import DistanceBracket, distance_bracket
-from .diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
-from .distances import distance, pair_record, pairwise_distances
-from .geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
-from .gmm import gmm_density, l2_distance
-from .metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
-from .procrustes import (
+from .solver.bracket import DistanceBracket, distance_bracket
+from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
+from .distances import distance, pair_record
+from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
+from .solver.result import BracketStopReason, StopReason
+from .geometry.gmm import gmm_density, l2_distance
+from .geometry.metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
+from .geometry.procrustes import (
     centroid_size,
     generalized_procrustes,
     preshape,
     procrustes_align,
     procrustes_distance,
 )
-from .scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
-from .splines import hausdorff_distance, tps_bending_energy, wendland_bending_energy
-from .warp import extrinsic_warp
+from .geometry.scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
+from .comparison.hausdorff import hausdorff_distance
+from .comparison.splines import tps_bending_energy, wendland_bending_energy
+from .comparison.warp import extrinsic_warp
 
-__version__ = "0.1.0"
+from ._version import __version__  # noqa: F401  (the package version)
 
 #: modules above the mathematics, imported on first use (``shapelib.io.read_landmarks(...)`` works
 #: after ``import shapelib``, which itself imports neither pandas' IO nor Dask nor zarr)
-_LAZY_SUBMODULES = ("io", "pairwise", "stats", "datasets", "study", "report", "plotting", "cli")
+_LAZY_SUBMODULES = ("io", "pairwise", "statistics", "datasets", "study", "plotting", "cli")
+#: earlier names of submodules, still served on first use
+_ALIASES = {"stats": "statistics", "report": "study.report"}
+#: public functions of those modules, served from the package namespace on first use
+_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise"}
 
 
 def __getattr__(name):
-    if name in _LAZY_SUBMODULES:
+    if name in _LAZY_SUBMODULES or name in _ALIASES:
         import importlib
 
-        return importlib.import_module(f".{name}", __name__)
+        return importlib.import_module(f".{_ALIASES.get(name, name)}", __name__)
+    if name in _LAZY_FUNCTIONS:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY_FUNCTIONS[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY_SUBMODULES))
+    return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "AlphaPathMetric",
+    "BracketStopReason",
+    "FisherRaoPathMetric",
+    "PathMetric",
+    "path_metric",
+    "StopReason",
     "alpha_metric",
     "alpha_quadratic_form",
     "centroid_size",

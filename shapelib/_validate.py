@@ -7,12 +7,11 @@ the offending shape or value, so that a researcher sees what is wrong with their
 from __future__ import annotations
 
 import numbers
-import warnings
 
 import numpy as np
 
 __all__ = ["as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_positive_int",
-           "check_nonnegative_int", "check_dimension", "check_scale"]
+           "check_nonnegative_int", "check_dimension"]
 
 
 def as_shape(x, *, name: str = "shape", min_landmarks: int = 1) -> np.ndarray:
@@ -139,41 +138,3 @@ def check_dimension(x: np.ndarray, *, name: str = "u", allowed=(2, 3)) -> np.nda
             f"(specimens, landmarks, coordinates); a shape stored as (d, K) must be transposed{hint}"
         )
     return x
-
-
-def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
-    """Warn (:class:`shapelib.scale.ScaleWarning`) when σ does not fit the landmarks' scale.
-
-    Warns when σ is below :data:`shapelib.scale.SIGMA_RATIO_MIN` times the mean nearest-landmark
-    spacing (the Gaussians of neighbouring landmarks do not overlap: the metric is nearly flat
-    and lengths and gradients underflow), or when σ exceeds the largest extent of the shapes
-    (every shape is one blob). Returns ``σ / spacing``. ``stacklevel`` is counted from this
-    function, as :func:`warnings.warn` counts it (3: the caller of its caller).
-    """
-    from .scale import SIGMA_RATIO_MIN, ScaleWarning, landmark_spacing
-
-    x = np.asarray(shapes, dtype=np.float64)
-    x = x.reshape((-1,) + x.shape[-2:])
-    sigma = float(np.sqrt(sigma2))
-    if x.shape[1] < 2:
-        return float("inf")
-    spacing = landmark_spacing(x)
-    ratio = sigma / spacing if spacing > 0 else float("inf")
-    extent = float(np.max(np.ptp(x, axis=1)))
-    fix = ("Bring the shapes to a scale that fits sigma2, e.g. shapelib.scale.to_centroid_size(shapes) "
-           "(the study's centroid size 20, where the paper's sigma2 = 0.1-1.5 give sigma = 1.1-4.5 "
-           "spacings), or choose sigma2 near (2 x spacing)^2")
-    if ratio < SIGMA_RATIO_MIN:
-        warnings.warn(
-            f"sigma = {sigma:.3g} (sigma2 = {sigma2:.3g}) is {ratio:.3g} times the mean nearest-landmark "
-            f"spacing {spacing:.3g}: the Gaussians of neighbouring landmarks do not overlap, so the "
-            f"metric sees isolated points, not a shape, and energies and gradients underflow. {fix} "
-            f"= {(2 * spacing) ** 2:.3g}.",
-            ScaleWarning, stacklevel=stacklevel)
-    elif extent > 0 and sigma > extent:
-        warnings.warn(
-            f"sigma = {sigma:.3g} (sigma2 = {sigma2:.3g}) exceeds the largest extent of the shapes "
-            f"({extent:.3g}): each shape is a single blob and distances between shapes nearly vanish. "
-            f"{fix} = {(2 * spacing) ** 2:.3g}.",
-            ScaleWarning, stacklevel=stacklevel)
-    return ratio

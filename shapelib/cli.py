@@ -85,9 +85,9 @@ def _output_path(path, *, suffixes, option):
 
 
 def _write_frame(frame, path, **kw):
-    from .io import _atomic_write
+    from ._files import write_text_atomic
 
-    _atomic_write(Path(path), frame.to_csv(lineterminator="\n", **kw))
+    write_text_atomic(Path(path), frame.to_csv(lineterminator="\n", **kw))
 
 
 def parse_assignment(text: str, *, flag: str = "--param", example: str = "n_steps=16") -> tuple[str, object]:
@@ -151,7 +151,7 @@ def _index_of(specimens, ident, option):
 
 
 def cmd_info(args) -> int:
-    from .procrustes import centroid_size
+    from .geometry.procrustes import centroid_size
 
     shapes, spec = _read(args, missing="nan")
     n, k, d = shapes.shape
@@ -191,7 +191,7 @@ def cmd_info(args) -> int:
         sizes = [centroid_size(s) for s in shapes[ok]]
         print(f"centroid    size {min(sizes):.6g} … {max(sizes):.6g}")
         if k >= 2:
-            from .scale import landmark_spacing
+            from .geometry.scale import landmark_spacing
 
             h = landmark_spacing(shapes[ok])
             print(f"spacing     {h:.6g} mean nearest-landmark distance (sigma2 = {h * h:.3g} puts sigma at one "
@@ -203,7 +203,7 @@ def cmd_info(args) -> int:
 
 def cmd_align(args) -> int:
     from . import io
-    from .procrustes import generalized_procrustes
+    from .geometry.procrustes import generalized_procrustes
 
     fmt = io._format_of(args.file)
     out = Path(args.output)
@@ -241,7 +241,7 @@ def cmd_align(args) -> int:
 def cmd_distances(args) -> int:
     import pandas as pd
 
-    from .distances import pairwise_distances
+    from .pairwise import pairwise_distances
     from .pairwise import PairError
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
@@ -357,47 +357,15 @@ def _plot_path(result, path, *, title):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .plotting import plot_trajectories
+    from .plotting import outline, plot_trajectories
 
     fig, ax = plt.subplots(figsize=(5, 5))
-    ax.plot(*_outline(result.path[0], True).T, "--", color="0.6", lw=0.8)
-    ax.plot(*_outline(result.path[-1], True).T, "-", color="0.6", lw=0.8)
+    ax.plot(*outline(result.path[0], True).T, "--", color="0.6", lw=0.8)
+    ax.plot(*outline(result.path[-1], True).T, "-", color="0.6", lw=0.8)
     plot_trajectories(ax, result.path)
     ax.set_title(title)
     fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
     plt.close(fig)
-
-
-def animate_geodesic(result, *, title="", closed=True):
-    """A matplotlib :class:`~matplotlib.animation.FuncAnimation` of the shapes along ``result.path``
-    (a :class:`~shapelib.geodesic.GeodesicResult`), one frame per path point, forth and back;
-    ``closed`` draws each shape as a closed outline. Save it with ``anim.save(path, writer=...)``."""
-    import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation
-
-    path = np.asarray(result.path)
-    frames = list(range(len(path))) + list(range(len(path) - 2, 0, -1))
-    fig, ax = plt.subplots(figsize=(4.5, 4.5))
-    lo, hi = path.min(axis=(0, 1)), path.max(axis=(0, 1))
-    pad = 0.05 * float(np.max(hi - lo) or 1.0)
-    ax.set_xlim(lo[0] - pad, hi[0] + pad)
-    ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    ax.set_aspect("equal")
-    ax.plot(*_outline(path[0], closed).T, "--", color="0.7", lw=0.8)
-    ax.plot(*_outline(path[-1], closed).T, ":", color="0.7", lw=0.8)
-    (line,) = ax.plot([], [], "-o", color="k", ms=2.5, lw=1.2)
-    label = ax.set_title(title)
-
-    def draw(f):
-        line.set_data(*_outline(path[f], closed).T)
-        label.set_text(f"{title}  t = {f / (len(path) - 1):.2f}")
-        return (line,)
-
-    return FuncAnimation(fig, draw, frames=frames, blit=False)
-
-
-def _outline(shape, closed):
-    return np.vstack([shape, shape[:1]]) if closed else shape
 
 
 def _animate_path(result, path, *, title, fps):
@@ -406,6 +374,8 @@ def _animate_path(result, path, *, title, fps):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.animation import FFMpegWriter, PillowWriter
+
+    from .plotting import animate_geodesic
 
     anim = animate_geodesic(result, title=title)
     writer = PillowWriter(fps=fps) if Path(path).suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
@@ -475,7 +445,7 @@ def _metric_options(p, *, metrics, required_sigma2=False):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from ._version import __version__
     from .distances import METRICS, PATH_METRICS, metric_info
 
     parser = argparse.ArgumentParser(

@@ -1,6 +1,6 @@
 """One entry point for every shape distance in the study: :func:`distance`, :func:`pair_record`
-and :func:`pairwise_distances`, over one registry of metrics (:func:`metric_info`,
-:func:`register_metric`).
+(the matrix of a whole population: :func:`shapelib.pairwise_distances`), over one registry of
+metrics (:func:`metric_info`, :func:`register_metric`).
 
 ``metric`` names and what they compute (keyword options in brackets):
 
@@ -8,15 +8,15 @@ and :func:`pairwise_distances`, over one registry of metrics (:func:`metric_info
     Geodesic length under the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
     :func:`shapelib.geodesic` [``sigma2`` (required), ``n_steps``, ``tol``, ``max_iter``, ...];
     with ``rtol=x``, the upper end of the certified bracket of
-    :func:`shapelib.bracket.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
+    :func:`shapelib.solver.bracket.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
 ``"alpha_bound"``
     Closed-form lower bound ``‖p_u − p_v‖`` on the α geodesic distance (the L² distance of the
-    eq. 5 densities, :func:`shapelib.gmm.l2_distance`) [``sigma2``].
+    eq. 5 densities, :func:`shapelib.geometry.gmm.l2_distance`) [``sigma2``].
 ``"fisher_rao_bound"``
     Great-circle lower bound ``2 arccos ∫√(p_u p_v)`` on the Fisher–Rao geodesic distance
-    (:func:`shapelib.geodesic.fisher_rao_lower_bound`) [``sigma2``, ``grid_spacing``, ``grid_margin``].
+    (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`) [``sigma2``, ``grid_spacing``, ``grid_margin``].
 ``"diffeomorphism"``
-    Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.diffeomorphism`
+    Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.comparison.diffeomorphism`
     [``lam`` (default 10), ``kernel_width``, ``n_steps``, ...].
 ``"procrustes"``
     Procrustes distance [``kind`` = "angle" (default), "full", "partial"].
@@ -48,14 +48,15 @@ from dataclasses import dataclass
 from functools import partial
 
 from ._validate import as_shape_pair
-from .bracket import distance_bracket
-from .diffeomorphism import landmark_diffeomorphism
-from .geodesic import fisher_rao_lower_bound, geodesic
-from .gmm import l2_distance
-from .procrustes import procrustes_distance
-from .splines import hausdorff_distance, tps_bending_energy, wendland_bending_energy
+from .comparison.diffeomorphism import landmark_diffeomorphism
+from .comparison.hausdorff import hausdorff_distance
+from .comparison.splines import tps_bending_energy, wendland_bending_energy
+from .geometry.gmm import l2_distance
+from .geometry.procrustes import procrustes_distance
+from .solver.bracket import distance_bracket
+from .solver.geodesic import fisher_rao_lower_bound, geodesic
 
-__all__ = ["distance", "pair_record", "pairwise_distances", "path_result", "check_metric_params",
+__all__ = ["distance", "pair_record", "path_result", "check_metric_params",
            "MetricInfo", "metric_info", "register_metric",
            "METRICS", "SYMMETRIC", "PATH_METRICS", "BRACKET_METRICS", "RECORD_FIELDS"]
 
@@ -77,7 +78,7 @@ class MetricInfo:
     function : callable
         ``function(u, v, **params)``: the distance (a float), or for a path metric the path's
         result (with ``length``, ``lower_bound``, ``energy``, ``converged``, ``n_iter``, as
-        :class:`~shapelib.geodesic.GeodesicResult`). Sent to Dask workers with each task, pickled
+        :class:`~shapelib.solver.geodesic.GeodesicResult`). Sent to Dask workers with each task, pickled
         by reference: a module-level function (or a :func:`functools.partial` of one) in a module
         the workers can import.
     symmetric : bool
@@ -86,7 +87,7 @@ class MetricInfo:
         A path metric (``function`` returns the geodesic; :func:`path_result`).
     bracket : callable or None
         ``bracket(u, v, *, rtol, **params)`` returning a certified bracket (``lower``, ``upper``,
-        ``energy``, ``converged``, ``n_iter``, as :class:`~shapelib.bracket.DistanceBracket`): the
+        ``energy``, ``converged``, ``n_iter``, as :class:`~shapelib.solver.bracket.DistanceBracket`): the
         metric can be certified to a relative tolerance (``rtol=``). None: it cannot.
     accepts : callable
         The function whose keyword options (its signature) are the metric's options; default
@@ -126,7 +127,7 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
                     lower_bound: str | None = None, description: str = "",
                     replace: bool = False) -> MetricInfo:
     """Add a metric to the registry: afterwards :func:`distance`, :func:`pair_record`,
-    :func:`pairwise_distances` and ``shapelib distances --metric`` accept ``name``.
+    :func:`shapelib.pairwise_distances` and ``shapelib distances --metric`` accept ``name``.
 
     Parameters are the fields of :class:`MetricInfo`. For the pairwise engine on Dask the function
     travels with each task, pickled by reference, so define it at module level in a module the
@@ -281,7 +282,7 @@ del _name, _fn, _kw
 
 
 def path_result(u, v, *, metric: str, **params):
-    """The full :class:`~shapelib.geodesic.GeodesicResult` of a path metric (``"alpha"``,
+    """The full :class:`~shapelib.solver.geodesic.GeodesicResult` of a path metric (``"alpha"``,
     ``"fisher_rao"``: :func:`shapelib.geodesic`; ``"diffeomorphism"``:
     :func:`shapelib.landmark_diffeomorphism`) — what :func:`distance` reduces to its length."""
     info = metric_info(metric)
@@ -291,7 +292,7 @@ def path_result(u, v, *, metric: str, **params):
     return info.function(u, v, **params)
 
 
-def _target(metric, rtol):
+def target_function(metric, rtol):
     """The library function whose keyword options ``metric`` (with ``rtol``) accepts."""
     return metric_info(metric).options_of(rtol)
 
@@ -337,7 +338,7 @@ def distance(u, v, *, metric: str, rtol: float | None = None, **params) -> float
     rtol : float, optional
         ``"alpha"``, ``"fisher_rao"`` only. ``None``: the length of the geodesic computed by
         :func:`shapelib.geodesic` (eqs. 8–12). A number: the upper end of the certified bracket
-        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.bracket.distance_bracket`).
+        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.solver.bracket.distance_bracket`).
     **params
         Options of that metric (e.g. ``sigma2`` for the information metrics).
     """
@@ -389,70 +390,3 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
     value, lower, upper, energy, converged, n_iter = rec
     return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
             "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
-
-
-def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
-                       store=None, block_size: int | None = None, progress: bool = True,
-                       rtol: float | None = None, return_result: bool = False, callback=None, **params):
-    """Matrix of distances between every pair of ``shapes`` (N, K, d), on Dask, with a resumable store.
-
-    Symmetric metrics are computed once per unordered pair; for the bending energies (``"tps"``,
-    ``"wendland"``) entry ``[i, j]`` is the energy of the map taking shape ``i`` onto shape ``j``.
-    The work is done by :func:`shapelib.pairwise.compute_pairwise` (blocks of pairs, one Dask task
-    per block; see there for how the local cluster and the block size are chosen).
-
-    Parameters
-    ----------
-    shapes : array_like, shape (N, K, d)
-    metric : str
-        A registered metric (:data:`METRICS`, :func:`register_metric`).
-    n_jobs : int, optional
-        ``1``: in this process. ``k > 1``: a local cluster of ``k`` worker processes. ``None`` or
-        ``-1``: chosen from a measured pair (in this process when the whole matrix takes a few
-        seconds, else one worker per core).
-    client : distributed.Client, optional
-        Run on this Dask cluster.
-    scheduler : str, optional
-        Address of a running Dask scheduler (``"tcp://host:8786"``).
-    store : path-like, optional
-        Zarr directory the finished blocks are written to; rerunning with the same store resumes.
-    block_size : int, optional
-        Shapes per block side (a task computes up to ``block_size²`` pairs). Default from the
-        measured cost of one pair.
-    progress : bool
-        Progress bar (pairs done, pairs/s, ETA).
-    rtol : float, optional
-        Certified relative tolerance for ``"alpha"`` / ``"fisher_rao"`` (see :func:`distance`).
-    return_result : bool
-        Return the :class:`shapelib.pairwise.PairwiseResult` (bounds, convergence, iterations,
-        seconds per pair) instead of the matrix.
-    callback : callable, optional
-        ``callback(progress)``, called in this process after each block is written, with a
-        :class:`shapelib.pairwise.BlockProgress` (the block, blocks and pairs done and in total).
-        A true return value stops the run, as SciPy's halting callbacks do: the blocks written so
-        far stay in ``store`` (rerun to resume), running tasks are cancelled, the local cluster is
-        closed, and the partial result is returned (``complete`` False, ``log["stopped"]`` True;
-        the matrix is NaN where pairs were not computed, with a warning unless ``return_result``).
-    **params
-        Options of the metric.
-
-    Returns
-    -------
-    ndarray, shape (N, N), or PairwiseResult
-        Zero diagonal.
-    """
-    from .pairwise import compute_pairwise
-
-    result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
-                              store=store, block_size=block_size, progress=progress, rtol=rtol, callback=callback,
-                              **params)
-    if return_result:
-        return result
-    if not result.complete:
-        import warnings
-
-        warnings.warn(f"the callback stopped the run after {result.log.get('blocks_done')} of "
-                      f"{result.log.get('blocks_total')} blocks: the matrix is NaN where pairs were not computed"
-                      + (f"; rerun with store={result.store!r} to resume" if result.store else ""),
-                      UserWarning, stacklevel=2)
-    return result.matrix

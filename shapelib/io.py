@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ._files import write_text_atomic
 from ._validate import check_dimension
 
 __all__ = [
@@ -475,16 +476,8 @@ def write_tps(path, shapes, specimens=None, *, curves=None, missing_value: float
         if isinstance(comment, str) and comment:
             out.append(f"COMMENT={comment}")
         out.append("")
-    _atomic_write(path, "\n".join(out) + "\n")
+    write_text_atomic(path, "\n".join(out) + "\n")
     return path
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    """Write next to ``path`` and rename, so a failure never leaves a half-written file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(path)
 
 
 def _warn_duplicate_ids(specimens, path):
@@ -716,7 +709,7 @@ def write_csv(path, shapes, specimens=None, *, layout: str = "wide", landmarks=N
     else:
         raise ValueError(f"layout must be 'wide' or 'long'; got {layout!r}")
     text = out.to_csv(index=False, na_rep="NA", float_format=lambda v: repr(float(v)), lineterminator="\n")
-    _atomic_write(path, text)
+    write_text_atomic(path, text)
     return path
 
 

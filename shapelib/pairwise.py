@@ -1,6 +1,6 @@
 """Distance matrices at population scale: blocks of pairs as Dask tasks, finished blocks in a zarr store.
 
-:func:`compute_pairwise` (what :func:`shapelib.distances.pairwise_distances` calls) cuts the N×N
+:func:`compute_pairwise` (what :func:`pairwise_distances` calls) cuts the N×N
 matrix into ``block_size × block_size`` blocks — the upper-triangle blocks for symmetric metrics,
 every block (without the diagonal pairs) for the bending energies ``"tps"`` / ``"wendland"`` — and
 computes each block as one task, every pair through :func:`shapelib.distances.pair_record`.
@@ -64,10 +64,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import as_shapes, check_positive_int, check_scale
+from ._validate import as_shapes, check_positive_int
+from ._version import __version__
+from .geometry.scale import ScaleWarning, check_scale
+from .solver.geodesic import METRICS as SCALED_METRICS
+from .solver.geodesic import GeodesicWarning
+from .solver.linalg import one_blas_thread
 from .distances import SYMMETRIC, check_metric_params, metric_info, pair_record
 
-__all__ = ["PairwiseResult", "PairError", "BlockProgress", "compute_pairwise", "open_store", "compute_block", "block_pairs",
+__all__ = ["PairwiseResult", "PairError", "BlockProgress", "compute_pairwise", "pairwise_distances", "open_store",
+           "compute_block", "block_pairs",
            "local_cluster", "default_block_size", "ARRAYS"]
 
 #: seconds one task should take (sets the default block size)
@@ -601,10 +607,7 @@ def _pair_work():
     (workers are single-threaded processes, one per core), and no per-pair warnings — solver
     convergence is recorded per pair, and :func:`compute_pairwise` gives the scale warning once
     for all the shapes."""
-    from .geodesic import GeodesicWarning, _one_blas_thread
-    from .scale import ScaleWarning
-
-    with _one_blas_thread(), warnings.catch_warnings():
+    with one_blas_thread(), warnings.catch_warnings():
         warnings.simplefilter("ignore", GeodesicWarning)
         warnings.simplefilter("ignore", ScaleWarning)
         yield
@@ -645,7 +648,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
                      store=None, block_size: int | None = None, progress: bool = True,
                      rtol: float | None = None, callback=None, **params) -> PairwiseResult:
     """Distances (and diagnostics) of every pair of ``shapes``; see the module docstring and
-    :func:`shapelib.distances.pairwise_distances` for the parameters.
+    :func:`pairwise_distances` for the parameters.
 
     ``callback(progress)`` is called in this process after each block is written, with a
     :class:`BlockProgress`; a true return value stops the run: in-flight tasks are cancelled, the
@@ -659,10 +662,6 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     -------
     PairwiseResult
     """
-    from . import __version__
-
-    from .geodesic import METRICS as SCALED_METRICS
-
     info = metric_info(metric)
     metric = info.name
     check_metric_params(info, params, rtol=rtol)
@@ -759,12 +758,74 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     result = _result(st, data, computed, log)
     bad = result.nonconverged_pairs()
     if bad:
-        from .geodesic import GeodesicWarning
-
         warnings.warn(f"{len(bad)} of {int(computed.sum()) // (2 if symmetric else 1)} {metric} pairs did not converge "
                       f"(first: {bad[:3]}); see PairwiseResult.nonconverged_pairs()", GeodesicWarning,
                       stacklevel=3)
     return result
+
+
+def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
+                       store=None, block_size: int | None = None, progress: bool = True,
+                       rtol: float | None = None, return_result: bool = False, callback=None, **params):
+    """Matrix of distances between every pair of ``shapes`` (N, K, d), on Dask, with a resumable store.
+
+    Symmetric metrics are computed once per unordered pair; for the bending energies (``"tps"``,
+    ``"wendland"``) entry ``[i, j]`` is the energy of the map taking shape ``i`` onto shape ``j``.
+    The work is done by :func:`compute_pairwise` (blocks of pairs, one Dask task
+    per block; see there for how the local cluster and the block size are chosen).
+
+    Parameters
+    ----------
+    shapes : array_like, shape (N, K, d)
+    metric : str
+        A registered metric (:data:`shapelib.distances.METRICS`,
+        :func:`shapelib.distances.register_metric`).
+    n_jobs : int, optional
+        ``1``: in this process. ``k > 1``: a local cluster of ``k`` worker processes. ``None`` or
+        ``-1``: chosen from a measured pair (in this process when the whole matrix takes a few
+        seconds, else one worker per core).
+    client : distributed.Client, optional
+        Run on this Dask cluster.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``"tcp://host:8786"``).
+    store : path-like, optional
+        Zarr directory the finished blocks are written to; rerunning with the same store resumes.
+    block_size : int, optional
+        Shapes per block side (a task computes up to ``block_size²`` pairs). Default from the
+        measured cost of one pair.
+    progress : bool
+        Progress bar (pairs done, pairs/s, ETA).
+    rtol : float, optional
+        Certified relative tolerance for ``"alpha"`` / ``"fisher_rao"`` (see :func:`shapelib.distance`).
+    return_result : bool
+        Return the :class:`PairwiseResult` (bounds, convergence, iterations,
+        seconds per pair) instead of the matrix.
+    callback : callable, optional
+        ``callback(progress)``, called in this process after each block is written, with a
+        :class:`BlockProgress` (the block, blocks and pairs done and in total). A true return
+        value stops the run, as SciPy's halting callbacks do: the blocks written so far stay in
+        ``store`` (rerun to resume), running tasks are cancelled, the local cluster is closed,
+        and the partial result is returned (``complete`` False, ``log["stopped"]`` True; the
+        matrix is NaN where pairs were not computed, with a warning unless ``return_result``).
+    **params
+        Options of the metric.
+
+    Returns
+    -------
+    ndarray, shape (N, N), or PairwiseResult
+        Zero diagonal.
+    """
+    result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
+                              store=store, block_size=block_size, progress=progress, rtol=rtol, callback=callback,
+                              **params)
+    if return_result:
+        return result
+    if not result.complete:
+        warnings.warn(f"the callback stopped the run after {result.log.get('blocks_done')} of "
+                      f"{result.log.get('blocks_total')} blocks: the matrix is NaN where pairs were not computed"
+                      + (f"; rerun with store={result.store!r} to resume" if result.store else ""),
+                      UserWarning, stacklevel=2)
+    return result.matrix
 
 
 def _pairs_left(st, n, symmetric) -> int:

@@ -1,10 +1,10 @@
-"""Plot helpers shared by the study notebooks (imported only by notebooks; needs matplotlib)."""
+"""Plot helpers for geodesics and the study notebooks (needs matplotlib, imported on first use)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_trajectories", "plot_metric_panels"]
+__all__ = ["plot_trajectories", "plot_metric_panels", "animate_geodesic", "outline"]
 
 
 def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
@@ -40,3 +40,36 @@ def plot_metric_panels(results: dict, *, figsize=(10, 4.5), lw: float = 1.0):
     labels = ["geodesic trajectory", "straight-line initialisation", *labels]
     fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8, frameon=False)
     return fig, axes
+
+
+def animate_geodesic(result, *, title="", closed=True):
+    """A matplotlib :class:`~matplotlib.animation.FuncAnimation` of the shapes along ``result.path``
+    (a :class:`~shapelib.solver.geodesic.GeodesicResult`), one frame per path point, forth and back;
+    ``closed`` draws each shape as a closed outline. Save it with ``anim.save(path, writer=...)``."""
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation
+
+    path = np.asarray(result.path)
+    frames = list(range(len(path))) + list(range(len(path) - 2, 0, -1))
+    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+    lo, hi = path.min(axis=(0, 1)), path.max(axis=(0, 1))
+    pad = 0.05 * float(np.max(hi - lo) or 1.0)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.plot(*outline(path[0], closed).T, "--", color="0.7", lw=0.8)
+    ax.plot(*outline(path[-1], closed).T, ":", color="0.7", lw=0.8)
+    (line,) = ax.plot([], [], "-o", color="k", ms=2.5, lw=1.2)
+    label = ax.set_title(title)
+
+    def draw(f):
+        line.set_data(*outline(path[f], closed).T)
+        label.set_text(f"{title}  t = {f / (len(path) - 1):.2f}")
+        return (line,)
+
+    return FuncAnimation(fig, draw, frames=frames, blit=False)
+
+
+def outline(shape, closed: bool = True) -> np.ndarray:
+    """The landmarks of ``shape`` in order, the first repeated at the end when ``closed``."""
+    return np.vstack([shape, shape[:1]]) if closed else shape

@@ -31,7 +31,7 @@ import os
 from pathlib import Path
 
 from shapelib.distances import register_metric
-from shapelib.geodesic import geodesic
+from shapelib.solver.geodesic import geodesic
 
 NAME = "gated_alpha"
 

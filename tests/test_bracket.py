@@ -1,4 +1,4 @@
-"""Certified distance brackets (shapelib.bracket): lower ≤ d ≤ upper, at the requested width."""
+"""Certified distance brackets (shapelib.solver.bracket): lower ≤ d ≤ upper, at the requested width."""
 
 import warnings
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import shapelib
-from shapelib.bracket import DistanceBracket, distance_bracket, extrapolate_doublings, lower_bound, refine_path
-from shapelib.geodesic import GeodesicWarning, geodesic
+from shapelib.solver.bracket import DistanceBracket, distance_bracket, extrapolate_doublings, lower_bound, refine_path
+from shapelib.solver.geodesic import GeodesicWarning, geodesic
 
 METRICS = ["alpha", "fisher_rao"]
 
@@ -174,8 +174,8 @@ def test_exported():
 
 
 def test_fisher_rao_bracket_grid_follows_rtol_and_stays_accurate(pair):
-    from shapelib.bracket import BRACKET_SPACING
-    from shapelib.quadrature import DEFAULT_SPACING
+    from shapelib.solver.bracket import BRACKET_SPACING
+    from shapelib.geometry.quadrature import DEFAULT_SPACING
 
     u, v = pair
     coarse = distance_bracket(u, v, metric="fisher_rao", sigma2=0.5, rtol=1e-3)

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from shapelib import io
-from shapelib.procrustes import centroid_size, procrustes_distance
+from shapelib.geometry.procrustes import centroid_size, procrustes_distance
 from tests.conftest import ROOT
 
 
@@ -250,7 +250,7 @@ def _matrix(path):
 
 
 def test_distances_labelled_matrix_equals_the_library(files):
-    from shapelib.splines import wendland_bending_energy
+    from shapelib.comparison.splines import wendland_bending_energy
 
     out = files["dir"] / "d.csv"
     proc = run("distances", files["tps"], "--metric", "procrustes", "--jobs", 1, "--no-progress", "-o", out, check=0)
@@ -325,7 +325,7 @@ GATED_CLI = "import sys, tests.gated_metric; from shapelib.cli import main; sys.
 
 def _aligned_file(files, n):
     """``n`` aligned specimens (centroid size 20) in a CSV file, ids s0, s1, ..."""
-    from shapelib.procrustes import generalized_procrustes
+    from shapelib.geometry.procrustes import generalized_procrustes
 
     x, _ = generalized_procrustes(_shapes(np.random.default_rng(7), n=n))
     path = files["dir"] / f"aligned{n}.csv"

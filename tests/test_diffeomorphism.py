@@ -1,13 +1,13 @@
 import numpy as np
 import pytest
 
-from shapelib.diffeomorphism import (
-    _DiffeomorphismModel,
+from shapelib.comparison.diffeomorphism import (
+    DiffeomorphismPathMetric,
     diffeomorphism_quadratic_form,
     diffeomorphism_warp,
     landmark_diffeomorphism,
 )
-from shapelib.geodesic import path_length  # noqa: F401  (same solver family)
+from shapelib.solver.geodesic import path_length  # noqa: F401  (same solver family)
 
 
 @pytest.fixture
@@ -35,7 +35,7 @@ def test_quadratic_form_closed_form(rng):
 
 def test_gradients_against_finite_differences(rng):
     theta, vel = rng.normal(size=(2, 4, 2))
-    m = _DiffeomorphismModel(5.0, 0.9)
+    m = DiffeomorphismPathMetric(5.0, 0.9)
     q, dt, dv = m.qform_grad(theta[None], vel[None], None)
     eps = 1e-6
     for arr, grad, which in ((theta, dt[0], 0), (vel, dv[0], 1)):

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from shapelib import distance, pairwise_distances
-from shapelib.procrustes import procrustes_distance
-from shapelib.splines import tps_bending_energy
+from shapelib.geometry.procrustes import procrustes_distance
+from shapelib.comparison.splines import tps_bending_energy
 
 
 @pytest.fixture
@@ -97,7 +97,7 @@ def test_unknown_metric_parameter_or_rtol_is_named(shapes):
         pairwise_distances(np.stack([u, v]), metric="cosine")
 
 
-@pytest.mark.filterwarnings("ignore::shapelib.geodesic.GeodesicWarning")  # a stalled bracket says so; checked below
+@pytest.mark.filterwarnings("ignore::shapelib.solver.geodesic.GeodesicWarning")  # a stalled bracket says so; checked below
 def test_rtol_gives_the_certified_bracket(shapes):
     from shapelib import l2_distance
     from shapelib.distances import pair_record
@@ -178,7 +178,7 @@ def test_the_registry_describes_the_builtin_metrics():
     from functools import partial
 
     from shapelib import distances as d
-    from shapelib.bracket import distance_bracket
+    from shapelib.solver.bracket import distance_bracket
 
     builtin = ["alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound", "procrustes",
                "hausdorff", "tps", "wendland"]

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from shapelib.gmm import gaussian_overlap, gmm_density, gmm_log_density, l2_distance, l2_inner
-from shapelib.quadrature import make_grid
+from shapelib.geometry.gmm import gaussian_overlap, gmm_density, gmm_log_density, l2_distance, l2_inner
+from shapelib.geometry.quadrature import make_grid
 
 
 def test_density_integrates_to_one_and_matches_formula(rng):

@@ -1,12 +1,16 @@
-"""The compiled α kernels (shapelib._kernels) against the numpy formulas of shapelib.metrics and
+"""The compiled α kernels (shapelib.geometry._kernels) against the numpy formulas of shapelib.geometry.metrics and
 shapelib.geodesic, which stay as the test oracle (the finite-difference checks of those are in
 tests/test_metrics.py and tests/test_geodesic.py)."""
 import numpy as np
 import pytest
 
-from shapelib import _kernels
-from shapelib.geodesic import _GL3_NODES, _AlphaModel, _energy, _exact_path_hessian, _segment_nodes
-from shapelib.metrics import _alpha_qform, _alpha_qform_grad
+from shapelib.geometry import _kernels
+from shapelib.solver.energy import exact_path_hessian as _exact_path_hessian
+from shapelib.solver.energy import path_energy as _energy
+from shapelib.solver.energy import segment_nodes as _segment_nodes
+from shapelib.solver.path_metric import GL3_NODES as _GL3_NODES
+from shapelib.solver.path_metric import AlphaPathMetric as _AlphaModel
+from shapelib.geometry.metrics import _alpha_qform, _alpha_qform_grad
 
 
 def _rel(a, b):
@@ -25,7 +29,7 @@ def test_alpha_qform_and_gradient_match_numpy(rng, d):
 @pytest.mark.parametrize("d", [2, 3])
 @pytest.mark.parametrize("n", [2, 3, 5])
 def test_alpha_path_hessian_matches_numpy_assembly(rng, d, n):
-    """The fused path Hessian equals the per-node numpy Hessian (metrics._alpha_qform_hessian)
+    """The fused path Hessian equals the per-node numpy Hessian (metrics.alpha_qform_hessian)
     combined by geodesic._exact_path_hessian, block by block."""
     k = 6
     path = rng.normal(size=(n + 1, k, d))
@@ -65,29 +69,29 @@ def test_alpha_path_hessian_degenerate_paths():
 @pytest.mark.parametrize("d", [2, 3])
 def test_fisher_rao_compiled_match_numpy(rng, d):
     """Fused Fisher–Rao quadratic form, gradient and second derivatives == the numpy versions of
-    shapelib.metrics on the same grid (which the finite-difference tests check)."""
-    from shapelib.metrics import (
+    shapelib.geometry.metrics on the same grid (which the finite-difference tests check)."""
+    from shapelib.geometry.metrics import (
         _fr_qform,
-        _fr_qform_compiled,
+        fr_qform_compiled,
         _fr_qform_grad,
-        _fr_qform_grad_compiled,
-        _fr_qform_grad_hessian_compiled,
+        fr_qform_grad_compiled,
+        fr_qform_grad_hessian_compiled,
         _fr_qform_hessian,
-        _fr_qform_hessian_compiled,
+        fr_qform_hessian_compiled,
     )
-    from shapelib.quadrature import make_grid
+    from shapelib.geometry.quadrature import make_grid
 
     theta, vel = rng.normal(size=(2, 3, 5, d))
     s2 = 0.4
     grid = make_grid(theta, s2, margin=6)
     tol = 1e-10  # sums over ~10⁴ nodes with cancellation, in another order than numpy's: ~1e-12 apart
-    assert _rel(_fr_qform_compiled(theta, vel, s2, grid), _fr_qform(theta, vel, s2, grid)) < 1e-12
+    assert _rel(fr_qform_compiled(theta, vel, s2, grid), _fr_qform(theta, vel, s2, grid)) < 1e-12
     grad = _fr_qform_grad(theta, vel, s2, grid)
     hess = _fr_qform_hessian(theta, vel, s2, grid)
-    for got, ref in zip(_fr_qform_grad_compiled(theta, vel, s2, grid), grad):
+    for got, ref in zip(fr_qform_grad_compiled(theta, vel, s2, grid), grad):
         assert _rel(got, ref) < tol
-    for got, ref in zip(_fr_qform_hessian_compiled(theta, vel, s2, grid), hess):
+    for got, ref in zip(fr_qform_hessian_compiled(theta, vel, s2, grid), hess):
         assert _rel(got, ref) < tol
-    *g2, h2 = _fr_qform_grad_hessian_compiled(theta, vel, s2, grid)
+    *g2, h2 = fr_qform_grad_hessian_compiled(theta, vel, s2, grid)
     for got, ref in zip(list(g2) + list(h2), list(grad) + list(hess)):
         assert _rel(got, ref) < tol

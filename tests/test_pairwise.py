@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import zarr
 
-from shapelib.distances import pair_record, pairwise_distances
+from shapelib.distances import pair_record
+from shapelib.pairwise import pairwise_distances
 from shapelib.pairwise import block_pairs, compute_pairwise, default_block_size, open_store
 
 
@@ -268,7 +269,7 @@ FRESH = """
 import json, time
 import numpy as np
 from shapelib.distances import register_metric
-from shapelib.geodesic import fisher_rao_lower_bound
+from shapelib.solver.geodesic import fisher_rao_lower_bound
 from shapelib.pairwise import compute_pairwise
 calls = []
 def timed_bound(u, v, **kw):

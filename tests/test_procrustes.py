@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 from scipy.spatial import procrustes as scipy_procrustes
 
-from shapelib.procrustes import (
+from shapelib.geometry.procrustes import (
     centroid_size,
     generalized_procrustes,
     preshape,

@@ -4,8 +4,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from shapelib.report import compare, fit_constant, load_reference, load_regression, write_report
-from shapelib.report import SECTION_FILE
+from shapelib.study.report import compare, fit_constant, load_reference, load_regression, write_report
+from shapelib.study.report import SECTION_FILE
 from shapelib.study import record_values, record_verdict
 
 

@@ -1,15 +1,15 @@
-"""Scale checks (shapelib.scale, shapelib._validate): σ against the landmarks, layout, grid size."""
+"""Scale checks (shapelib.geometry.scale, shapelib._validate): σ against the landmarks, layout, grid size."""
 
 import warnings
 
 import numpy as np
 import pytest
 
-from shapelib import quadrature
-from shapelib.bracket import distance_bracket
-from shapelib.geodesic import GeodesicWarning, geodesic
-from shapelib.procrustes import centroid_size
-from shapelib.scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
+from shapelib.geometry import quadrature
+from shapelib.solver.bracket import distance_bracket
+from shapelib.solver.geodesic import GeodesicWarning, geodesic
+from shapelib.geometry.procrustes import centroid_size
+from shapelib.geometry.scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
 
 
 def square_lattice(n, step):
@@ -30,12 +30,10 @@ def test_landmark_spacing_of_a_lattice_and_its_invariances(rng):
 
 
 def test_to_centroid_size_is_the_study_scale(rng):
-    from shapelib.study import paper_scale
-
     shapes = rng.normal(size=(4, 6, 2)) * 100.0 + 300.0
     out = to_centroid_size(shapes, size=20.0)
     assert np.allclose([centroid_size(s) for s in out], 20.0) and np.allclose(out.mean(axis=1), 0.0)
-    assert np.array_equal(paper_scale(shapes), out)
+    assert np.array_equal(to_centroid_size(shapes), to_centroid_size(shapes, size=20.0))  # the default is the study's
     one = to_centroid_size(shapes[0], size=3.0)
     assert one.shape == (6, 2) and centroid_size(one) == pytest.approx(3.0)
     with pytest.raises(ValueError, match="size"):

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from scipy.spatial.distance import directed_hausdorff
 
-from shapelib.splines import (
-    hausdorff_distance,
+from shapelib.comparison.hausdorff import hausdorff_distance
+from shapelib.comparison.splines import (
     tps_bending_energy,
     tps_bending_matrix,
     tps_kernel,

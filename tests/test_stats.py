@@ -1,11 +1,11 @@
-"""Population statistics (shapelib.stats) against scikit-bio, scikit-learn and closed forms."""
+"""Population statistics (shapelib.statistics.distance_based) against scikit-bio, scikit-learn and closed forms."""
 
 import numpy as np
 import pandas as pd
 import pytest
 from scipy.spatial.distance import cdist
 
-from shapelib.stats import (
+from shapelib.statistics.distance_based import (
     as_distance_matrix,
     classical_mds,
     gower_centered,

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from shapelib import ScaleWarning, geodesic
-from shapelib.warp import extrinsic_warp, likelihood_flow
+from shapelib.comparison.warp import extrinsic_warp, likelihood_flow
 
 
 def test_translation_gives_a_constant_flow(rng):

@@ -22,7 +22,7 @@ A margin of 6σ is enough (5σ starts to show at 3e-6). The defaults are ``h = 0
 K = 1 case ``g = I/σ²``.
 
 The grid is a tensor product, so each isotropic Gaussian factorises over its axes and the
-integrands need ``Σ_i n_i K`` exponentials rather than ``M K`` (:func:`shapelib.metrics._psi_coef`).
+integrands need ``Σ_i n_i K`` exponentials rather than ``M K`` (:func:`shapelib.geometry.metrics.psi_coef`).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import check_positive
+from .._validate import check_positive
 
 __all__ = ["Grid", "make_grid", "DEFAULT_SPACING", "DEFAULT_MARGIN", "MAX_ENTRIES"]
 
@@ -91,7 +91,7 @@ def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin
         Refuse (``ValueError``, before allocating anything) a grid whose nodes × landmarks
         (``points.shape[-2]``) exceed this. The node count grows like (extent / σ)^d, so shapes
         in pixel units with σ² ~ 1 ask for millions. Default :data:`MAX_ENTRIES`, read at call
-        time: setting ``shapelib.quadrature.MAX_ENTRIES`` raises the limit everywhere.
+        time: setting ``shapelib.geometry.quadrature.MAX_ENTRIES`` raises the limit everywhere.
 
     Raises
     ------
@@ -117,8 +117,8 @@ def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin
             f"(nodes x {k} landmarks) array, dozens of them per iteration), above the limit of {max_entries:,} nodes x landmarks: "
             f"the landmarks span {extent:.4g} units but sigma = {sigma:.3g} and the grid step is "
             f"{spacing:g} sigma. Bring the shapes to a scale that fits sigma2 "
-            f"(shapelib.scale.to_centroid_size(shapes) gives the study's centroid size 20), or use a larger "
-            f"sigma2; raise the limit (shapelib.quadrature.MAX_ENTRIES) only if you have the memory and time")
+            f"(shapelib.to_centroid_size(shapes) gives the study's centroid size 20), or use a larger "
+            f"sigma2; raise the limit (shapelib.geometry.quadrature.MAX_ENTRIES) only if you have the memory and time")
     axes = [h * np.arange(lo[i], hi[i] + 1) for i in range(pts.shape[1])]
     n = [len(a) for a in axes]
     mesh = np.meshgrid(*axes, indexing="ij")

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from .._files import write_text_atomic
+from ..geometry.scale import PAPER_CENTROID_SIZE  # noqa: F401  (the study's scale, for the notebooks)
 
 __all__ = ["record_values", "record_verdict", "load_values", "save_figure", "pair_key", "default_output_dir", "VALUES_FILE", "VERDICTS"]
 
@@ -78,19 +79,6 @@ def _to_jsonable(x):
     return x
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def record_values(output_dir, values: dict, *, notes: dict | None = None, meta: dict | None = None) -> Path:
     """Merge ``values`` (``{key: number}``) into ``<output_dir>/values.json``.
 
@@ -119,7 +107,7 @@ def record_values(output_dir, values: dict, *, notes: dict | None = None, meta: 
     current["values"].update(_to_jsonable(values))
     current["notes"].update(_to_jsonable(notes or {}))
     current["meta"].update(_to_jsonable(meta or {}))
-    _atomic_write_text(path, json.dumps(current, indent=1, sort_keys=True) + "\n")
+    write_text_atomic(path, json.dumps(current, indent=1, sort_keys=True) + "\n")
     return path
 
 
@@ -179,10 +167,3 @@ def save_figure(fig, output_dir, name: str, *, dpi: int = 120) -> Path:
     return path
 
 
-from .scale import PAPER_CENTROID_SIZE, to_centroid_size  # noqa: E402  (the one place for the study's scale)
-
-
-def paper_scale(shapes, *, size: float = PAPER_CENTROID_SIZE) -> np.ndarray:
-    """Shapes as the study compares them: generalised-Procrustes aligned (rotations only),
-    centred, each scaled to centroid size ``size``."""
-    return to_centroid_size(shapes, size)

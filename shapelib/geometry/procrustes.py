@@ -20,7 +20,7 @@ import warnings
 
 import numpy as np
 
-from ._validate import as_shape, as_shape_pair, as_shapes
+from .._validate import as_shape, as_shape_pair, as_shapes
 
 __all__ = [
     "center",

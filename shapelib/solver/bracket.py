@@ -2,16 +2,16 @@
 
 A geodesic distance (eqs. 8–12) is only as accurate as the time discretisation of the path
 (``n_steps``), which is ~1e-4 relative for the corpus callosum at σ² = 0.5 — so driving the
-path energy to 1e-9 (the Newton-decrement certificate of :func:`shapelib.geodesic.geodesic`)
+path energy to 1e-9 (the Newton-decrement certificate of :func:`shapelib.solver.geodesic.geodesic`)
 buys nothing for a distance. What a distance needs is a certified interval:
 
 * **lower**: the closed-form bound of the metric (:func:`lower_bound`). Both metrics are
   pull-backs of flat L² (α-order, eq. 22: ``θ ↦ p``; Fisher–Rao, eq. 6: ``θ ↦ 2√p`` on the
   sphere of radius 2), so no path is shorter than the chord ``‖p_u − p_v‖``
-  (:func:`shapelib.gmm.l2_distance`) or the great circle ``2 arccos ∫ √(p_u p_v)``
-  (:func:`shapelib.geodesic.fisher_rao_lower_bound`).
+  (:func:`shapelib.geometry.gmm.l2_distance`) or the great circle ``2 arccos ∫ √(p_u p_v)``
+  (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`).
 * **upper**: the length of an actual path from ``u`` to ``v``
-  (:func:`shapelib.geodesic.path_length`), which no geodesic can beat.
+  (:func:`shapelib.solver.geodesic.path_length`), which no geodesic can beat.
 
 :func:`distance_bracket` starts from the bound and the straight line and refines the path only
 until ``upper / lower − 1 ≤ rtol``: a few Levenberg–Marquardt iterations at a small
@@ -31,11 +31,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validate import as_shape_pair, check_positive, check_positive_int, check_sigma2
-from .geodesic import METRICS, GeodesicWarning, _check_entry, _model, fisher_rao_lower_bound, minimise_path
-from .gmm import l2_distance
-from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
-from .scale import SIGMA_RATIO_MIN
+from .._validate import as_shape_pair, check_positive, check_positive_int, check_sigma2
+from .geodesic import check_entry, fisher_rao_lower_bound
+from .minimise import minimise_path
+from .path_metric import METRICS, path_metric
+from .result import BracketStopReason, GeodesicWarning
+from ..geometry.gmm import l2_distance
+from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
+from ..geometry.scale import SIGMA_RATIO_MIN
 
 __all__ = ["DistanceBracket", "distance_bracket", "extrapolate_doublings", "lower_bound", "refine_path"]
 
@@ -79,6 +82,7 @@ class DistanceBracket:
     converged : bool
         ``rel_gap ≤ rtol``.
     stopped_by : str
+        A :class:`~shapelib.solver.result.BracketStopReason` value (also :attr:`stop_reason`):
         ``"rtol"``, ``"stalled"`` (the gap stopped shrinking; reported as it is),
         ``"trivial"`` (``u == v``) or ``"max_n_steps"``.
     seconds : float
@@ -101,6 +105,11 @@ class DistanceBracket:
     seconds: float
     log: dict = field(default_factory=dict, repr=False)
 
+    @property
+    def stop_reason(self) -> BracketStopReason:
+        """Why the refinement stopped (:class:`~shapelib.solver.result.BracketStopReason`)."""
+        return BracketStopReason(self.stopped_by)
+
     def summary(self) -> str:
         """One line: the interval, its relative width and why it stopped."""
         return (f"{self.metric} (σ² = {self.sigma2:g}): {self.lower:.6g} ≤ d ≤ {self.upper:.6g} "
@@ -122,13 +131,13 @@ def lower_bound(u, v, *, metric: str, sigma2, grid_spacing: float = DEFAULT_SPAC
     u, v : array_like, shape (K, d)
         Shapes in landmark correspondence.
     metric : {"alpha", "fisher_rao"}
-        α-order (eq. 22): the L² chord ``‖p_u − p_v‖`` (:func:`shapelib.gmm.l2_distance`, exact).
+        α-order (eq. 22): the L² chord ``‖p_u − p_v‖`` (:func:`shapelib.geometry.gmm.l2_distance`, exact).
         Fisher–Rao (eq. 6): the great circle ``2 arccos ∫ √(p_u p_v)``
-        (:func:`shapelib.geodesic.fisher_rao_lower_bound`, by quadrature).
+        (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`, by quadrature).
     sigma2 : float
         σ² of eq. (5).
     grid_spacing, grid_margin : float
-        Fisher–Rao quadrature (:mod:`shapelib.quadrature`); ignored for α.
+        Fisher–Rao quadrature (:mod:`shapelib.geometry.quadrature`); ignored for α.
     """
     _check_metric(metric)
     if metric == "alpha":
@@ -198,18 +207,18 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         to ``n_steps → ∞`` lies above ``rtol``: the geodesic is longer than the bound by more
         than ``rtol``, and no ``n_steps`` will close the bracket.
     grid_spacing : float, optional
-        Fisher–Rao quadrature step in units of σ (:mod:`shapelib.quadrature`). Default
+        Fisher–Rao quadrature step in units of σ (:mod:`shapelib.geometry.quadrature`). Default
         :data:`BRACKET_SPACING` (0.5) when ``rtol ≥ 1e-5`` — its quadrature error, ≤ 3.2e-7
         relative on the corpus callosum pairs, is far below such a tolerance — else the library's
-        0.35 (:data:`shapelib.quadrature.DEFAULT_SPACING`).
+        0.35 (:data:`shapelib.geometry.quadrature.DEFAULT_SPACING`).
     grid_margin : float
-        Fisher–Rao quadrature margin (:mod:`shapelib.quadrature`).
+        Fisher–Rao quadrature margin (:mod:`shapelib.geometry.quadrature`).
     hessian : {"exact", "model"}, optional
-        Hessian of the Levenberg–Marquardt steps (:func:`shapelib.geodesic.geodesic`); default
+        Hessian of the Levenberg–Marquardt steps (:func:`shapelib.solver.geodesic.geodesic`); default
         the cheaper per metric for brackets (:data:`DEFAULT_HESSIAN`: exact for α, the model
         Hessian for Fisher–Rao).
     warn : bool
-        Emit a :class:`shapelib.geodesic.GeodesicWarning` when ``rtol`` was not reached, with the
+        Emit a :class:`shapelib.solver.geodesic.GeodesicWarning` when ``rtol`` was not reached, with the
         gap reached.
 
     Returns
@@ -222,13 +231,13 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     1e-3 with a few iterations; at σ² = 0.1 most pairs stop ``"stalled"`` at a gap of a few
     1e-3, because the α geodesic is measurably longer than the L² chord there
     (``docs/solver.md``). The 1e-9 Newton-decrement certificate of a local minimum remains
-    available through :func:`shapelib.geodesic.geodesic` (``tol=``).
+    available through :func:`shapelib.solver.geodesic.geodesic` (``tol=``).
     """
     t0 = time.perf_counter()
     _check_metric(metric)
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
-    ratio = _check_entry(u, v, s2, metric=metric, stacklevel=3)
+    ratio = check_entry(u, v, s2, metric=metric, stacklevel=3)
     rtol = check_positive(rtol, name="rtol")
     n = check_positive_int(n_steps, name="n_steps")
     max_n = check_positive_int(max_n_steps, name="max_n_steps")
@@ -244,7 +253,7 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         hessian = DEFAULT_HESSIAN[metric]
     if hessian not in ("exact", "model"):
         raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")
-    model = _model(metric, s2, grid_spacing, grid_margin)
+    model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter,
                "level_tol": level_tol, "min_shrink": float(min_shrink), "hessian": hessian, "sigma_ratio": ratio,
                **model.settings()}
@@ -292,7 +301,7 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
                 "; raise max_n_steps to refine further" if stopped_by == "max_n_steps" else
                 f"; sigma is {ratio:.3g} landmark spacings, so the Gaussians of different landmarks do not "
                 f"interact and the gradient that would shorten the path underflows: bring the shapes to a "
-                f"scale that fits sigma2 (shapelib.scale.to_centroid_size)" if ratio < SIGMA_RATIO_MIN else
+                f"scale that fits sigma2 (shapelib.to_centroid_size)" if ratio < SIGMA_RATIO_MIN else
                 "; the gap no longer shrinks with n_steps, so the geodesic is itself longer than the "
                 "closed-form bound (typical at small sigma2)"),
             GeodesicWarning, stacklevel=2)

@@ -1,9 +1,9 @@
 """Compiled (numba) kernels for the α-order metric's quadratic form, its gradient and the exact
 Hessian of the piecewise-linear path energy.
 
-The formulas are documented once, in :mod:`shapelib.metrics` (eq. 22: :func:`~shapelib.metrics._alpha_qform`,
-:func:`~shapelib.metrics._alpha_qform_grad`, :func:`~shapelib.metrics._alpha_qform_hessian`) and
-:mod:`shapelib.geodesic` (:func:`~shapelib.geodesic._exact_path_hessian`). The numpy versions
+The formulas are documented once, in :mod:`shapelib.geometry.metrics` (eq. 22: :func:`~shapelib.geometry.metrics._alpha_qform`,
+:func:`~shapelib.geometry.metrics._alpha_qform_grad`, :func:`~shapelib.geometry.metrics.alpha_qform_hessian`) and
+:mod:`shapelib.solver.energy` (:func:`~shapelib.solver.energy.exact_path_hessian`). The numpy versions
 there are the test oracle (``tests/test_kernels.py``: equal to ~1e-12); these loops compute
 the same sums pair by pair, without the (m, K, K) temporaries, and use the symmetry of the
 summand in (a, b) so that every Gaussian overlap is evaluated once per unordered pair.
@@ -154,13 +154,13 @@ def _alpha_qform_grad(theta, vel, s2, dims):
 def _alpha_path_grad_hessian(path, s2, tau, tw, csign, dims):
     """Exact Hessian of the α path energy, block tridiagonal over the interior points, with
     ``Q``, ``∂Q/∂θ`` and ``∂Q/∂v`` at the Gauss–Legendre nodes of every segment (those of
-    :func:`_alpha_qform_grad` at ``geodesic._segment_nodes``, same order of summation, so the
+    :func:`_alpha_qform_grad` at ``shapelib.solver.energy.segment_nodes``, same order of summation, so the
     same numbers): the Hessian's pass evaluates every pair's Gaussian overlap anyway.
 
     ``path`` (n + 1, K, d); the energy is ``Σ_t Σ_k w_k Q(θ_t + τ_k Δ_t, n Δ_t) / n`` (3-point
     Gauss–Legendre nodes ``tau``). On segment t, ``∂/∂θ_t = (1 − τ) ∂_θ − n ∂_v`` and
-    ``∂/∂θ_{t+1} = τ ∂_θ + n ∂_v`` (``geodesic._exact_path_hessian``); the second derivatives of
-    one pair term of Q (``H``, ``M``, ``N`` and ``g`` of ``metrics._alpha_qform_hessian``) are
+    ``∂/∂θ_{t+1} = τ ∂_θ + n ∂_v`` (``shapelib.solver.energy.exact_path_hessian``); the second derivatives of
+    one pair term of Q (``H``, ``M``, ``N`` and ``g`` of ``metrics.alpha_qform_hessian``) are
     summed over the nodes with the six weights ``tw`` = ``w(1−τ)²/n, w(1−τ)τ/n, wτ²/n,
     w(1−τ), wτ, w n`` and then combined into the segment blocks (t, t), (t, t+1), (t+1, t+1);
     ``csign`` = (1, −1, 1) is the sign of ``Q_vv`` in each. Each pair term is evaluated once per
@@ -469,7 +469,7 @@ def fr_hessian_parts(x, theta, vel, s2, psi, coef):
 @njit(cache=True, fastmath=False)
 def psi_coef_grid(factors, offsets, shape, top, log_norm, s2):
     """``ψ = 2√p`` (M,) and ``coef`` (M, K) on a tensor grid from the per-axis Gaussian factors
-    (see ``metrics._psi_coef``): ``factors[offsets[i] + j]`` is axis i's factor (K,) at its node
+    (see ``metrics.psi_coef``): ``factors[offsets[i] + j]`` is axis i's factor (K,) at its node
     j, ``top`` (M,) the log of the per-node scale. Also returns the nodes where every component
     underflows (``far``), which the caller recomputes in log space."""
     d = shape.shape[0]

@@ -1,7 +1,4 @@
-"""Comparison distances of Table I that are not information metrics: Hausdorff and spline bending energies.
-
-Hausdorff (paper ref. [41])
-    ``H(u, v) = max(h(u, v), h(v, u))``, ``h(u, v) = max_a min_b |u_a − v_b|``.
+"""Spline bending energies, comparison distances of Table I that are not information metrics.
 
 Thin-plate spline bending energy (2-D: Bookstein 1989, paper ref. [5]; 3-D: biharmonic Green's function)
     The TPS ``f`` with ``f(u_a) = v_a`` minimises ``∫ Σ_ij (∂_i∂_j f)²`` over ``R^d`` (per
@@ -38,23 +35,15 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from ._validate import as_shape, as_shape_pair, check_positive
+from .._validate import as_shape, as_shape_pair, check_positive
 
 __all__ = [
-    "hausdorff_distance",
     "tps_kernel",
     "tps_bending_matrix",
     "tps_bending_energy",
     "wendland_psi31",
     "wendland_bending_energy",
 ]
-
-
-def hausdorff_distance(u, v) -> float:
-    """Symmetrised Hausdorff distance between two landmark sets (correspondence not used)."""
-    u, v = as_shape_pair(u, v)
-    d = cdist(u, v)
-    return float(max(d.min(axis=1).max(), d.min(axis=0).max()))
 
 
 #: Radial functions accepted by :func:`tps_kernel` (``kernel=``).

@@ -24,8 +24,8 @@ import scipy.sparse as sp
 from scipy.interpolate import RegularGridInterpolator
 from scipy.sparse.linalg import spsolve
 
-from ._validate import as_shape, check_positive
-from .geodesic import GeodesicResult
+from .._validate import as_shape, check_positive
+from ..solver.geodesic import GeodesicResult
 
 __all__ = ["likelihood_flow", "extrinsic_warp"]
 

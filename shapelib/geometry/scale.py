@@ -10,22 +10,25 @@ shape's extent the whole shape is one blob.
 
 * :func:`landmark_spacing` — mean distance from a landmark to its nearest neighbour;
 * :func:`sigma_ratio` — σ in units of that spacing (≈ 1–5 is the paper's regime);
-* :func:`to_centroid_size` — bring shapes to the study's scale (what
-  :func:`shapelib.study.paper_scale` does).
+* :func:`to_centroid_size` — bring shapes to the study's scale;
+* :func:`check_scale` — warn when σ does not fit the landmarks.
 
-:func:`shapelib.geodesic.geodesic` and :func:`shapelib.bracket.distance_bracket` check the
-ratio at entry (:func:`shapelib._validate.check_scale`) and warn with a :class:`ScaleWarning`.
+:func:`shapelib.solver.geodesic.geodesic` and :func:`shapelib.solver.bracket.distance_bracket` check the
+ratio at entry (:func:`check_scale`) and warn with a :class:`ScaleWarning`.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ._validate import as_shape, as_shapes, check_positive, check_sigma2
+from .._validate import as_shape, as_shapes, check_positive, check_sigma2
+from .procrustes import generalized_procrustes, preshape
 
 __all__ = ["landmark_spacing", "sigma_ratio", "to_centroid_size", "ScaleWarning", "PAPER_CENTROID_SIZE",
-           "SIGMA_RATIO_MIN"]
+           "SIGMA_RATIO_MIN", "check_scale"]
 
 #: Centroid size at which Table I's distances appear to have been computed (see table1_pairwise).
 PAPER_CENTROID_SIZE = 20.0
@@ -35,7 +38,7 @@ SIGMA_RATIO_MIN = 0.2
 
 
 class ScaleWarning(UserWarning):
-    """σ does not fit the scale of the landmarks (see :mod:`shapelib.scale`)."""
+    """σ does not fit the scale of the landmarks (see :mod:`shapelib.geometry.scale`)."""
 
 
 def _as_collection(shapes) -> np.ndarray:
@@ -96,10 +99,44 @@ def to_centroid_size(shapes, size: float = PAPER_CENTROID_SIZE) -> np.ndarray:
     ndarray
         Same shape as the input.
     """
-    from .procrustes import generalized_procrustes, preshape
-
     size = check_positive(size, name="size")
     if np.ndim(shapes) == 2:
         return preshape(as_shape(shapes, name="shapes", min_landmarks=2)) * size
     aligned, _ = generalized_procrustes(shapes, scaling=False)
     return aligned * size
+
+
+def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
+    """Warn (:class:`ScaleWarning`) when σ does not fit the landmarks' scale.
+
+    Warns when σ is below :data:`SIGMA_RATIO_MIN` times the mean nearest-landmark
+    spacing (the Gaussians of neighbouring landmarks do not overlap: the metric is nearly flat
+    and lengths and gradients underflow), or when σ exceeds the largest extent of the shapes
+    (every shape is one blob). Returns ``σ / spacing``. ``stacklevel`` is counted from this
+    function, as :func:`warnings.warn` counts it (3: the caller of its caller).
+    """
+    x = np.asarray(shapes, dtype=np.float64)
+    x = x.reshape((-1,) + x.shape[-2:])
+    sigma = float(np.sqrt(sigma2))
+    if x.shape[1] < 2:
+        return float("inf")
+    spacing = landmark_spacing(x)
+    ratio = sigma / spacing if spacing > 0 else float("inf")
+    extent = float(np.max(np.ptp(x, axis=1)))
+    fix = ("Bring the shapes to a scale that fits sigma2, e.g. shapelib.to_centroid_size(shapes) "
+           "(the study's centroid size 20, where the paper's sigma2 = 0.1-1.5 give sigma = 1.1-4.5 "
+           "spacings), or choose sigma2 near (2 x spacing)^2")
+    if ratio < SIGMA_RATIO_MIN:
+        warnings.warn(
+            f"sigma = {sigma:.3g} (sigma2 = {sigma2:.3g}) is {ratio:.3g} times the mean nearest-landmark "
+            f"spacing {spacing:.3g}: the Gaussians of neighbouring landmarks do not overlap, so the "
+            f"metric sees isolated points, not a shape, and energies and gradients underflow. {fix} "
+            f"= {(2 * spacing) ** 2:.3g}.",
+            ScaleWarning, stacklevel=stacklevel)
+    elif extent > 0 and sigma > extent:
+        warnings.warn(
+            f"sigma = {sigma:.3g} (sigma2 = {sigma2:.3g}) exceeds the largest extent of the shapes "
+            f"({extent:.3g}): each shape is a single blob and distances between shapes nearly vanish. "
+            f"{fix} = {(2 * spacing) ** 2:.3g}.",
+            ScaleWarning, stacklevel=stacklevel)
+    return ratio

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ._validate import check_positive_int
+from .._validate import check_positive_int
 
 __all__ = [
     "as_distance_matrix",

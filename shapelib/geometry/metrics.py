@@ -6,7 +6,7 @@ the density (eq. 5) has ``∂p/∂φ_a = N_a r_a / (K σ²)``.
 
 α-order entropy metric, α = 2 (eq. 22)
     ``g_ij = ∫ ∂_i p ∂_j p dx``. With ``Δ = φ_a − φ_b`` and the overlap ``G(Δ)`` of
-    :mod:`shapelib.gmm`, the (a, b) block is
+    :mod:`shapelib.geometry.gmm`, the (a, b) block is
 
         g_ab = G(Δ) / (K² σ⁴) · [ (σ²/2) I − Δ Δᵀ / 4 ],
 
@@ -17,11 +17,11 @@ the density (eq. 5) has ``∂p/∂φ_a = N_a r_a / (K σ²)``.
 Fisher–Rao metric (eq. 6)
     ``g_ij = ∫ (1/p) ∂_i p ∂_j p dx = ∫ ∂_i ψ ∂_j ψ dx`` with ``ψ = 2√p``: the pull-back of
     the L² metric by ``θ ↦ 2√p``, which maps into the sphere of radius 2. It has no closed
-    form; it is integrated on a grid (:mod:`shapelib.quadrature`). Bounds used in the tests:
+    form; it is integrated on a grid (:mod:`shapelib.geometry.quadrature`). Bounds used in the tests:
     ``g ≼ I/(Kσ²)`` (the complete-data information) and ``g = I/σ²`` exactly when K = 1.
 
 The α formulas below (quadratic form, gradient, second derivatives) are written once here, in
-numpy; the geodesic solver runs compiled versions of the same sums (:mod:`shapelib._kernels`,
+numpy; the geodesic solver runs compiled versions of the same sums (:mod:`shapelib.geometry._kernels`,
 numba), which ``tests/test_kernels.py`` checks against these to ~1e-12.
 """
 
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernels
-from ._validate import as_shape, check_sigma2
+from .._validate import as_shape, check_sigma2
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, Grid, make_grid
 
 __all__ = [
@@ -47,7 +47,7 @@ __all__ = [
 
 
 def _alpha_overlaps(theta: np.ndarray, s2: float):
-    """``c_ab = G(Δ_ab)/K²`` (the Gaussian overlap of :mod:`shapelib.gmm` over K²), (m, K, K),
+    """``c_ab = G(Δ_ab)/K²`` (the Gaussian overlap of :mod:`shapelib.geometry.gmm` over K²), (m, K, K),
     and the coordinate differences ``Δ_ab,i = φ_a,i − φ_b,i`` as a list of d (m, K, K) arrays,
     for a batch of shapes (m, K, d); one coordinate at a time (no (m, K, K, d) temporaries)."""
     m, k, d = theta.shape
@@ -87,7 +87,7 @@ def alpha_metric(theta, sigma2) -> np.ndarray:
         semi-definite.
     """
     theta = as_shape(theta, name="theta")
-    return _alpha_tensor_batch(theta[None], check_sigma2(sigma2))[0]
+    return alpha_tensor_batch(theta[None], check_sigma2(sigma2))[0]
 
 
 def _alpha_pairs(theta: np.ndarray, vel: np.ndarray, s2: float):
@@ -122,14 +122,14 @@ def alpha_quadratic_form(theta, velocity, sigma2) -> float:
 # ---------------------------------------------------------------------------------------------
 
 
-def _psi_coef(theta: np.ndarray, s2: float, grid: Grid):
+def psi_coef(theta: np.ndarray, s2: float, grid: Grid):
     """``ψ = 2√p`` at the grid nodes (M,) and ``coef_ma = N_a(x_m) / (K σ² √p(x_m))`` (M, K).
 
     ``∂ψ/∂φ_a (x_m) = coef_ma r_ma`` with ``r_ma = x_m − φ_a``. On a tensor grid the Gaussians
     factorise over coordinates, ``exp(−|x − φ_a|²/2σ²) = Π_i exp(−(x_i − φ_ai)²/2σ²)``, so only
     ``Σ_i n_i K`` exponentials are needed instead of ``M K`` (each factor scaled by its largest
     value per node coordinate, so it lies in (0, 1]); the products, ``ψ`` and ``coef`` are one
-    compiled pass over the nodes (:func:`shapelib._kernels.psi_coef_grid`). Nodes where the
+    compiled pass over the nodes (:func:`shapelib.geometry._kernels.psi_coef_grid`). Nodes where the
     product underflows (far from every landmark) are recomputed in log space by
     :func:`_psi_coef_nodes`.
     """
@@ -146,7 +146,7 @@ def _psi_coef(theta: np.ndarray, s2: float, grid: Grid):
         shape[i] = len(ax)
         top = top + shift.reshape(shape)
     log_norm = -0.5 * d * np.log(2 * np.pi * s2)
-    # the products over axes, ψ and coef in one compiled pass (shapelib._kernels.psi_coef_grid)
+    # the products over axes, ψ and coef in one compiled pass (shapelib.geometry._kernels.psi_coef_grid)
     sizes = np.array([len(ax) for ax in grid.axes], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
     psi, coef, far = _kernels.psi_coef_grid(np.concatenate(factors), offsets, sizes, top.reshape(-1), log_norm, s2)
@@ -194,7 +194,7 @@ def _fr_gram(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     """
     k, d = theta.shape
     nodes = grid.nodes
-    _, coef = _psi_coef(theta, s2, grid)
+    _, coef = psi_coef(theta, s2, grid)
     jac = [coef * (nodes[:, i, None] - theta[None, :, i]) for i in range(d)]  # ∂ψ/∂φ_{a,i}
     out = np.empty((k, d, k, d))
     for i in range(d):
@@ -211,7 +211,7 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
 
     ``g_ij = ∫ (1/p) ∂_i p ∂_j p dx`` is computed as ``∫ ∂_i ψ ∂_j ψ dx`` with ``ψ = 2√p``
     (numerically stable in the tails) by the trapezoid rule on a grid of step ``spacing·σ``
-    reaching ``margin·σ`` beyond the landmarks (see :mod:`shapelib.quadrature` for accuracy).
+    reaching ``margin·σ`` beyond the landmarks (see :mod:`shapelib.geometry.quadrature` for accuracy).
 
     Parameters
     ----------
@@ -233,9 +233,9 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
 
 
 def _fr_psidot(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
-    """``ψ`` and ``coef`` of :func:`_psi_coef`, ``rv_ma = r_ma·V_a`` (M, K) and
+    """``ψ`` and ``coef`` of :func:`psi_coef`, ``rv_ma = r_ma·V_a`` (M, K) and
     ``ψ̇ = Σ_a coef_a (r_a·V_a)`` (M,) for one shape ``theta`` (K, d) moving with ``vel``."""
-    psi, coef = _psi_coef(theta, s2, grid)
+    psi, coef = psi_coef(theta, s2, grid)
     rv = grid.nodes @ vel.T - np.einsum("ki,ki->k", theta, vel)[None, :]
     return psi, coef, rv, np.einsum("mk,mk->m", coef, rv)
 
@@ -283,7 +283,7 @@ def _alpha_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float):
     return q, d_theta, 2 * gv
 
 
-def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
+def alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
     """Second derivatives of ``Q = vᵀ g_α(θ) v``: ``(Q_θθ, Q_θv, Q_vv)``, each (m, K d, K d).
 
     ``Q = Σ_ab f(Δ_ab, V_a, V_b)`` over ordered pairs, with ``f = c(Δ) h``,
@@ -336,7 +336,7 @@ def _alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
     return q_tt.reshape(shape), q_tv.reshape(shape), 2 * _alpha_metric_blocks(c, delta, s2).reshape(shape)
 
 
-def _alpha_tensor_batch(theta: np.ndarray, s2: float) -> np.ndarray:
+def alpha_tensor_batch(theta: np.ndarray, s2: float) -> np.ndarray:
     """α metric tensors for a batch of shapes (m, K, d) -> (m, K d, K d)."""
     m, k, d = theta.shape
     return _alpha_metric_blocks(*_alpha_overlaps(theta, s2), s2).reshape(m, k * d, k * d)
@@ -382,7 +382,7 @@ def _fr_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
     with ``∂²p_a = (N_a/K)(r rᵀ/σ⁴ − I/σ²)`` and ``∂²s_a = (N_a/K)[r rᵀ (r·V_a)/σ⁶ −
     (I (r·V_a) + V_a rᵀ + r V_aᵀ)/σ⁴]``. The three dense parts are one Gram matrix of the
     (M, 2 K d) array ``√p [γ − uβ, β]`` (``√p β_a = coef_a r_a`` with ``coef`` of
-    :func:`_psi_coef`, ``u = 2ψ̇/ψ``). Used for exact Newton steps on the Fisher–Rao path
+    :func:`psi_coef`, ``u = 2ψ̇/ψ``). Used for exact Newton steps on the Fisher–Rao path
     energy; checked against finite differences of :func:`_fr_qform_grad`. ``Q_θv`` has rows
     indexed by θ and columns by v.
     """
@@ -441,31 +441,31 @@ def _fr_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
 # Compiled versions used by the geodesic solver (same formulas as above, fused per node and
 # landmark in shapelib._kernels; tests/test_kernels.py checks them against the numpy ones).
 
-def _fr_qform_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
-    """:func:`_fr_qform` with ``ψ̇`` fused (:func:`shapelib._kernels.fr_psidot`)."""
+def fr_qform_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
+    """:func:`_fr_qform` with ``ψ̇`` fused (:func:`shapelib.geometry._kernels.fr_psidot`)."""
     x = grid.nodes
     out = np.empty(len(theta))
     for n, (t, v) in enumerate(zip(theta, vel)):
-        coef = _psi_coef(t, s2, grid)[1]
+        coef = psi_coef(t, s2, grid)[1]
         out[n] = grid.integrate(_kernels.fr_psidot(x, t, v, coef) ** 2)
     return out
 
 
-def _fr_qform_grad_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
-    """:func:`_fr_qform_grad`, fused per node and landmark (:func:`shapelib._kernels.fr_qform_grad`)."""
+def fr_qform_grad_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
+    """:func:`_fr_qform_grad`, fused per node and landmark (:func:`shapelib.geometry._kernels.fr_qform_grad`)."""
     m = len(theta)
     q = np.empty(m)
     d_theta = np.empty_like(theta)
     d_vel = np.empty_like(theta)
     for n in range(m):
-        psi, coef = _psi_coef(theta[n], s2, grid)
+        psi, coef = psi_coef(theta[n], s2, grid)
         q[n], d_theta[n], d_vel[n] = _kernels.fr_qform_grad(grid.nodes, grid.weight, theta[n], vel[n], s2, psi, coef)
     return q, d_theta, d_vel
 
 
 def _fr_hessian_one(theta, vel, s2, grid, psi, coef, q_tt, q_tv, q_vv):
     """Second derivatives of Q for one shape into ``q_tt, q_tv, q_vv`` (each (K d, K d)), from
-    :func:`shapelib._kernels.fr_hessian_parts` and one Gram product by BLAS."""
+    :func:`shapelib.geometry._kernels.fr_hessian_parts` and one Gram product by BLAS."""
     k, d = theta.shape
     q = k * d
     w = grid.weight
@@ -483,32 +483,32 @@ def _fr_hessian_one(theta, vel, s2, grid, psi, coef, q_tt, q_tv, q_vv):
             tv[idx, i, idx, j] += 2 * s2 * w * dtv[:, i, j]
 
 
-def _fr_qform_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
-    """:func:`_fr_qform_hessian`: the element-wise work fused (:func:`shapelib._kernels.fr_hessian_parts`),
+def fr_qform_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
+    """:func:`_fr_qform_hessian`: the element-wise work fused (:func:`shapelib.geometry._kernels.fr_hessian_parts`),
     the Gram product by BLAS."""
     m, k, d = theta.shape
     q_tt, q_tv, q_vv = np.empty((3, m, k * d, k * d))
     for n in range(m):
-        psi, coef = _psi_coef(theta[n], s2, grid)
+        psi, coef = psi_coef(theta[n], s2, grid)
         _fr_hessian_one(theta[n], vel[n], s2, grid, psi, coef, q_tt[n], q_tv[n], q_vv[n])
     return q_tt, q_tv, q_vv
 
 
-def _fr_qform_grad_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
-    """:func:`_fr_qform_grad_compiled` and :func:`_fr_qform_hessian_compiled` together, with one
-    evaluation of ``ψ`` and ``coef`` (:func:`_psi_coef`) per shape."""
+def fr_qform_grad_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
+    """:func:`fr_qform_grad_compiled` and :func:`fr_qform_hessian_compiled` together, with one
+    evaluation of ``ψ`` and ``coef`` (:func:`psi_coef`) per shape."""
     m, k, d = theta.shape
     q = np.empty(m)
     d_theta = np.empty_like(theta)
     d_vel = np.empty_like(theta)
     q_tt, q_tv, q_vv = np.empty((3, m, k * d, k * d))
     for n in range(m):
-        psi, coef = _psi_coef(theta[n], s2, grid)
+        psi, coef = psi_coef(theta[n], s2, grid)
         q[n], d_theta[n], d_vel[n] = _kernels.fr_qform_grad(grid.nodes, grid.weight, theta[n], vel[n], s2, psi, coef)
         _fr_hessian_one(theta[n], vel[n], s2, grid, psi, coef, q_tt[n], q_tv[n], q_vv[n])
     return q, d_theta, d_vel, (q_tt, q_tv, q_vv)
 
 
-def _fr_tensor_batch(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
+def fr_tensor_batch(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     """Fisher–Rao metric tensors for a batch of shapes (m, K, d) on a common grid -> (m, K d, K d)."""
     return np.stack([grid.weight * _fr_gram(t, s2, grid) for t in theta])

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import logsumexp
 
-from ._validate import as_shape, as_shape_pair, check_sigma2
+from .._validate import as_shape, as_shape_pair, check_sigma2
 
 __all__ = [
     "gmm_density",

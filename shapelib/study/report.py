@@ -52,6 +52,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._files import write_text_atomic
+
 __all__ = ["fit_constant", "load_reference", "load_regression", "collect_values", "collect_sections", "compare",
            "compare_regression", "render_report", "write_report", "REL_TOL", "STATUSES", "SECTION_FILE"]
 
@@ -480,8 +482,6 @@ def write_report(results_dir, reference_dir, *, rel_tol: float = REL_TOL, failur
     pathlib.Path
         ``results_dir/REPORT.md`` (``comparison.csv`` is written beside it).
     """
-    from .study import _atomic_write_text
-
     results_dir = Path(results_dir)
     values, notes, runs = collect_values(results_dir)
     reference = load_reference(reference_dir)
@@ -491,6 +491,6 @@ def write_report(results_dir, reference_dir, *, rel_tol: float = REL_TOL, failur
                          sections=collect_sections(results_dir), regression=regression,
                          paper_notebooks=paper_notebooks_in(results_dir, reference))
     path = results_dir / "REPORT.md"
-    _atomic_write_text(path, text)
-    _atomic_write_text(results_dir / "comparison.csv", table.to_csv(index=False))
+    write_text_atomic(path, text)
+    write_text_atomic(results_dir / "comparison.csv", table.to_csv(index=False))
     return path
