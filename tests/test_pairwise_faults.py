@@ -201,12 +201,21 @@ def test_killing_the_client_mid_run_then_rerunning_resumes(serial, tmp_path):
     _same_as(again, serial)
 
 
+def command_line(p) -> str:
+    import psutil
+
+    try:
+        return " ".join(p.cmdline())
+    except psutil.Error:  # gone, or a zombie, since it was listed
+        return ""
+
+
 def _new_children(before):
     import psutil
 
     # (Python's multiprocessing resource tracker is one per parent process and not the cluster's)
     return [p for p in psutil.Process().children(recursive=True)
-            if p.pid not in before and "resource_tracker" not in " ".join(p.cmdline())]
+            if p.pid not in before and "resource_tracker" not in command_line(p)]
 
 
 def test_ctrl_c_keeps_finished_blocks_and_stops_the_local_cluster(serial, tmp_path):
