@@ -18,8 +18,10 @@ Where each equation lives:
 
 from .solver.bracket import DistanceBracket, distance_bracket
 from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
-from .distances import distance, pair_record
+from .distances import MetricInfo, distance, metric_info, pair_record, register_metric
 from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
+from .solver.result import BracketStopReason, StopReason
 from .geometry.gmm import gmm_density, l2_distance
 from .geometry.metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
 from .geometry.procrustes import (
@@ -63,6 +65,15 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "MetricInfo",
+    "metric_info",
+    "register_metric",
+    "AlphaPathMetric",
+    "BracketStopReason",
+    "FisherRaoPathMetric",
+    "PathMetric",
+    "path_metric",
+    "StopReason",
     "alpha_metric",
     "alpha_quadratic_form",
     "centroid_size",

@@ -5,15 +5,17 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
     shapelib info FILE
     shapelib align FILE -o OUT [--size S]
     shapelib distances FILE --metric M [--sigma2 S] [--rtol R] [--jobs N | --scheduler ADDRESS]
-                           [--store D.zarr] [--no-progress] -o D.csv
+                           [--store D.zarr [--max-blocks N]] [--no-progress] -o D.csv
     shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S -o path.csv [--plot P.png] [--animate A.gif]
     shapelib study [run_all.py options: --quick, --only NAME, -p NAME=VALUE, -j N, --force, --list, ...]
 
 Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
 input ends the command with one line ``shapelib: error: …`` on stderr (naming the file, specimen,
-landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does. A geodesic
-(``geodesic``, or a pair of ``distances`` without ``--rtol``) whose solver did not converge is
-written, said in a warning, and the command exits with status 4 (:data:`EXIT_UNCONVERGED`).
+landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does. A Ctrl-C
+ends it with ``shapelib: interrupted`` and status 130; ``distances --max-blocks N`` stopping before
+the matrix is complete exits with status 75 (``EX_TEMPFAIL``: rerun to resume), writing no ``-o``.
+A geodesic (``geodesic``, or a pair of ``distances`` without ``--rtol``) whose solver did not
+converge is written, said in a warning, and the command exits with status 4 (:data:`EXIT_UNCONVERGED`).
 ``shapelib study`` is ``run_all.py`` itself: its help, usage errors and exit codes are run_all's.
 """
 
@@ -32,6 +34,8 @@ from pathlib import Path
 import numpy as np
 
 PROG = "shapelib"
+#: exit status of ``distances --max-blocks`` stopping before the matrix is complete (sysexits' EX_TEMPFAIL)
+EXIT_STOPPED = 75
 
 
 class CLIError(ValueError):
@@ -304,6 +308,13 @@ def cmd_distances(args) -> int:
         raise CLIError(f"--block-size must be >= 1; got {args.block_size}")
     if args.store and Path(args.store).exists() and not Path(args.store).is_dir():
         raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
+    stop = None
+    if args.max_blocks is not None:
+        if args.max_blocks < 1:
+            raise CLIError(f"--max-blocks must be >= 1; got {args.max_blocks}")
+        if not args.store:
+            raise CLIError("--max-blocks needs --store: the blocks computed are kept there to resume from")
+        stop = lambda p: p.blocks_computed >= args.max_blocks  # noqa: E731
     shapes = _align_pose(args, shapes, params)
     try:
         with warnings.catch_warnings(), _notes_from("shapelib.pairwise"):  # the run's estimate, up front
@@ -311,11 +322,17 @@ def cmd_distances(args) -> int:
             warnings.simplefilter("ignore", GeodesicWarning)
             result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
                                         store=args.store, block_size=args.block_size, progress=not args.no_progress,
-                                        rtol=args.rtol, return_result=True, **params)
+                                        rtol=args.rtol, return_result=True, callback=stop, **params)
     except PairError as exc:  # name the specimens, as every other input error does
         note = " (the metric counts landmarks from 0)" if re.search(r"landmarks? \d", exc.reason) else ""
         raise CLIError(f"{args.file}: specimens {ids[exc.i]!r} (#{exc.i + 1}) and {ids[exc.j]!r} (#{exc.j + 1}), "
                        f"as u and v: {exc.reason}{note}") from None
+    log = result.log or {}
+    if not result.complete:  # --max-blocks stopped it: no matrix, the store is there to resume
+        print(f"{PROG}: stopped after {log['blocks_computed']} block(s) (--max-blocks), {log['blocks_done']} of "
+              f"{log['blocks_total']} in store {args.store}; -o not written: rerun the command (without "
+              "--max-blocks to finish) to resume", file=sys.stderr)
+        return EXIT_STOPPED
     frame = pd.DataFrame(result.matrix, index=pd.Index(ids, name="id"), columns=ids)
     _write_frame(frame, out, float_format=lambda v: repr(float(v)))
     bad = result.nonconverged_pairs()
@@ -325,7 +342,6 @@ def cmd_distances(args) -> int:
             if col in pairs:
                 pairs.insert(pairs.columns.get_loc(col) + 1, f"id_{col}", [ids[int(t)] for t in pairs[col]])
         _write_frame(pairs, diag, index=False)
-    log = result.log or {}
     resumed = ""
     if args.store and log.get("blocks_found_done"):
         resumed = (f", resumed: {log['blocks_found_done']} of {log.get('blocks_total', '?')} blocks were already "
@@ -504,7 +520,7 @@ def _file_options(p):
 
 
 def _metric_options(p, *, metrics, required_sigma2=False):
-    p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics))
+    p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics) + " (listed below)")
     p.add_argument("--sigma2", type=float, metavar="S", required=required_sigma2,
                    help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
@@ -517,7 +533,7 @@ def _metric_options(p, *, metrics, required_sigma2=False):
 
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
-    from .distances import METRICS, PATH_METRICS
+    from .distances import METRICS, PATH_METRICS, metric_info
 
     parser = argparse.ArgumentParser(
         prog=PROG, description="Landmark shape analysis with information geometry (Peter & Rangarajan).",
@@ -528,8 +544,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
+    def described(names):  # the registry's one-line descriptions, for the epilogs
+        width = max(map(len, names))
+        return "\n\nmetrics (--metric):\n" + "\n".join(f"  {n:<{width}}  {metric_info(n).description}" for n in names)
+
+    epilogs = {"distances": EXAMPLES["distances"] + described(list(METRICS)),
+               "geodesic": EXAMPLES["geodesic"] + described(list(PATH_METRICS))}
+
     def add(name, help_):
-        sp = sub.add_parser(name, help=help_, description=help_, epilog=EXAMPLES.get(name),
+        sp = sub.add_parser(name, help=help_, description=help_, epilog=epilogs.get(name, EXAMPLES.get(name)),
                             formatter_class=argparse.RawDescriptionHelpFormatter)
         sp.set_defaults(subparser=sp)  # a stray option is reported with this command's usage
         return sp
@@ -556,6 +579,9 @@ def build_parser() -> argparse.ArgumentParser:
                        "from the measured cost of one pair)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
     p.add_argument("--store", metavar="D.zarr", help="zarr store of finished blocks; rerun the command to resume")
+    p.add_argument("--max-blocks", type=int, metavar="N",
+                   help=f"with --store: stop after computing N blocks, write no -o and exit with status {EXIT_STOPPED} "
+                        "(rerun to resume)")
     p.add_argument("--block-size", type=int, metavar="B",
                    help="shapes per block side, the unit of work and of resuming (default: from the measured cost)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
