@@ -25,8 +25,10 @@ from .solver.result import BracketStopReason, StopReason
 from .geometry.gmm import gmm_density, l2_distance
 from .geometry.metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
 from .geometry.procrustes import (
+    PoseWarning,
     centroid_size,
     generalized_procrustes,
+    pose_align,
     preshape,
     procrustes_align,
     procrustes_distance,
@@ -95,6 +97,8 @@ __all__ = [
     "pair_record",
     "pairwise_distances",
     "path_length",
+    "PoseWarning",
+    "pose_align",
     "preshape",
     "procrustes_align",
     "procrustes_distance",

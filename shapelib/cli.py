@@ -14,6 +14,8 @@ input ends the command with one line ``shapelib: error: …`` on stderr (naming 
 landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does. A Ctrl-C
 ends it with ``shapelib: interrupted`` and status 130; ``distances --max-blocks N`` stopping before
 the matrix is complete exits with status 75 (``EX_TEMPFAIL``: rerun to resume), writing no ``-o``.
+A geodesic (``geodesic``, or a pair of ``distances`` without ``--rtol``) whose solver did not
+converge is written, said in a warning, and the command exits with status 4 (:data:`EXIT_UNCONVERGED`).
 ``shapelib study`` is ``run_all.py`` itself: its help, usage errors and exit codes are run_all's.
 """
 
@@ -21,6 +23,8 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
+import logging
 import os
 import re
 import sys
@@ -38,6 +42,12 @@ class CLIError(ValueError):
     """A user-facing error: printed as one line, exit status 1."""
 
 
+#: exit status of ``distances`` and ``geodesic`` when the results are written but the geodesic
+#: solver did not converge on some of them (a warning names them); a bracket that is only wider
+#: than ``--rtol`` is certified, said in its own words, and exits 0
+EXIT_UNCONVERGED = 4
+
+
 # ---------------------------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------------------------
@@ -49,7 +59,8 @@ def _read(args, *, missing="error"):
     kw = {"missing": missing}
     fmt = io._format_of(args.file)
     if fmt == "tps":
-        kw.update(scale=args.scale, negative="coordinates" if args.negative_coordinates else "missing")
+        # without the flag, each specimen's own marker decides (files written by shapelib say so)
+        kw.update(scale=args.scale, negative="coordinates" if args.negative_coordinates else None)
     elif args.scale or args.negative_coordinates:
         flag = "--scale" if args.scale else "--negative-coordinates"
         raise CLIError(f"{flag} applies to .tps files only; {args.file} is {fmt}")
@@ -131,6 +142,24 @@ def _metric_params(args):
     return params
 
 
+@contextlib.contextmanager
+def _notes_from(name):
+    """Print the INFO records of logger ``name`` (e.g. the engine's run estimate) as ``shapelib: note:`` lines."""
+    class Note(logging.Handler):
+        def emit(self, record):
+            print(f"{PROG}: note: {record.getMessage()}", file=sys.stderr, flush=True)
+
+    lg, handler = logging.getLogger(name), Note(logging.INFO)
+    old = lg.level
+    lg.addHandler(handler)
+    lg.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        lg.removeHandler(handler)
+        lg.setLevel(old)
+
+
 def _index_of(specimens, ident, option):
     ids = specimens["id"].astype(str)
     hits = np.flatnonzero(ids.to_numpy() == str(ident))
@@ -143,6 +172,25 @@ def _index_of(specimens, ident, option):
         raise CLIError(f"{option} {ident}: {len(hits)} specimens have that id (rows {', '.join(str(h + 1) for h in hits)}); "
                        "make the ids unique")
     return int(hits[0])
+
+
+def _align_pose(args, shapes, params):
+    """The shapes a pose-dependent metric sees: aligned by rotations and translations (sizes kept,
+    so σ² keeps its meaning), unless --no-align or they are aligned already (within
+    :data:`~shapelib.geometry.procrustes.POSE_TOL`); a note on stderr says how far that moved them."""
+    from .distances import pose_dependent
+    from .geometry.procrustes import POSE_TOL, pose_align
+
+    if args.no_align or not pose_dependent(args.metric, params) or shapes.shape[1] < 2:
+        return shapes
+    aligned, moved = pose_align(shapes)
+    if moved.max() <= POSE_TOL:
+        return shapes  # aligned already (e.g. by `shapelib align`): the file's values as they are
+    if moved.max() > POSE_TOL:
+        print(f"{PROG}: note: {args.metric} depends on the pose of the shapes: aligned the {len(shapes)} specimens of "
+              f"{args.file} first (generalized Procrustes rotations and translations, sizes kept), which moved them "
+              f"by up to {100 * moved.max():.3g} % of their size; --no-align uses the file's pose", file=sys.stderr)
+    return aligned
 
 
 # ---------------------------------------------------------------------------------------------
@@ -227,14 +275,13 @@ def cmd_align(args) -> int:
         kw["layout"] = "long"
     if fmt == "csv" and spec.attrs.get("landmarks"):
         kw["landmarks"] = spec.attrs["landmarks"]
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*negative.*", category=UserWarning)
-        io.write_landmarks(out, aligned, spec, **kw)
+    io.write_landmarks(out, aligned, spec, **kw)
     print(f"aligned {len(aligned)} specimen{'s' if len(aligned) != 1 else ''} (generalized Procrustes, {'full' if args.scaling else 'unit-size'} "
           f"scaling, centroid size {args.size or 1:g}) -> {out}")
-    if fmt == "tps":
-        print(f"note: aligned coordinates are centred, so some are negative; tpsDig reads negative values as "
-              f"missing landmarks: read {out.name} with --negative-coordinates", file=sys.stderr)
+    if fmt == "tps" and (aligned < 0).any():
+        print(f"{PROG}: note: aligned coordinates are centred, so some are negative: each specimen of {out.name} says "
+              f"so in a COMMENT= line, which shapelib reads back as coordinates (tpsDig itself reads negative values "
+              f"as missing landmarks)", file=sys.stderr)
     return 0
 
 
@@ -243,6 +290,7 @@ def cmd_distances(args) -> int:
 
     from .pairwise import pairwise_distances
     from .pairwise import PairError
+    from .solver.geodesic import GeodesicWarning
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     diag = _output_path(args.pairs, suffixes=(".csv",), option="--pairs") if args.pairs else None
@@ -267,9 +315,11 @@ def cmd_distances(args) -> int:
         if not args.store:
             raise CLIError("--max-blocks needs --store: the blocks computed are kept there to resume from")
         stop = lambda p: p.blocks_computed >= args.max_blocks  # noqa: E731
+    shapes = _align_pose(args, shapes, params)
     try:
-        with warnings.catch_warnings():  # printed below with the specimens' ids instead
-            warnings.filterwarnings("ignore", message=r".* pairs did not converge")
+        with warnings.catch_warnings(), _notes_from("shapelib.pairwise"):  # the run's estimate, up front
+            # the convergence summary is printed below with the specimens' ids instead
+            warnings.simplefilter("ignore", GeodesicWarning)
             result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
                                         store=args.store, block_size=args.block_size, progress=not args.no_progress,
                                         rtol=args.rtol, return_result=True, callback=stop, **params)
@@ -300,8 +350,19 @@ def cmd_distances(args) -> int:
           + (f" (store {args.store}{resumed})" if args.store else ""))
     if bad:
         listed = ", ".join(f"{ids[i]}–{ids[j]}" for i, j in bad[:5]) + (", …" if len(bad) > 5 else "")
-        print(f"shapelib: warning: {len(bad)} pair(s) did not converge: {listed}"
-              + ("" if diag else " (--pairs FILE.csv writes every pair's diagnostics)"), file=sys.stderr)
+        more = "" if diag else " (--pairs FILE.csv writes every pair's bracket and status)"
+        total = len(result.status())
+        if args.rtol is not None:  # certified, only wider than asked: said as such, exit 0
+            gap = result.rel_gap(*np.array(bad).T)
+            print(f"{PROG}: warning: {len(bad)} of {total} pairs: the certified bracket is wider than --rtol "
+                  f"{args.rtol:g} (relative gap median {100 * float(np.median(gap)):.3g} %, max "
+                  f"{100 * float(np.max(gap)):.3g} %; {listed}): each distance lies in its bracket [lower, upper] "
+                  f"and the matrix holds the upper end; the solver did not fail{more}", file=sys.stderr)
+        else:
+            print(f"{PROG}: warning: {len(bad)} of {total} pairs: solver failed (the geodesic solver stopped before "
+                  f"its tolerance; their values are lengths of unconverged paths, upper bounds only): {listed}{more}; "
+                  f"exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+            return EXIT_UNCONVERGED
     return 0
 
 
@@ -333,8 +394,23 @@ def cmd_geodesic(args) -> int:
     shapes, spec = _read(args)
     if (plot or anim) and shapes.shape[2] != 2:
         raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
+    links = []
+    if args.links is not None:
+        if not (plot or anim):
+            raise CLIError("--links applies to --plot and --animate")
+        from .plotting import parse_links
+
+        try:
+            links = parse_links(args.links, shapes.shape[1])
+        except ValueError as exc:
+            raise CLIError(f"--{exc}") from None
     i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
-    result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
+    shapes = _align_pose(args, shapes, params)  # the whole file, as `shapelib distances` aligns it
+    from .solver.geodesic import GeodesicWarning
+
+    with warnings.catch_warnings():  # said below in the command line's words
+        warnings.simplefilter("ignore", GeodesicWarning)
+        result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
     n1, k, d = result.path.shape
     t = np.repeat(np.linspace(0.0, 1.0, n1), k)
     frame = pd.DataFrame({"step": np.repeat(np.arange(n1), k), "t": t, "landmark": np.tile(np.arange(1, k + 1), n1),
@@ -342,33 +418,39 @@ def cmd_geodesic(args) -> int:
     _write_frame(frame, out, index=False, float_format=lambda v: repr(float(v)))
     print(f"{spec['id'].iloc[i]} -> {spec['id'].iloc[j]}: {result.summary()} -> {out}")
     if plot:
-        _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}")
+        _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
+                   links=links)
         print(f"figure -> {plot}")
     if anim:
         _animate_path(result, anim, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
-                      fps=args.fps)
+                      fps=args.fps, links=links)
         print(f"animation -> {anim}")
+    if not result.converged:
+        stopped = result.log.get("stopped_by")
+        why = result.log.get("reason") or f"stopped by {stopped} after {result.n_iter} iterations"
+        todo = ("bring the shapes to a scale that fits --sigma2 (shapelib align --size 20) or use a larger --sigma2"
+                if stopped == "underflow" else "raise --param max_iter")
+        print(f"{PROG}: warning: the {args.metric} geodesic did not converge ({why}): {out} holds the path it had, "
+              f"whose length {result.length:.6g} is an upper bound only (lower bound {result.lower_bound:.6g}); "
+              f"{todo}; exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+        return EXIT_UNCONVERGED
     return 0
 
 
-def _plot_path(result, path, *, title):
+def _plot_path(result, path, *, title, links):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .plotting import outline, plot_trajectories
+    from .plotting import plot_geodesic
 
-    fig, ax = plt.subplots(figsize=(5, 5))
-    ax.plot(*outline(result.path[0], True).T, "--", color="0.6", lw=0.8)
-    ax.plot(*outline(result.path[-1], True).T, "-", color="0.6", lw=0.8)
-    plot_trajectories(ax, result.path)
-    ax.set_title(title)
+    fig = plot_geodesic(result, links=links, title=title)
     fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
     plt.close(fig)
 
 
-def _animate_path(result, path, *, title, fps):
+def _animate_path(result, path, *, title, fps, links=()):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -377,7 +459,7 @@ def _animate_path(result, path, *, title, fps):
 
     from .plotting import animate_geodesic
 
-    anim = animate_geodesic(result, title=title)
+    anim = animate_geodesic(result, title=title, links=list(links))
     writer = PillowWriter(fps=fps) if Path(path).suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
     tmp = Path(path).with_name(f".{Path(path).stem}.tmp{Path(path).suffix}")
     try:
@@ -417,13 +499,13 @@ def cmd_study(run_all_args) -> int:
 EXAMPLES = {
     "info": "example:\n  shapelib info fish.tps",
     "align": "examples:\n  shapelib align fish.tps -o aligned.tps --size 20\n  shapelib align fish.csv -o aligned.csv",
-    "distances": ("examples:\n  shapelib distances aligned.tps --negative-coordinates --metric procrustes -o procrustes.csv\n"
-                  "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 \\\n"
+    "distances": ("examples:\n  shapelib distances aligned.tps --metric procrustes -o procrustes.csv\n"
+                  "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 \\\n"
                   "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
-                  "  shapelib distances fish.csv --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
+                  "  shapelib distances aligned.tps --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
                   "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
-    "geodesic": ("example:\n  shapelib geodesic aligned.tps --negative-coordinates --from fish-1 --to Heart-1 \\\n"
-                 "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
+    "geodesic": ("example:\n  shapelib geodesic aligned.tps --from fish-1 --to Heart-1 \\\n"
+                 "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --links contour --animate path.gif"),
 }
 
 
@@ -432,7 +514,8 @@ def _file_options(p):
     g = p.add_argument_group("reading the file")
     g.add_argument("--scale", action="store_true", help=".tps: multiply coordinates by each specimen's SCALE=")
     g.add_argument("--negative-coordinates", action="store_true",
-                   help=".tps: negative values are coordinates (e.g. aligned shapes), not tpsDig's missing landmarks")
+                   help=".tps: negative values are coordinates (e.g. aligned shapes), not tpsDig's missing landmarks "
+                        "(not needed for files shapelib wrote: they say so themselves)")
     g.add_argument("--pkn", action="store_true", help=".npy/.npz: the array is geomorph's p x k x n layout")
 
 
@@ -442,6 +525,10 @@ def _metric_options(p, *, metrics, required_sigma2=False):
                    help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
+    p.add_argument("--no-align", action="store_true",
+                   help="use the file's pose: by default the specimens are aligned first (rotations and "
+                        "translations, sizes kept) for the metrics that depend on pose (alpha, fisher_rao, their "
+                        "bounds, diffeomorphism, hausdorff)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -451,7 +538,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description="Landmark shape analysis with information geometry (Peter & Rangarajan).",
         epilog="examples:\n  shapelib info fish.tps\n  shapelib align fish.tps -o aligned.tps --size 20\n"
-               "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 -o alpha.csv\n"
+               "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 -o alpha.csv\n"
                "run `shapelib COMMAND --help` for each command's options.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -515,6 +602,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="path.png", help="landmark trajectories (Figs. 4 and 6 style)")
     p.add_argument("--animate", metavar="path.gif", help="animation of the deforming shape (.gif; .mp4 with ffmpeg)")
     p.add_argument("--fps", type=int, default=8, help="animation frames per second (default 8)")
+    p.add_argument("--links", metavar="L", help="landmarks to join in --plot and --animate: pairs of landmark "
+                   "numbers as in the file, e.g. 1-2,2-3,3-1 (geomorph's and Momocs' links), or 'contour' for a "
+                   "closed outline in landmark order; default: points only")
     p.set_defaults(func=cmd_geodesic)
 
     # listed here for `shapelib --help`; main() hands everything after `study` to run_all.py
@@ -524,7 +614,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _one_line_warnings(message, category, filename, lineno, file=None, line=None):
-    print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr)
+    text = " ".join(str(message).split())
+    from .geometry.procrustes import PoseWarning
+
+    if issubclass(category, PoseWarning):  # only --no-align gets here: say it in command-line terms
+        text = text.split(" Align them first")[0] + " Drop --no-align to align them (rotations and translations, sizes kept)."
+    print(f"{PROG}: warning: {text}", file=sys.stderr)
 
 
 def _interrupted(exc: BaseException) -> bool:

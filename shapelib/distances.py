@@ -51,10 +51,9 @@ from ._validate import as_shape_pair
 from .comparison.diffeomorphism import landmark_diffeomorphism
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
-from .geometry.gmm import l2_distance
 from .geometry.procrustes import procrustes_distance
 from .solver.bracket import distance_bracket
-from .solver.geodesic import fisher_rao_lower_bound, geodesic
+from .solver.geodesic import alpha_lower_bound, fisher_rao_lower_bound, geodesic
 
 __all__ = ["distance", "pair_record", "path_result", "check_metric_params",
            "MetricInfo", "metric_info", "register_metric",
@@ -252,7 +251,7 @@ BRACKET_METRICS = _Names(lambda m: m.bracket is not None)
 
 
 def _alpha_bound(u, v, *, sigma2):
-    return l2_distance(u, v, sigma2)
+    return alpha_lower_bound(u, v, sigma2=sigma2)  # l2_distance with the geodesic's entry checks
 
 
 for _name, _fn, _kw in (
@@ -390,3 +389,15 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
     value, lower, upper, energy, converged, n_iter = rec
     return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
             "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
+
+
+#: metrics whose value changes when one shape of a pair is rotated or moved (the others — Procrustes,
+#: and the bending energies, whose matrices annihilate the affine part — do not): the pairwise engine
+#: checks the shapes' pose for them (:func:`shapelib.geometry.procrustes.check_pose`), the CLI aligns
+POSE_DEPENDENT = ("alpha", "fisher_rao", "alpha_bound", "fisher_rao_bound", "diffeomorphism", "hausdorff")
+
+
+def pose_dependent(metric: str, params: dict) -> bool:
+    """Whether ``metric`` with ``params`` depends on the pose of the shapes (:data:`POSE_DEPENDENT`;
+    ``"wendland"`` too with ``affine=False``, whose energy then includes the affine part)."""
+    return metric in POSE_DEPENDENT or (metric == "wendland" and params.get("affine", True) is False)

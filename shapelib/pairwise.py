@@ -64,13 +64,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import as_shapes, check_positive_int
+from ._validate import as_shapes, check_positive_int, set_checked
 from ._version import __version__
-from .geometry.scale import ScaleWarning, check_scale
-from .solver.geodesic import METRICS as SCALED_METRICS
+from .geometry.procrustes import PoseWarning, check_pose
+from .geometry.scale import ScaleWarning, check_fisher_rao_scale, check_scale
 from .solver.geodesic import GeodesicWarning
 from .solver.linalg import one_blas_thread
-from .distances import SYMMETRIC, check_metric_params, metric_info, pair_record
+from .distances import SYMMETRIC, check_metric_params, metric_info, pair_record, pose_dependent
 
 __all__ = ["PairwiseResult", "PairError", "BlockProgress", "compute_pairwise", "pairwise_distances", "open_store",
            "compute_block", "block_pairs",
@@ -92,6 +92,11 @@ WORKER_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 
                   "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 128 * 2**20}
 #: seconds a nanny of the engine's LocalCluster gives its worker process to close (:func:`_nanny_class`)
 NANNY_CLOSE_SECONDS = 1.0
+#: a run whose estimate (pairs × seconds per pair ÷ workers) reaches this is announced up front:
+#: logged at INFO on the ``shapelib.pairwise`` logger (the CLI prints it) and shown on the progress bar
+LONG_RUN_SECONDS = 10.0
+#: the logger of the engine's run estimates
+logger = logging.getLogger("shapelib.pairwise")
 #: side of the stored chunks (a multiple of the block size near this)
 CHUNK_SIDE = 64
 #: the per-pair arrays of the store: name -> (dtype, fill value)
@@ -154,6 +159,7 @@ class PairwiseResult:
     seconds : ndarray, shape (N, N)
         Wall time of each pair.
     converged : ndarray of bool, shape (N, N)
+        In words per pair: :meth:`status` (converged / bracket wider than rtol / solver failed).
     n_iter : ndarray of int, shape (N, N)
         Solver iterations (0 for non-path metrics, −1 where not computed).
     metric : str
@@ -165,7 +171,8 @@ class PairwiseResult:
         Pairs whose values are present (all, for a finished run).
     log : dict
         Blocks in total / computed by this call / found done, block size, where it ran, wall
-        seconds, ``stopped`` (True when a ``callback`` stopped the run).
+        seconds, ``stopped`` (True when a ``callback`` stopped the run), ``estimated_seconds``
+        (pairs × timed seconds per pair ÷ workers, when a pair was timed).
     symmetric : bool or None
         Whether the metric is symmetric (pairs ``i < j`` only); None: looked up by name.
     """
@@ -202,15 +209,56 @@ class PairwiseResult:
         bad = ~self.converged[i, j]
         return [(int(a), int(b)) for a, b in zip(i[bad], j[bad])]
 
+    def rel_gap(self, i=None, j=None) -> np.ndarray:
+        """``upper / lower − 1`` of pairs ``(i, j)`` (default: every computed pair, as :meth:`to_frame`
+        orders them): the relative width of each certified bracket (0 for non-path metrics, ``inf``
+        where the bound is 0 but the path is not)."""
+        if i is None:
+            i, j = self._pairs()
+        lo, up = self.lower[i, j], self.upper[i, j]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = np.where(lo > 0, up / lo - 1.0, np.where(up > 0, np.inf, 0.0))
+        return np.maximum(gap, 0.0)
+
+    def status(self, i=None, j=None) -> np.ndarray:
+        """Per pair, in words: ``"converged"``; ``"bracket wider than rtol"`` (with ``rtol``: the
+        distance is certified to lie in its bracket ``[lower, upper]``, whose relative width
+        :meth:`rel_gap` is above ``rtol``, the value being its upper end); ``"solver failed"`` (no
+        ``rtol``: the geodesic solver stopped before its tolerance, so ``value`` is the length of
+        the path it had, still an upper bound on the distance)."""
+        if i is None:
+            i, j = self._pairs()
+        bad = "bracket wider than rtol" if self.params.get("rtol") is not None else "solver failed"
+        return np.where(self.converged[i, j], "converged", bad)
+
+    def convergence_summary(self) -> str:
+        """One line on the pairs that did not converge, in :meth:`status`'s words with how wide the
+        brackets are; ``""`` if every computed pair converged."""
+        i, j = self._pairs()
+        bad = ~self.converged[i, j]
+        if not bad.any():
+            return ""
+        n, total = int(bad.sum()), len(bad)
+        first = [(int(a), int(b)) for a, b in zip(i[bad][:3], j[bad][:3])]
+        rtol = self.params.get("rtol")
+        if rtol is None:
+            return (f"{n} of {total} {self.metric} pairs: solver failed (the geodesic solver stopped before its "
+                    f"tolerance; each value is the length of the path it had, an upper bound), first {first}")
+        gap = self.rel_gap(i[bad], j[bad])
+        return (f"{n} of {total} {self.metric} pairs: the certified bracket is wider than rtol = {rtol:g} (relative "
+                f"gap median {100 * float(np.median(gap)):.3g} %, max {100 * float(np.max(gap)):.3g} %): each distance "
+                f"lies in its bracket [lower, upper] and the value is its upper end; not a solver failure")
+
     def to_frame(self):
-        """One row per computed pair (``i < j`` for symmetric metrics) with all diagnostics."""
+        """One row per computed pair (``i < j`` for symmetric metrics) with all diagnostics,
+        :meth:`status` and :meth:`rel_gap` included."""
         import pandas as pd
 
         i, j = self._pairs()
         return pd.DataFrame({"i": i, "j": j, "value": self.matrix[i, j], "lower": self.lower[i, j],
-                             "upper": self.upper[i, j], "energy": self.energy[i, j],
-                             "converged": self.converged[i, j], "n_iter": self.n_iter[i, j],
-                             "seconds": self.seconds[i, j]})
+                             "upper": self.upper[i, j], "rel_gap": self.rel_gap(i, j), "energy": self.energy[i, j],
+                             "converged": self.converged[i, j], "status": self.status(i, j),
+                             "n_iter": self.n_iter[i, j], "seconds": self.seconds[i, j]})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -240,7 +288,7 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     the matrix (used to name a pair in a :class:`PairError`). On a diagonal block only the pairs
     ``i ≠ j`` are computed (``i < j``, then mirrored, for symmetric metrics) and the diagonal is
     zero. Solver warnings are not emitted: convergence is recorded per pair instead; nor are
-    scale warnings, which :func:`compute_pairwise` gives once for all the shapes.
+    scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     bi, bj = len(xi), len(xj)
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
@@ -605,11 +653,12 @@ def _n_cores() -> int:
 def _pair_work():
     """Around the engine's per-pair calls (a block's, the timing pair's): BLAS on one thread
     (workers are single-threaded processes, one per core), and no per-pair warnings — solver
-    convergence is recorded per pair, and :func:`compute_pairwise` gives the scale warning once
-    for all the shapes."""
-    with one_blas_thread(), warnings.catch_warnings():
+    convergence is recorded per pair, and :func:`compute_pairwise` gives the scale and pose
+    warnings once for all the shapes."""
+    with one_blas_thread(), set_checked(), warnings.catch_warnings():
         warnings.simplefilter("ignore", GeodesicWarning)
         warnings.simplefilter("ignore", ScaleWarning)
+        warnings.simplefilter("ignore", PoseWarning)
         yield
 
 
@@ -669,8 +718,12 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         raise ValueError(f"callback must be callable; got {callback!r}")
     x = as_shapes(shapes, name="shapes")
     n, k, d = x.shape
-    if metric in SCALED_METRICS and "sigma2" in params:  # once for all the shapes, not once per pair
-        check_scale(x, params["sigma2"], stacklevel=4)
+    if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
+        ratio = check_scale(x, params["sigma2"], stacklevel=4)
+        if metric in ("fisher_rao", "fisher_rao_bound"):  # a degenerate quadrature: an error before any work
+            check_fisher_rao_scale(x, params["sigma2"], metric=metric, ratio=ratio)
+    if pose_dependent(metric, params):  # likewise (check_pose: a pair, or a whole set to align)
+        check_pose(x, metric=metric, stacklevel=4)
     symmetric = info.symmetric
     if client is not None and scheduler is not None:
         raise ValueError("give client or scheduler, not both")
@@ -717,7 +770,9 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     log = {"blocks_total": len(done) + len(todo), "blocks_found_done": len(done), "blocks_computed": 0,
            "block_size": st.b, "mode": mode, "seconds_per_pair_estimate": seconds_per_pair, "stopped": False}
     total_pairs = sum(_block_n_pairs(st, a, b) for a, b in block_pairs(n, st.b, symmetric=symmetric))
-    bar = _progress(progress, total=total_pairs, initial=total_pairs - n_todo, metric=metric)
+    workers = n_workers if local else (_cluster_size(client) if client is not None else None)
+    eta = _announce(metric, n_todo, seconds_per_pair or _stored_seconds_per_pair(st), workers, log)
+    bar = _progress(progress, total=total_pairs, initial=total_pairs - n_todo, metric=metric, eta=eta)
     kw = dict(symmetric=symmetric, metric=info, rtol=rtol, params=params)  # the record travels with each task
     pairs_done = [total_pairs - n_todo]
     t0 = time.perf_counter()
@@ -756,11 +811,9 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if not computed.all() and not log["stopped"]:
         raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
     result = _result(st, data, computed, log)
-    bad = result.nonconverged_pairs()
-    if bad:
-        warnings.warn(f"{len(bad)} of {int(computed.sum()) // (2 if symmetric else 1)} {metric} pairs did not converge "
-                      f"(first: {bad[:3]}); see PairwiseResult.nonconverged_pairs()", GeodesicWarning,
-                      stacklevel=3)
+    words = result.convergence_summary()
+    if words:
+        warnings.warn(f"{words}; see PairwiseResult.to_frame() (status, rel_gap)", GeodesicWarning, stacklevel=3)
     return result
 
 
@@ -814,6 +867,23 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
     -------
     ndarray, shape (N, N), or PairwiseResult
         Zero diagonal.
+
+    Warns
+    -----
+    ScaleWarning
+        Once, when σ² does not fit the landmarks' spacing (every metric that takes ``sigma2``).
+    PoseWarning
+        Once, when the metric depends on pose (:data:`shapelib.distances.POSE_DEPENDENT`) and the
+        shapes are not aligned (:func:`shapelib.geometry.procrustes.check_pose`; align them with
+        :func:`shapelib.pose_align`).
+    GeodesicWarning
+        When pairs did not converge, in :meth:`PairwiseResult.status`'s words.
+
+    Raises
+    ------
+    ValueError
+        Before any work: shapes not ``(N, K, d)`` with d = 2 or 3; a σ that leaves the
+        Fisher–Rao quadrature nothing to resolve (:func:`shapelib.geometry.scale.check_fisher_rao_scale`).
     """
     result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
                               store=store, block_size=block_size, progress=progress, rtol=rtol, callback=callback,
@@ -862,11 +932,36 @@ def _block_n_pairs(st: _Store, a: int, b: int) -> int:
     return na * (na - 1) // 2 if st.symmetric else na * (na - 1)
 
 
-def _progress(enabled: bool, *, total: int, initial: int, metric: str):
+def _progress(enabled: bool, *, total: int, initial: int, metric: str, eta: str | None = None):
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, initial=initial, unit="pair", desc=f"{metric} pairs", disable=not enabled,
-                smoothing=0.1, dynamic_ncols=True)
+    return tqdm(total=total, initial=initial, unit="pair", desc=f"{metric} pairs" + (f" (est. {eta})" if eta else ""),
+                disable=not enabled, smoothing=0.1, dynamic_ncols=True)
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.2g} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.2g} min"
+    return f"{seconds / 3600:.2g} h"
+
+
+def _announce(metric, n_pairs, seconds_per_pair, workers, log) -> str | None:
+    """The run's cost up front: ``n_pairs × seconds_per_pair ÷ workers`` into ``log["estimated_seconds"]``,
+    logged at INFO (DEBUG below :data:`LONG_RUN_SECONDS`); returns the duration for the progress bar
+    of a long run. Nothing when no pair was timed (``block_size`` and ``n_jobs`` given, fresh store):
+    the progress bar's ETA follows the first blocks."""
+    if not n_pairs or not seconds_per_pair:
+        return None
+    serial = n_pairs * seconds_per_pair
+    total = serial / workers if workers else serial
+    log["estimated_seconds"] = total
+    per = (f"÷ {workers} worker{'s' if workers != 1 else ''}" if workers else "÷ the cluster's workers")
+    text = (f"{metric}: {n_pairs:,} pairs × {seconds_per_pair:.2g} s per pair (timed) {per} ≈ {_duration(total)}")
+    long = total >= LONG_RUN_SECONDS
+    logger.log(logging.INFO if long else logging.DEBUG, text)
+    return _duration(total) if long else None
 
 
 def local_cluster(n_workers: int):

@@ -66,7 +66,8 @@ def test_bounds_bracket_the_path_lengths(shapes):
     assert np.all(r.energy[off] >= r.upper[off] ** 2 * (1 - 1e-9))
     assert np.all(r.n_iter[off] > 0) and np.all(r.seconds[off] > 0)
     frame = r.to_frame()
-    assert list(frame.columns) == ["i", "j", "value", "lower", "upper", "energy", "converged", "n_iter", "seconds"]
+    assert list(frame.columns) == ["i", "j", "value", "lower", "upper", "rel_gap", "energy", "converged", "status",
+                                   "n_iter", "seconds"]
     assert (frame.i < frame.j).all() and len(frame) == 10
     fr = pairwise_distances(shapes[:4], metric="fisher_rao_bound", sigma2=0.5, n_jobs=1, progress=False)
     assert np.array_equal(fr, fr.T) and np.all(fr[~np.eye(4, dtype=bool)] > 0)
