@@ -283,3 +283,33 @@ def test_a_ctrl_c_raised_inside_a_finalizer_still_stops_the_run(tmp_path):
         sys.unraisablehook = hook
     assert len(lost) == 1 and isinstance(lost[0].exc_value, KeyboardInterrupt)  # swallowed where it was raised
     assert open_store(tmp_path / "D.zarr").log["blocks_done"] == 3  # and still stopped the run there
+
+
+def test_a_ctrl_c_during_dask_calls_waits_for_a_safe_point_and_the_callers_client_still_works(serial, tmp_path):
+    """On Dask, a KeyboardInterrupt raised in the middle of the client's own calls (e.g. half-way
+    through scheduling a callback on its event loop) left the caller's Client cancelling every
+    later future. So while Dask is in use the engine records a Ctrl-C and raises it at its next
+    check (after the block, or within POLL_SECONDS while waiting). Here the Ctrl-C comes from the
+    callback itself: the callback runs on, the run stops right after it, and the same Client
+    then finishes the matrix."""
+    from distributed import Client
+
+    from shapelib.pairwise import local_cluster
+
+    store = tmp_path / "D.zarr"
+    after_signal = []
+
+    def ctrl_c_at_the_third_block(progress):
+        if progress.blocks_computed == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+            after_signal.append(progress.blocks_computed)  # still here: the interrupt was deferred
+        return False
+
+    with local_cluster(1) as cluster, Client(cluster) as client:
+        with pytest.raises(KeyboardInterrupt):
+            compute_pairwise(_shapes(), metric="alpha", client=client, block_size=1, store=store, progress=False,
+                             callback=ctrl_c_at_the_third_block, **PARAMS)
+        assert after_signal == [3] and open_store(store).log["blocks_done"] == 3
+        again = compute_pairwise(_shapes(), metric="alpha", client=client, store=store, progress=False, **PARAMS)
+    assert again.log["blocks_found_done"] == 3 and again.complete
+    _same_as(again, serial)
