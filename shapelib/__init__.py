@@ -18,7 +18,7 @@ Where each equation lives:
 
 from .solver.bracket import DistanceBracket, distance_bracket
 from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
-from .distances import distance, pair_record
+from .distances import distance, pair_record, register_metric
 from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
 from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
 from .solver.result import BracketStopReason, StopReason
@@ -90,6 +90,7 @@ __all__ = [
     "l2_distance",
     "landmark_diffeomorphism",
     "pair_record",
+    "register_metric",
     "pairwise_distances",
     "path_length",
     "preshape",
