@@ -20,13 +20,12 @@ import subprocess
 import sys
 import textwrap
 import threading
-import time
 
 import numpy as np
 import pytest
 
 from shapelib.pairwise import _Store, block_pairs, compute_pairwise, open_store
-from tests.conftest import ROOT
+from tests.conftest import ROOT, command_line, wait_for
 from tests.gated_metric import Gate
 
 pytestmark = pytest.mark.processes
@@ -35,8 +34,6 @@ pytestmark = pytest.mark.processes
 PARAMS = dict(sigma2=0.3, n_steps=6)
 N_SHAPES = 6
 TOTAL = N_SHAPES * (N_SHAPES + 1) // 2  # upper-triangle blocks of size 1, diagonal included
-#: only to fail instead of hanging if something that must happen does not
-DEADLINE = 120
 
 
 def _shapes():
@@ -77,15 +74,6 @@ def _pairs_done(path) -> int:
         return sum(a != b for a, b in _Store.open(path).task_done())
     except Exception:  # not there yet, or caught between two writes: ask again
         return 0
-
-
-def wait_for(cond, what):
-    """Wait for something that must happen; the deadline only turns a hang into a failure."""
-    t0 = time.monotonic()
-    while not cond():
-        if time.monotonic() - t0 > DEADLINE:
-            raise AssertionError(f"{what} did not happen")
-        time.sleep(0.02)
 
 
 def _blocked(gate, store, *, free, waiting):
@@ -199,15 +187,6 @@ def test_killing_the_client_mid_run_then_rerunning_resumes(serial, tmp_path):
     kept = before.computed
     assert np.array_equal(again.seconds[kept], before.seconds[kept])
     _same_as(again, serial)
-
-
-def command_line(p) -> str:
-    import psutil
-
-    try:
-        return " ".join(p.cmdline())
-    except psutil.Error:  # gone, or a zombie, since it was listed
-        return ""
 
 
 def _new_children(before):
