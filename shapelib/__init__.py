@@ -18,7 +18,7 @@ Where each equation lives:
 
 from .solver.bracket import DistanceBracket, distance_bracket
 from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
-from .distances import distance, pair_record, register_metric
+from .distances import MetricInfo, distance, metric_info, pair_record, register_metric
 from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
 from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
 from .solver.result import BracketStopReason, StopReason
@@ -63,6 +63,9 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "MetricInfo",
+    "metric_info",
+    "register_metric",
     "AlphaPathMetric",
     "BracketStopReason",
     "FisherRaoPathMetric",
@@ -90,7 +93,6 @@ __all__ = [
     "l2_distance",
     "landmark_diffeomorphism",
     "pair_record",
-    "register_metric",
     "pairwise_distances",
     "path_length",
     "preshape",

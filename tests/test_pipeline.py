@@ -400,30 +400,38 @@ def test_default_output_dir_is_the_top_level_results_wherever_the_notebook_runs(
             "notebooks/ it writes to the top-level results/")
 
 
-def test_readme_timings_come_from_the_run_records(tmp_path):
+def test_recorded_timings_come_from_the_run_records_and_render_as_the_docs_table(tmp_path, monkeypatch, capsys):
+    import importlib.util
+
     results = tmp_path / "results"
     names = list(run_all.NOTEBOOKS)
     for i, name in enumerate(names):
         (results / name).mkdir(parents=True)
         (results / name / ".inputs.json").write_text(json.dumps(
             {"mode": "full", "seconds": 60.0 * (i + 1), "jobs": 2, "finished": f"2026-11-23T12:{i:02d}:00+00:00",
-             "machine": {"cpus": 2, "machine": "x86_64", "python": "3.11.7", "loadavg_1min": 1.0 + i}}))
-    readme = tmp_path / "README.md"
-    original = (ROOT / "README.md").read_text()
-    readme.write_text(original)
-    run_all.update_readme_timings(results, readme)
-    text = readme.read_text()
-    total_min = sum(range(1, len(names) + 1))
-    assert f"{total_min:.1f} min of notebook time in all" in text
-    assert f"the slowest `{names[-1]}` {len(names):.1f} min" in text
-    assert f"| `{names[0]}` | 1.0 |" in text
-    # only the block between the markers changed
-    assert text.split(run_all.TIMINGS_BEGIN)[0] == original.split(run_all.TIMINGS_BEGIN)[0]
-    assert text.split(run_all.TIMINGS_END)[1] == original.split(run_all.TIMINGS_END)[1]
+             "params": {"n": i}, "machine": {"cpus": 2, "machine": "x86_64", "python": "3.11.7",
+                                             "loadavg_1min": 1.0 + i}}))
+    out = tmp_path / "data" / "run_times.json"
+    monkeypatch.setattr(run_all, "TIMINGS_RECORD", out)
+    assert run_all.main(["--results-dir", str(results), "--record-timings"]) == 0
+    assert f"updated {out}" in capsys.readouterr().out
+    record = json.loads(out.read_text())
+    assert record["machine"]["date"] == f"2026-11-23T12:{len(names) - 1:02d}:00+00:00"  # the last to finish
+    assert record["machine"]["loadavg"].startswith(f"1.0–{len(names):.1f}")
+    assert {n: r["seconds"] for n, r in record["results"]["notebooks"].items()} == {
+        n: 60.0 * (i + 1) for i, n in enumerate(names)}
+    # the documentation's renderer turns it into the run-time table, slowest first
+    spec = importlib.util.spec_from_file_location("shapelib_docs", ROOT / "docs" / "_ext" / "shapelib_docs.py")
+    docs = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "shapelib_docs", docs)  # dataclasses look their module up
+    spec.loader.exec_module(docs)
+    (table,) = docs.benchmark_tables("run_times", data_dir=out.parent).tables
+    assert table.rows[0] == [f"``{names[-1]}``", f"{len(names):.1f}"]
+    assert f"{sum(range(1, len(names) + 1)):.1f} min of notebook time in all" in table.note
     # a quick run is no full run
     (results / names[0] / ".inputs.json").write_text(json.dumps({"mode": "quick", "seconds": 1.0}))
     with pytest.raises(ValueError, match=f"{names[0]}: no full run"):
-        run_all.update_readme_timings(results, readme)
+        run_all.record_timings(results, out)
 
 
 @pytest.mark.parametrize("name", list(run_all.NOTEBOOKS))
