@@ -48,7 +48,8 @@ _LAZY_SUBMODULES = ("io", "pairwise", "population", "statistics", "datasets", "s
 #: earlier names of submodules, still served on first use
 _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
-_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population"}
+_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population", "tangent_pca": "population",
+                   "TangentPCA": "statistics.tangent_pca"}
 
 
 def __getattr__(name):
@@ -104,7 +105,9 @@ __all__ = [
     "procrustes_distance",
     "ScaleWarning",
     "sigma_ratio",
+    "tangent_pca",
     "tangent_space",
+    "TangentPCA",
     "to_centroid_size",
     "tps_bending_energy",
     "wendland_bending_energy",

@@ -25,8 +25,9 @@ from .geometry.scale import ScaleWarning
 from .pairwise import engine_executor
 from .solver.logexp import log_maps
 from .statistics import frechet as _frechet
+from .statistics import tangent_pca as _tpca
 
-__all__ = ["frechet_mean", "projected_seconds"]
+__all__ = ["frechet_mean", "tangent_pca", "projected_seconds"]
 
 #: log-map rounds a Fréchet mean costs, in units of the first round from straight lines (the
 #: later, warm-started rounds are 2–5 times cheaper; measured on ADHD-200, α and Fisher–Rao)
@@ -54,6 +55,17 @@ def _chunk_size(n, n_workers):
     return max(1, -(-n // (4 * max(1, n_workers))))
 
 
+def _where(x, metric, sigma2, options, n_jobs, client, scheduler, *, rounds=MEAN_ROUNDS, base=None):
+    """``engine_executor`` for log maps of ``x``: with ``n_jobs=None`` the serial time is projected
+    from one timed log map."""
+    serial = None
+    if n_jobs in (None, -1) and client is None and scheduler is None and len(x) > 2 and rounds > 0:
+        opts = _frechet.geodesic_options(metric, sigma2, **{k: options[k] for k in (
+            "n_steps", "log_tol", "log_max_iter", "rcond", "grid_spacing", "grid_margin") if k in options})
+        serial = projected_seconds(x, _frechet.procrustes_mean(x) if base is None else base, opts, rounds=rounds)
+    return engine_executor(n_jobs=n_jobs, client=client, scheduler=scheduler, serial_seconds=serial)
+
+
 def frechet_mean(shapes, *, metric: str = "alpha", sigma2, n_jobs: int | None = None, client=None,
                  scheduler=None, **options) -> _frechet.FrechetMeanResult:
     """Fréchet (Karcher) mean of ``shapes`` (N, K, d) under the α-order or Fisher–Rao metric, its
@@ -69,14 +81,29 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, n_jobs: int | None = 
     FrechetMeanResult
     """
     x = as_shapes(shapes, name="shapes")
-    serial = None
-    if n_jobs in (None, -1) and client is None and scheduler is None and len(x) > 2:
-        opts = _frechet.geodesic_options(metric, sigma2, **{k: options[k] for k in (
-            "n_steps", "log_tol", "log_max_iter", "rcond", "grid_spacing", "grid_margin") if k in options})
-        serial = projected_seconds(x, _frechet.procrustes_mean(x), opts)
-    with engine_executor(n_jobs=n_jobs, client=client, scheduler=scheduler, serial_seconds=serial) as (ex, workers,
-                                                                                                        mode):
+    with _where(x, metric, sigma2, options, n_jobs, client, scheduler) as (ex, workers, mode):
         options.setdefault("chunk_size", _chunk_size(len(x), workers))
         res = _frechet.frechet_mean(x, metric=metric, sigma2=sigma2, executor=ex, **options)
     res.history[-1].update(mode=mode, n_workers=workers)
     return res
+
+
+def tangent_pca(shapes, *, metric: str = "alpha", sigma2=None, mean=None, n_jobs: int | None = None, client=None,
+                scheduler=None, **options) -> _tpca.TangentPCAResult:
+    """Tangent PCA of ``shapes`` at their Fréchet mean (:func:`shapelib.statistics.tangent_pca.tangent_pca`,
+    every option accepted), the log maps on the engine. Given ``mean=`` a
+    :class:`~shapelib.statistics.frechet.FrechetMeanResult`, no log map is computed and the work
+    stays in this process.
+
+    Returns
+    -------
+    TangentPCAResult
+    """
+    x = as_shapes(shapes, name="shapes")
+    if isinstance(mean, _frechet.FrechetMeanResult):
+        return _tpca.tangent_pca(x, metric=metric, sigma2=sigma2, mean=mean, **options)
+    rounds = MEAN_ROUNDS if mean is None else 1.0
+    with _where(x, metric, sigma2, options, n_jobs, client, scheduler, rounds=rounds,
+                base=None if mean is None else np.asarray(mean, dtype=np.float64)) as (ex, workers, mode):
+        options.setdefault("chunk_size", _chunk_size(len(x), workers))
+        return _tpca.tangent_pca(x, metric=metric, sigma2=sigma2, mean=mean, executor=ex, **options)

@@ -10,7 +10,7 @@ with the discrete log and exp maps of :mod:`shapelib.solver.logexp` (discrete ge
 ``n_steps`` segments) and ``P`` the projection onto the **retained subspace** of ``g(m)``
 (eigenvalues above ``rcond`` of the largest). It starts at the Procrustes mean
 (:func:`procrustes_mean`), warm-starts every path solve from the previous iteration's path, halves
-a step that raises ``F``, and stops on a first-order certificate:
+a step that does not lower the certificate, and stops on that first-order certificate:
 
     certificate = ‖(1/N) Σ log_m(x_i)‖_g / √((1/N) Σ ‖log_m(x_i)‖²_g)  ≤  tol,
 
@@ -26,7 +26,13 @@ What is defined, and the representative
     of ``g`` at the current iterate). The certificate and the variance do not depend on this choice.
 
 The discrete problem
-    Everything is computed on discrete geodesics of ``n_steps`` segments. The log vectors have an
+    Everything is computed on discrete geodesics of ``n_steps`` segments, and the mean solves the
+    Karcher equation with the discrete logs ``n (θ₁ − θ₀)``. (This is not exactly the minimiser of
+    the discrete energy ``(1/N) Σ E_n(m, x_i)``, whose gradient is a different O(1/n)
+    approximation of ``−2 g (1/N) Σ log_m(x_i)``: on small synthetic populations the two points
+    differ by ~1 % of the spread at n = 4. The discrete logs are the better approximation of the
+    logs — 2.3 % against 3.8 % error on ADHD-200 at n = 4 — and they are what a user checks the
+    first-order condition with.) The log vectors have an
     O(1/n) error (measured on ADHD-200 corpus callosum contours, α, σ² = 1.2: 2.3 % of the
     distance at n = 4, 1.1 % at n = 8); their mean, and so the mean shape, carries a bias of the
     same order relative to the spread — below the sampling error of a mean of fewer than
@@ -246,9 +252,9 @@ def karcher_iteration(x, m0, *, options: GeodesicOptions, tol, max_iter, executo
             new_logs = population_logs(m_new, x, options=options, inits=shifted_paths(logs, m, m_new),
                                        executor=executor, chunk_size=chunk_size)
             n_logs = len(x) * (backtracks + 1)
-            new_var = float(np.mean([r.energy for r in new_logs]))
-            # accept unless F rose by more than the path solves' own accuracy
-            if new_var <= variance * (1 + 10 * options.tol) or backtracks == max_backtracks:
+            new_cert = mean_certificate(tangent_space(m_new, options=options), [r.vector for r in new_logs])[2]
+            # the iteration drives the certificate to zero: a step that does not lower it is halved
+            if new_cert < cert or backtracks == max_backtracks:
                 break
             step = 0.5 * step
         history[-1]["step"] = float(ts.norm(step))
