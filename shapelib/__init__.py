@@ -49,6 +49,7 @@ _LAZY_SUBMODULES = ("io", "pairwise", "population", "statistics", "datasets", "s
 _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
 _LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population", "tangent_pca": "population",
+                   "geodesic_regression": "population", "mean_difference_test": "population",
                    "TangentPCA": "statistics.tangent_pca"}
 
 
@@ -89,6 +90,7 @@ __all__ = [
     "frechet_mean",
     "generalized_procrustes",
     "geodesic",
+    "geodesic_regression",
     "GeodesicResult",
     "GeodesicWarning",
     "gmm_density",
@@ -97,6 +99,7 @@ __all__ = [
     "l2_distance",
     "log_map",
     "landmark_diffeomorphism",
+    "mean_difference_test",
     "pair_record",
     "pairwise_distances",
     "path_length",

@@ -57,3 +57,17 @@ def test_where_it_runs_is_checked(shapes, client):
         shapelib.frechet_mean(shapes, sigma2=1.0, n_jobs=0)
     with pytest.raises(ValueError, match="not both"):
         shapelib.frechet_mean(shapes, sigma2=1.0, client=client, scheduler="tcp://127.0.0.1:1")
+
+
+def test_regression_and_group_test_on_a_given_client(shapes, reference, client):
+    from shapelib.statistics import group, regression
+
+    t = np.linspace(0.0, 1.0, len(shapes))
+    here = regression.geodesic_regression(shapes, t, sigma2=1.0, mean=reference)
+    there = shapelib.geodesic_regression(shapes, t, sigma2=1.0, mean=reference, client=client)
+    assert there.history[-1]["mode"] == "cluster"
+    assert np.allclose(here.path, there.path, atol=1e-12) and here.r2 == there.r2
+    labels = np.arange(len(shapes)) % 2
+    here = group.mean_difference_test(shapes, labels, sigma2=1.0, pooled=reference, seed=0)
+    there = shapelib.mean_difference_test(shapes, labels, sigma2=1.0, pooled=reference, seed=0, client=client)
+    assert here.p_value == there.p_value and np.allclose(here.means[1].mean, there.means[1].mean, atol=1e-12)

@@ -62,7 +62,7 @@ from .path_metric import GL3_NODES, GL3_WEIGHTS, METRICS, path_metric
 from .result import GeodesicResult, StopReason
 
 __all__ = ["GeodesicOptions", "LogResult", "TangentSpace", "log_map", "exp_map", "exp_path", "log_maps",
-           "tangent_space", "DEFAULT_RCOND", "DEFAULT_LOG_STEPS"]
+           "tangent_space", "segment_derivatives", "path_as_result", "DEFAULT_RCOND", "DEFAULT_LOG_STEPS"]
 
 #: relative eigenvalue (singular value) cut-off of the retained subspace
 DEFAULT_RCOND = 1e-6
@@ -293,6 +293,7 @@ def _solve_log(model, base, shape, opts: GeodesicOptions, init) -> LogResult:
 def log_maps(base, shapes, *, options: GeodesicOptions, inits=None) -> list:
     """Log maps of every shape of ``shapes`` (N, K, d) at ``base``, in this process.
 
+    ``base`` is one shape (K, d) or one per shape (N, K, d) (the residuals of a regression).
     ``inits``: a sequence of N warm-start paths (or None entries), e.g. the paths of the previous
     iteration moved to the new base. This is the unit of work the statistics hand to an executor
     (:func:`shapelib.statistics.population_logs.population_logs`); inputs are assumed validated.
@@ -301,12 +302,13 @@ def log_maps(base, shapes, *, options: GeodesicOptions, inits=None) -> list:
     -------
     list of LogResult
     """
-    base = np.asarray(base, dtype=np.float64)
     shapes = np.asarray(shapes, dtype=np.float64)
+    base = np.asarray(base, dtype=np.float64)
+    bases = np.broadcast_to(base, shapes.shape) if base.ndim == 2 else base
     model = options.model()
     inits = [None] * len(shapes) if inits is None else inits
     with one_blas_thread():
-        return [_solve_log(model, base, s, options, i) for s, i in zip(shapes, inits)]
+        return [_solve_log(model, b, s, options, i) for b, s, i in zip(bases, shapes, inits)]
 
 
 def _check_entry(base, other, s2, metric, names):
@@ -369,7 +371,7 @@ def log_map(base, shape, *, metric: str = "alpha", sigma2, n_steps: int = DEFAUL
 # ---------------------------------------------------------------------------------------------
 
 
-def _segment_derivatives(model, a, b, n, ctx, *, hessian: bool):
+def segment_derivatives(model, a, b, n, ctx, *, hessian: bool):
     """``∂S/∂a``, ``∂S/∂b`` of the segment energy ``S(a, b) = (1/n) Σ_k w_k Q(a + τ_k(b − a), n(b − a))``
     and, with ``hessian``, the mixed block ``∂²S/∂a∂b`` (rows a, columns b)."""
     k, d = a.shape
@@ -408,10 +410,10 @@ def _el_step(model, prev, cur, n, rcond, tol, max_newton, info):
     segment's size in the same metric, ``‖S^{1/2} Vᵀ (b − θ_t)‖``.
     """
     ctx = model.prepare(np.stack([prev, cur, 2 * cur - prev]))
-    _, force_prev, _ = _segment_derivatives(model, prev, cur, n, ctx, hessian=False)
+    _, force_prev, _ = segment_derivatives(model, prev, cur, n, ctx, hessian=False)
 
     def residual(b, hessian):
-        da, _, mixed = _segment_derivatives(model, cur, b, n, ctx, hessian=hessian)
+        da, _, mixed = segment_derivatives(model, cur, b, n, ctx, hessian=hessian)
         return (force_prev + da).ravel(), mixed
 
     nxt = 2 * cur - prev  # constant velocity: exact for a flat metric, kept in the dropped directions
@@ -445,7 +447,7 @@ def _el_step(model, prev, cur, n, rcond, tol, max_newton, info):
         nxt = nxt + lam * delta
         if model.name == "fisher_rao":  # the quadrature grid follows the new point
             ctx = model.prepare(np.stack([prev, cur, nxt]))
-            _, force_prev, _ = _segment_derivatives(model, prev, cur, n, ctx, hessian=False)
+            _, force_prev, _ = segment_derivatives(model, prev, cur, n, ctx, hessian=False)
         resid, mixed = residual(nxt, True)
     info.newton_iters.append(max_newton)
     info.residuals.append(rel)

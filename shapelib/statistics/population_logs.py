@@ -34,7 +34,8 @@ def population_logs(base, shapes, *, options: GeodesicOptions, inits=None, execu
 
     Parameters
     ----------
-    base : ndarray (K, d)
+    base : ndarray (K, d) or (N, K, d)
+        One base for all, or one per shape.
     shapes : ndarray (N, K, d)
     options : GeodesicOptions
     inits : sequence of N paths or None, optional
@@ -52,7 +53,9 @@ def population_logs(base, shapes, *, options: GeodesicOptions, inits=None, execu
     if executor is None or n == 0:
         return log_maps(base, shapes, options=options, inits=inits)
     size = chunk_size or max(1, math.ceil(n / DEFAULT_CHUNKS))
-    futures = [executor.submit(log_maps, base, shapes[a:a + size], options=options, inits=inits[a:a + size])
+    base = np.asarray(base, dtype=np.float64)
+    futures = [executor.submit(log_maps, base if base.ndim == 2 else base[a:a + size], shapes[a:a + size],
+                               options=options, inits=inits[a:a + size])
                for a in range(0, n, size)]
     out = []
     for fut in futures:
@@ -62,11 +65,13 @@ def population_logs(base, shapes, *, options: GeodesicOptions, inits=None, execu
 
 def shifted_paths(results, old_base, new_base) -> list:
     """Warm starts at ``new_base``: each path of ``results`` with its start moved from ``old_base``
-    to ``new_base`` and the move tapered linearly to zero at its (fixed) end."""
+    to ``new_base`` and the move tapered linearly to zero at its (fixed) end. The bases are one
+    shape (K, d) or one per result (N, K, d)."""
     delta = np.asarray(new_base, dtype=np.float64) - np.asarray(old_base, dtype=np.float64)
+    deltas = np.broadcast_to(delta, (len(results), *results[0].path.shape[1:])) if len(results) else []
     out = []
-    for r in results:
+    for r, dl in zip(results, deltas):
         n = len(r.path) - 1
         taper = (1.0 - np.arange(n + 1) / n)[:, None, None]
-        out.append(r.path + taper * delta)
+        out.append(r.path + taper * dl)
     return out
