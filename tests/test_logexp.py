@@ -135,3 +135,19 @@ def test_bad_input_is_named():
         exp_map(u, u, sigma2=1.0, rcond=2.0)
     with pytest.raises(ValueError, match="sigma2"):
         log_map(u, u, sigma2=-1.0)
+
+
+def test_magnify_retraces_and_extends_the_geodesic(pair):
+    from shapelib.solver.logexp import magnify
+
+    u, v = pair
+    geo = shapelib.geodesic(u, v, sigma2=1.0, n_steps=8, tol=1e-11)
+    big = magnify(geo, 2.0)
+    assert big.n_steps == 16
+    assert np.abs(big.path[:9] - geo.path).max() < 1e-3 * np.abs(v - u).max()
+    assert np.isclose(big.length, 2 * geo.length, rtol=0.02)
+    small = magnify(geo, 0.5)
+    assert np.abs(small.path - geo.path[:5]).max() < 1e-3 * np.abs(v - u).max()
+    assert magnify(geo, 1.0) is geo
+    with pytest.raises(ValueError, match="mag"):
+        magnify(geo, 0.0)

@@ -26,10 +26,11 @@ def reference(shapes):
 
 @pytest.fixture(scope="module")
 def client():
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as c:
+    from shapelib.pairwise import local_cluster
+
+    with local_cluster(2) as cluster, Client(cluster) as c:
         yield c
 
 

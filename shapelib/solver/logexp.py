@@ -62,7 +62,7 @@ from .path_metric import GL3_NODES, GL3_WEIGHTS, METRICS, path_metric
 from .result import GeodesicResult, StopReason
 
 __all__ = ["GeodesicOptions", "LogResult", "TangentSpace", "log_map", "exp_map", "exp_path", "log_maps",
-           "tangent_space", "segment_derivatives", "path_as_result", "DEFAULT_RCOND", "DEFAULT_LOG_STEPS"]
+           "tangent_space", "segment_derivatives", "path_as_result", "magnify", "DEFAULT_RCOND", "DEFAULT_LOG_STEPS"]
 
 #: relative eigenvalue (singular value) cut-off of the retained subspace
 DEFAULT_RCOND = 1e-6
@@ -538,3 +538,39 @@ def path_as_result(path, *, options: GeodesicOptions, log=None) -> GeodesicResul
                           max_step_over_sigma=float(steps.max() / math.sqrt(options.sigma2)) if steps.size else 0.0,
                           metric=options.metric, sigma2=options.sigma2,
                           log={"stopped_by": StopReason.TRIVIAL.value, **(log or {})})
+
+
+def magnify(result: GeodesicResult, mag: float, *, rcond: float = DEFAULT_RCOND) -> GeodesicResult:
+    """The geodesic of ``result`` scaled to ``mag`` times its length from its start: the discrete
+    geodesic ``exp_start(mag · log_start(end))`` with the same step size, so its first ``n`` points
+    retrace ``result.path`` and it continues beyond the end (``mag > 1``) or stops short of it
+    (``mag < 1``) — the magnified deformation of geomorph's ``plotRefToTarget(mag=)``, along the
+    geodesic instead of a thin-plate spline.
+
+    Parameters
+    ----------
+    result : GeodesicResult
+        An α or Fisher–Rao geodesic (:func:`shapelib.geodesic`, :func:`exp_map` with
+        ``return_result=True``).
+    mag : float
+        Magnification (> 0).
+    rcond : float
+        Truncation of the exponential map (:func:`exp_map`).
+
+    Returns
+    -------
+    GeodesicResult
+    """
+    mag = check_positive(mag, name="mag")
+    if result.metric not in METRICS or result.sigma2 is None:
+        raise ValueError(f"magnify needs an alpha or fisher_rao geodesic; got metric {result.metric!r}")
+    n = result.n_steps
+    steps = max(1, int(round(mag * n)))
+    opts = GeodesicOptions(result.metric, result.sigma2, n_steps=steps, rcond=rcond,
+                           grid_spacing=result.log.get("grid_spacing", DEFAULT_SPACING),
+                           grid_margin=result.log.get("grid_margin", DEFAULT_MARGIN))
+    if mag == 1.0:
+        return result
+    velocity = n * (result.path[1] - result.path[0])
+    path, info = exp_path(result.path[0], mag * velocity, options=opts)
+    return path_as_result(path, options=opts, log={"exp": info, "magnification": mag})
