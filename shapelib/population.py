@@ -27,7 +27,8 @@ from .solver.logexp import log_maps
 from .statistics import frechet as _frechet
 from .statistics import group as _group
 from .statistics import regression as _regression
-from .statistics import tangent_pca as _tpca
+from .statistics.tangent_pca import TangentPCAResult
+from .statistics.tangent_pca import tangent_pca as _tangent_pca
 
 __all__ = ["frechet_mean", "tangent_pca", "geodesic_regression", "mean_difference_test", "projected_seconds"]
 
@@ -91,7 +92,7 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, n_jobs: int | None = 
 
 
 def tangent_pca(shapes, *, metric: str = "alpha", sigma2=None, mean=None, n_jobs: int | None = None, client=None,
-                scheduler=None, **options) -> _tpca.TangentPCAResult:
+                scheduler=None, **options) -> TangentPCAResult:
     """Tangent PCA of ``shapes`` at their Fréchet mean (:func:`shapelib.statistics.tangent_pca.tangent_pca`,
     every option accepted), the log maps on the engine. Given ``mean=`` a
     :class:`~shapelib.statistics.frechet.FrechetMeanResult`, no log map is computed and the work
@@ -103,12 +104,12 @@ def tangent_pca(shapes, *, metric: str = "alpha", sigma2=None, mean=None, n_jobs
     """
     x = as_shapes(shapes, name="shapes")
     if isinstance(mean, _frechet.FrechetMeanResult):
-        return _tpca.tangent_pca(x, metric=metric, sigma2=sigma2, mean=mean, **options)
+        return _tangent_pca(x, metric=metric, sigma2=sigma2, mean=mean, **options)
     rounds = MEAN_ROUNDS if mean is None else 1.0
     with _where(x, metric, sigma2, options, n_jobs, client, scheduler, rounds=rounds,
                 base=None if mean is None else np.asarray(mean, dtype=np.float64)) as (ex, workers, mode):
         options.setdefault("chunk_size", _chunk_size(len(x), workers))
-        return _tpca.tangent_pca(x, metric=metric, sigma2=sigma2, mean=mean, executor=ex, **options)
+        return _tangent_pca(x, metric=metric, sigma2=sigma2, mean=mean, executor=ex, **options)
 
 
 def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, n_jobs: int | None = None, client=None,

@@ -72,3 +72,13 @@ def test_regression_and_group_test_on_a_given_client(shapes, reference, client):
     here = group.mean_difference_test(shapes, labels, sigma2=1.0, pooled=reference, seed=0)
     there = shapelib.mean_difference_test(shapes, labels, sigma2=1.0, pooled=reference, seed=0, client=client)
     assert here.p_value == there.p_value and np.allclose(here.means[1].mean, there.means[1].mean, atol=1e-12)
+
+
+def test_tangent_pca_through_the_package(shapes, reference):
+    from shapelib.statistics.tangent_pca import tangent_pca
+
+    a = shapelib.tangent_pca(shapes, sigma2=1.0, mean=reference, modes=())
+    b = tangent_pca(shapes, sigma2=1.0, mean=reference, modes=())
+    assert np.array_equal(a.scores, b.scores)
+    c = shapelib.tangent_pca(shapes, sigma2=1.0, mean=reference.mean, modes=(), n_jobs=1)
+    assert np.allclose(c.explained_variance, a.explained_variance, rtol=1e-4)
