@@ -23,10 +23,15 @@ Parametrisation and gradient
       through the path's optimality (implicit function theorem: one solve with the
       block-tridiagonal Hessian of the path energy, slightly shifted to be positive definite).
 
-    Steps are Gauss–Newton steps of the flat case (a line fitted through the residuals, scaled by
-    the truncated inverse metric at ``A`` and ``B`` — only the retained subspace moves, as for the
-    Fréchet mean), with backtracking on ``L``; the start is the least-squares line through the
-    landmark coordinates (exact in the small-σ limit).
+    Steps are Levenberg–Marquardt steps on the Gauss–Newton model ``Σ_i ‖ε_i − J_i δ‖²_{g(ŷ_i)}``
+    (``J_i`` the Jacobian of ``ŷ_i`` in ``(A, B)``, from the same implicit-function solve), with the
+    damping raised until ``L`` decreases; the start is the least-squares line through the landmark
+    coordinates (exact in the small-σ limit). The ends move only in the directions whose metric
+    eigenvalue exceeds ``step_rcond`` (default 1e-3) of the largest: in the weaker ones the
+    Gauss–Newton curvature ``g`` falls far below the loss's true curvature (the residuals are as
+    long as the shapes' spread), and steps there were rejected one after another (measured on 24
+    ADHD-200 contours: 20 iterations and 162 s without reaching the certificate, against 2
+    iterations and 2.3 s). Those directions hold ~2e-4 of the corpus callosum's variance.
 
 Stop
     A first-order certificate like the mean's: the metric norm of the preconditioned gradient at
@@ -59,7 +64,10 @@ from .population_logs import population_logs, shifted_paths
 __all__ = ["GeodesicRegressionResult", "geodesic_regression", "DEFAULT_PATH_STEPS"]
 
 #: segments of the regression geodesic between the ends of the covariate range
-DEFAULT_PATH_STEPS = 16
+DEFAULT_PATH_STEPS = 8
+#: the ends of the regression geodesic move in the directions whose metric eigenvalue exceeds this
+#: fraction of the largest (see the module docstring)
+DEFAULT_STEP_RCOND = 1e-3
 
 
 @dataclass
@@ -201,7 +209,8 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
                         mean: FrechetMeanResult | None = None, tol: float = 1e-3, max_iter: int = 20,
                         path_steps: int = DEFAULT_PATH_STEPS, n_steps: int = DEFAULT_LOG_STEPS,
                         log_tol: float = 1e-6, log_max_iter: int = 200, rcond: float = DEFAULT_RCOND,
-                        grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN, executor=None,
+                        grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN, step_rcond: float = DEFAULT_STEP_RCOND,
+                        executor=None,
                         chunk_size: int | None = None, warn: bool = True) -> GeodesicRegressionResult:
     """The geodesic ``γ(t) = exp_p((t − t_ref) v)`` that best fits ``shapes`` against ``t``.
 
@@ -223,6 +232,9 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
         Segments of the regression geodesic over ``[t_min, t_max]``.
     n_steps, log_tol, log_max_iter, rcond, grid_spacing, grid_margin
         The residual geodesics and the retained subspace (as :func:`~shapelib.statistics.frechet.frechet_mean`).
+    step_rcond : float
+        The ends of the geodesic move in the directions whose metric eigenvalue exceeds this share
+        of the largest (module docstring).
     executor, chunk_size
         Where the residual log maps run (:mod:`shapelib.statistics.population_logs`).
 
@@ -277,10 +289,10 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
     while True:
         grad, jac, ts_a, ts_b = _gradient(model, state, opts, m_steps, n)
         # Gauss–Newton on the retained subspaces at A and B: N = Σ J_iᵀ g(ŷ_i) J_i
-        basis = _block_basis(ts_a, ts_b)
+        basis = _block_basis(ts_a, ts_b, step_rcond)
         g_fit = model.tensors(state.fitted, model.prepare(state.fitted))
         jr = jac @ basis  # (N, q, r)
-        normal = np.einsum("niq,nij,njr->qr", jr, g_fit, jr)
+        normal = np.einsum("nir,nis->rs", jr, g_fit @ jr)
         rhs = -0.5 * basis.T @ grad
         step_gn = np.linalg.lstsq(normal, rhs, rcond=1e-12)[0]
         # relative first-order certificate: the share of the residuals a move of the geodesic explains
@@ -294,11 +306,10 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
         if it >= max_iter:
             break
         it += 1
-        diag = np.diag(normal).copy()
-        diag[diag <= 0] = diag.max()
+        level = float(np.trace(normal)) / len(normal)
         accepted = False
         for back in range(8):
-            delta = basis @ np.linalg.solve(normal + lam * np.diag(diag), rhs)
+            delta = basis @ np.linalg.solve(normal + lam * level * np.eye(len(normal)), rhs)
             q = state.a.size
             trial = evaluate(state.a + delta[:q].reshape(state.a.shape), state.b + delta[q:].reshape(state.b.shape),
                              state)
@@ -333,12 +344,15 @@ def _moved_path(prev: _State, a, b):
     return prev.path + (1 - s) * (a - prev.a) + s * (b - prev.b)
 
 
-def _block_basis(ts_a: TangentSpace, ts_b: TangentSpace) -> np.ndarray:
-    """Columns spanning the retained subspaces at A (first q coordinates) and B (last q)."""
+def _block_basis(ts_a: TangentSpace, ts_b: TangentSpace, rcond: float) -> np.ndarray:
+    """Columns spanning the directions at A (first q coordinates) and B (last q) whose metric
+    eigenvalue exceeds ``rcond`` of the largest."""
     q = ts_a.basis.shape[0]
-    basis = np.zeros((2 * q, ts_a.rank + ts_b.rank))
-    basis[:q, :ts_a.rank] = ts_a.basis
-    basis[q:, ts_a.rank:] = ts_b.basis
+    ra = int(np.count_nonzero(ts_a.eigenvalues > rcond * ts_a.eigenvalues[0]))
+    rb = int(np.count_nonzero(ts_b.eigenvalues > rcond * ts_b.eigenvalues[0]))
+    basis = np.zeros((2 * q, ra + rb))
+    basis[:q, :ra] = ts_a.eigenvectors[:, :ra]
+    basis[q:, ra:] = ts_b.eigenvectors[:, :rb]
     return basis
 
 
