@@ -25,6 +25,7 @@ fisher_rao = True
 fisher_rao_n_steps = 4
 fisher_rao_grid_spacing = 0.5  # Fisher–Rao quadrature step in units of σ (library default 0.35)
 permutations = 999
+geodesic_steps = 16  # segments of the geodesics between means (and of the pictures drawn along them)
 magnification = 3.0  # of the deformation pictures, as geomorph's plotRefToTarget mag
 ages = [8.0, 20.0]  # where the age trend is drawn
 wings_min_genus = 10  # genera of the mosquito wings with at least this many specimens
@@ -116,7 +117,7 @@ def timed(name, fn, *args, **kw):
 # %%
 alpha_test = timed("alpha_means", sl.mean_difference_test, shapes, lab.diagnosis.to_numpy(), metric="alpha",
                    sigma2=sigma2, order=("TD", "ADHD"), n_permutations=permutations, seed=seed, tol=tol,
-                   n_steps=n_steps, **where)
+                   n_steps=n_steps, geodesic_steps=geodesic_steps, **where)
 pooled = alpha_test.pooled
 print(pooled.summary())
 print(alpha_test.summary())
@@ -199,7 +200,7 @@ sub_x, sub_lab = shapes[sub], lab.diagnosis.to_numpy()[sub]
 sub_where = where if len(sub) >= 100 else {"n_jobs": 1}
 sub_alpha = timed("alpha_subset", sl.mean_difference_test, sub_x, sub_lab, metric="alpha", sigma2=sigma2,
                   order=("TD", "ADHD"), n_permutations=permutations, seed=seed, tol=tol, n_steps=n_steps,
-                  **sub_where)
+                  geodesic_steps=geodesic_steps, **sub_where)
 values.update({"intrinsic/adhd/subset/alpha/p": sub_alpha.p_value,
                "intrinsic/adhd/subset/alpha/distance": sub_alpha.distance})
 sub_proc_stat, sub_proc_p = procrustes_test(sub_x, sub_lab == "ADHD", permutations, np.random.default_rng(seed))
@@ -208,7 +209,7 @@ print(sub_alpha.summary())
 if fisher_rao:
     fr_test = timed("fisher_rao_means", sl.mean_difference_test, sub_x, sub_lab, metric="fisher_rao", sigma2=sigma2,
                     order=("TD", "ADHD"), n_permutations=permutations, seed=seed, tol=tol, n_steps=fisher_rao_n_steps,
-                    grid_spacing=fisher_rao_grid_spacing, **sub_where)
+                    grid_spacing=fisher_rao_grid_spacing, geodesic_steps=geodesic_steps, **sub_where)
     fr_pooled = fr_test.pooled
     print(fr_pooled.summary())
     print(fr_test.summary())
@@ -339,7 +340,7 @@ for ax, (name, pr) in zip(axes[:2], (("α geodesic regression", pred_alpha), ("l
     ax.set_aspect("equal")
     ax.legend(fontsize=8)
     ax.set_title(name, fontsize=9)
-age_geo = sl.geodesic(pred_alpha[0], pred_alpha[1], sigma2=sigma2, n_steps=8)
+age_geo = sl.geodesic(pred_alpha[0], pred_alpha[1], sigma2=sigma2, n_steps=geodesic_steps)
 plotting.plot_deformation(axes[2], age_geo, mag=magnification)
 axes[2].set_title(f"{a_lo:g} → {a_hi:g} years (α), magnified {magnification:g}×", fontsize=9)
 save_figure(fig, output_dir, "age_trend")
@@ -399,7 +400,7 @@ if np.isfinite(rho):
 big2 = keep_genera[:2]
 m2 = np.isin(genus, big2)
 w_test = sl.mean_difference_test(wings[m2], genus[m2], sigma2=sigma2, order=tuple(big2), n_permutations=permutations,
-                                 seed=seed, tol=tol, n_steps=n_steps, n_jobs=1)
+                                 seed=seed, tol=tol, n_steps=n_steps, geodesic_steps=geodesic_steps, n_jobs=1)
 values.update({"intrinsic/wings/test_p": w_test.p_value, "intrinsic/wings/test_distance": w_test.distance})
 print(genus_table)
 print(w_test.summary())
