@@ -147,3 +147,19 @@ def test_bad_input(shapes, mean):
     est = TangentPCA(sigma2=1.0, mean=mean).fit(shapes)
     with pytest.raises(ValueError, match="components"):
         est.inverse_transform(np.zeros((1, est.n_components_ + 1)))
+
+
+def test_ktch_shape_variation_plot_takes_the_transformer(shapes, mean):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from ktch.plot import shape_variation_plot
+
+    est = TangentPCA(sigma2=1.0, mean=mean, n_components=3).fit(shapes.reshape(len(shapes), -1))
+    fig = shape_variation_plot(est, n_dim=2, components=(0, 1), sd_values=(-2.0, 0.0, 2.0))
+    assert len(fig.axes) == 6
+    # the shape ktch draws at +2 SD of PC1 is the exponential map at the mean
+    drawn = est.inverse_transform(np.array([[2 * np.sqrt(est.explained_variance_[0]), 0.0, 0.0]]))[0]
+    assert np.allclose(drawn.reshape(-1, 2), est.result_.shape([2 * np.sqrt(est.explained_variance_[0])]))
+    plt.close(fig)
