@@ -192,10 +192,11 @@ plt.show()
 #
 # Fisher–Rao log maps cost a quadrature per evaluation (about 20× an α one); we compute them on
 # the subset balanced over diagnosis × sex that `adhd200_population` uses for its geodesic
-# distances, with α on the same subset for comparison.
+# distances (the same subjects, drawn with the same seed), with α and Procrustes on the same
+# subset for comparison.
 
 # %%
-sub = stratified(np.arange(len(shapes)), int(n_subset), np.random.default_rng(seed + 1))
+sub = np.searchsorted(sel, stratified(sel, int(n_subset), rng))  # adhd200_population's geodesic subset (same draws)
 sub_x, sub_lab = shapes[sub], lab.diagnosis.to_numpy()[sub]
 sub_where = where if len(sub) >= 100 else {"n_jobs": 1}
 sub_alpha = timed("alpha_subset", sl.mean_difference_test, sub_x, sub_lab, metric="alpha", sigma2=sigma2,
@@ -245,6 +246,10 @@ from sklearn.decomposition import PCA
 ppca = PCA().fit(flat)
 proc_scores = ppca.transform(flat)
 k = 5
+# a component's sign is arbitrary: orient each Procrustes component like the α one it matches
+signs = np.sign([np.corrcoef(pca.scores[:, j], proc_scores[:, j])[0, 1] for j in range(k)])
+proc_scores[:, :k] *= signs
+ppca.components_[:k] *= signs[:, None]
 corr = [abs(np.corrcoef(pca.scores[:, j], proc_scores[:, j])[0, 1]) for j in range(3)]
 for j in range(k):
     values[f"intrinsic/adhd/pca/alpha_ratio_{j + 1}"] = float(pca.explained_variance_ratio[j])
@@ -319,6 +324,17 @@ tc = age - age.mean()
 slope = np.einsum("n,nkd->kd", tc, shapes) / (tc @ tc)
 fit_lin = shapes.mean(0) + tc[:, None, None] * slope
 r2_lin = 1 - np.sum((shapes - fit_lin) ** 2) / np.sum((shapes - shapes.mean(0)) ** 2)
+
+
+def linear_r2(t):
+    c = t - t.mean()
+    b = np.einsum("n,nkd->kd", c, shapes) / (c @ c)
+    return 1 - np.sum((shapes - shapes.mean(0) - c[:, None, None] * b) ** 2) / np.sum((shapes - shapes.mean(0)) ** 2)
+
+
+perm_rng = np.random.default_rng(seed)
+null_r2 = np.array([linear_r2(perm_rng.permutation(age)) for _ in range(permutations)])
+p_lin = (1 + np.count_nonzero(null_r2 >= r2_lin * (1 - 1e-12))) / (1 + permutations)
 pred_alpha = reg.predict(ages)
 pred_lin = shapes.mean(0) + (np.asarray(ages) - age.mean())[:, None, None] * slope
 trend_alpha, trend_lin = pred_alpha[1] - pred_alpha[0], pred_lin[1] - pred_lin[0]
@@ -328,6 +344,8 @@ values.update({
     "intrinsic/adhd/regression/alpha_certificate": reg.certificate,
     "intrinsic/adhd/regression/alpha_speed": reg.speed,
     "intrinsic/adhd/regression/linear_r2": float(r2_lin),
+    "intrinsic/adhd/regression/linear_p": float(p_lin),
+    "intrinsic/adhd/regression/linear_null_r2": float(null_r2.mean()),
     "intrinsic/adhd/regression/cos_trend": cos_age,
     "intrinsic/adhd/regression/alpha_distance_8_20": float(sl.path_length(
         sl.geodesic(pred_alpha[0], pred_alpha[1], sigma2=sigma2, n_steps=8).path, sigma2=sigma2)),
@@ -440,12 +458,16 @@ v = values
 fr_text = ""
 if fisher_rao:
     fr_text = (
-        f" On the balanced subset of {len(sub)} subjects the Fisher–Rao means tell the same story: TD–ADHD "
-        f"permutation p = {v['intrinsic/adhd/fisher_rao/p']:.3g} (α on the same subset p = "
-        f"{v['intrinsic/adhd/subset/alpha/p']:.3g}, Procrustes p = {v['intrinsic/adhd/subset/procrustes/p']:.3g}), and "
-        f"the Fisher–Rao mean difference points the way of the α one (cosine "
-        f"{v['intrinsic/adhd/fisher_rao/cos_alpha']:.2f} between the landmark displacements); the two pooled means "
-        f"differ by {v['intrinsic/adhd/fisher_rao/mean_gap_l2']:.2g} of the α spread in L² density distance.")
+        f" On the subset of {len(sub)} subjects balanced over diagnosis × sex that adhd200_population uses for its "
+        f"geodesic distances, the TD–ADHD permutation p is {v['intrinsic/adhd/fisher_rao/p']:.3g} under Fisher–Rao, "
+        f"{v['intrinsic/adhd/subset/alpha/p']:.3g} under α and {v['intrinsic/adhd/subset/procrustes/p']:.3g} under "
+        f"Procrustes (a pure two-group test; adhd200_population's PERMANOVA also models sex and age); the Fisher–Rao "
+        f"and α mean differences {way(v['intrinsic/adhd/fisher_rao/cos_alpha'])} (cosine {v['intrinsic/adhd/fisher_rao/cos_alpha']:.2f} between "
+        f"the landmark displacements), and the Fisher–Rao and α pooled means differ by "
+        f"{v['intrinsic/adhd/fisher_rao/mean_gap_l2']:.2g} of the α spread in L² density distance.")
+sig = lambda p: "differ" if p <= 0.05 else "do not differ detectably"  # noqa: E731
+way = lambda c: ("point the same way" if c >= 0.8 else "point roughly the same way" if c >= 0.5  # noqa: E731
+                 else "point different ways")
 lines = [
     "### Mean shapes, modes and age trends in the information geometry (`intrinsic_statistics`)", "",
     f"On {len(shapes)} ADHD-200 contours ({n_td} TD, {n_adhd} ADHD) at σ² = {sigma2:g} (centroid size "
@@ -453,12 +475,13 @@ lines = [
     f"in {v['intrinsic/adhd/alpha/iterations']:.0f} Karcher iteration(s) from the Procrustes mean; the metric at the mean "
     f"keeps {v['intrinsic/adhd/alpha/rank']:.0f} of {shapes[0].size} directions (the rest are landmarks sliding along the "
     f"contour, which hold {v['intrinsic/adhd/alpha/discarded_fraction']:.1e} of the variance). "
-    f"**The TD and ADHD mean shapes differ** by an α geodesic distance of {v['intrinsic/adhd/alpha/distance']:.3g} "
+    f"**The TD and ADHD mean shapes {sig(v['intrinsic/adhd/alpha/p'])}**: α geodesic distance "
+    f"{v['intrinsic/adhd/alpha/distance']:.3g} between the groups' Fréchet means "
     f"(tangent statistic {v['intrinsic/adhd/alpha/statistic']:.3g}; permutation p = {v['intrinsic/adhd/alpha/p']:.3g}, "
     f"{permutations} permutations), against a root-mean-square distance of {np.sqrt(v['intrinsic/adhd/alpha/variance']):.3g} "
     f"of a subject from the mean: diagnosis accounts for {100 * v['intrinsic/adhd/alpha/diagnosis_share']:.2f} % of the α "
     f"variance ({100 * v['intrinsic/adhd/procrustes/diagnosis_share']:.2f} % of the Procrustes variance, p = "
-    f"{v['intrinsic/adhd/procrustes/p']:.3g}). The two answers point the same way: the cosine between the α and the "
+    f"{v['intrinsic/adhd/procrustes/p']:.3g}). The two answers {way(v['intrinsic/adhd/procrustes/cos_euclidean'])}: the cosine between the α and the "
     f"Procrustes mean differences is {v['intrinsic/adhd/procrustes/cos_euclidean']:.2f} in landmark coordinates and "
     f"{v['intrinsic/adhd/procrustes/cos_metric']:.2f} in the α metric (which discounts sliding along the contour)." + fr_text,
     "",
@@ -468,18 +491,24 @@ lines = [
     f"{100 * v['intrinsic/adhd/pca/procrustes_ratio_2']:.1f} %, {100 * v['intrinsic/adhd/pca/procrustes_ratio_3']:.1f} %); "
     f"the scores of the two analyses' first three modes correlate at |r| = "
     + ", ".join(f"{v[f'intrinsic/adhd/pca/score_corr_{j}']:.2f}" for j in (1, 2, 3))
-    + ". ADHD subjects sit "
+    + " (each Procrustes component oriented like the α one). ADHD subjects sit "
     + ", ".join(f"{v[f'intrinsic/adhd/pca/alpha_shift_{j}']:+.2f} SD on α PC{j} (p = {v[f'intrinsic/adhd/pca/alpha_shift_p_{j}']:.3g})"
                 for j in (1, 2, 3))
     + " from TD subjects (Procrustes: "
     + ", ".join(f"{v[f'intrinsic/adhd/pca/procrustes_shift_{j}']:+.2f} SD, p = {v[f'intrinsic/adhd/pca/procrustes_shift_p_{j}']:.3g}"
                 for j in (1, 2, 3)) + ").",
     "",
-    f"**Age.** Geodesic regression on age gives Fletcher's R² = {v['intrinsic/adhd/regression/alpha_r2']:.4f} "
-    f"(linear regression of the Procrustes coordinates: R² = {v['intrinsic/adhd/regression/linear_r2']:.4f}); the "
-    f"predicted shapes at {a_lo:g} and {a_hi:g} years are {v['intrinsic/adhd/regression/alpha_distance_8_20']:.3g} apart "
-    f"under α, and the α and linear age trends point the same way (cosine {v['intrinsic/adhd/regression/cos_trend']:.2f} "
-    f"between the predicted {a_lo:g}→{a_hi:g} displacements).",
+    f"**Age.** Geodesic regression on age gives Fletcher's R² = {v['intrinsic/adhd/regression/alpha_r2']:.4f} and "
+    f"linear regression of the Procrustes coordinates R² = {v['intrinsic/adhd/regression/linear_r2']:.4f} "
+    f"(permutation p = {v['intrinsic/adhd/regression/linear_p']:.3g}; shuffled ages give R² = "
+    f"{v['intrinsic/adhd/regression/linear_null_r2']:.4f} on average)"
+    + (": shape does not change detectably with age between "
+       f"{age.min():.0f} and {age.max():.0f} years in this population. " if v['intrinsic/adhd/regression/linear_p'] > 0.05
+       else ". ")
+    + f"The predicted shapes at {a_lo:g} and {a_hi:g} years are {v['intrinsic/adhd/regression/alpha_distance_8_20']:.3g} "
+    f"apart under α ({v['intrinsic/adhd/regression/alpha_distance_8_20'] / np.sqrt(v['intrinsic/adhd/alpha/variance']):.2f} "
+    f"of the root-mean-square distance from the mean); the α and linear age trends {way(v['intrinsic/adhd/regression/cos_trend'])} (cosine "
+    f"{v['intrinsic/adhd/regression/cos_trend']:.2f} between the predicted {a_lo:g}→{a_hi:g} displacements).",
     "",
     f"**Mosquito wings.** {v['intrinsic/wings/n_specimens']:.0f} wings of the {v['intrinsic/wings/n_genera']:.0f} genera "
     f"with ≥ {wings_min_genus} specimens (σ = {v['intrinsic/wings/sigma_over_spacing']:.2f} landmark spacings): the first "
