@@ -101,6 +101,16 @@ NOTEBOOKS: dict[str, dict] = {
             "procrustes", "hausdorff", "tps", "wendland", "diffeomorphism", "alpha_s2_0.1", "alpha_s2_0.5", "alpha_s2_1.5",
             "fisher_rao_s2_0.1", "fisher_rao_s2_0.5", "fisher_rao_s2_1.5")} | {"fig11/": 28, "speed/": 2, "constant/table1/": 7},
     },
+    "intrinsic_statistics": {
+        "cores": "all",
+        "params": {},
+        "quick": {"n_shapes": 16, "n_subset": 6, "permutations": 19, "fisher_rao_n_steps": 2,
+                  "fisher_rao_grid_spacing": 1.0, "geodesic_steps": 4, "wings_min_genus": 25, "n_jobs": 1},
+        "data": ["adhd200/ADHD-200.Rdata", "adhd200/clinical_info.csv"],
+        "expects": {"intrinsic/adhd/alpha/": 10, "intrinsic/adhd/procrustes/": 6, "intrinsic/adhd/subset/": 3,
+                    "intrinsic/adhd/fisher_rao/": 7, "intrinsic/adhd/pca/": 25, "intrinsic/adhd/regression/": 8,
+                    "intrinsic/wings/": 10},
+    },
     "adhd200_population": {
         "params": {"rtol": 1e-3}, "store": True, "cores": "all",
         "quick": {"n_shapes": 40, "n_subset": 8, "geodesic_n_steps": 2, "geodesic_max_iter": 1, "permutations": 199},

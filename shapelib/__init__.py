@@ -14,12 +14,16 @@ Where each equation lives:
   :mod:`shapelib.comparison.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
 * §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
+* log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
+  tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics`, on the engine through
+  :mod:`shapelib.population`
 """
 
 from .solver.bracket import DistanceBracket, distance_bracket
 from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
 from .distances import MetricInfo, distance, metric_info, pair_record, register_metric
 from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+from .solver.logexp import exp_map, log_map, tangent_space
 from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
 from .solver.result import BracketStopReason, StopReason
 from .geometry.gmm import gmm_density, l2_distance
@@ -42,11 +46,13 @@ from ._version import __version__  # noqa: F401  (the package version)
 
 #: modules above the mathematics, imported on first use (``shapelib.io.read_landmarks(...)`` works
 #: after ``import shapelib``, which itself imports neither pandas' IO nor Dask nor zarr)
-_LAZY_SUBMODULES = ("io", "pairwise", "statistics", "datasets", "study", "plotting", "cli")
+_LAZY_SUBMODULES = ("io", "pairwise", "population", "statistics", "datasets", "study", "plotting", "cli")
 #: earlier names of submodules, still served on first use
 _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
-_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise"}
+_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population", "tangent_pca": "population",
+                   "geodesic_regression": "population", "mean_difference_test": "population",
+                   "TangentPCA": "statistics.tangent_pca"}
 
 
 def __getattr__(name):
@@ -81,19 +87,24 @@ __all__ = [
     "distance",
     "distance_bracket",
     "DistanceBracket",
+    "exp_map",
     "extrinsic_warp",
     "fisher_rao_lower_bound",
     "fisher_rao_metric",
     "fisher_rao_quadratic_form",
+    "frechet_mean",
     "generalized_procrustes",
     "geodesic",
+    "geodesic_regression",
     "GeodesicResult",
     "GeodesicWarning",
     "gmm_density",
     "hausdorff_distance",
     "landmark_spacing",
     "l2_distance",
+    "log_map",
     "landmark_diffeomorphism",
+    "mean_difference_test",
     "pair_record",
     "pairwise_distances",
     "path_length",
@@ -104,6 +115,9 @@ __all__ = [
     "procrustes_distance",
     "ScaleWarning",
     "sigma_ratio",
+    "tangent_pca",
+    "tangent_space",
+    "TangentPCA",
     "to_centroid_size",
     "tps_bending_energy",
     "wendland_bending_energy",

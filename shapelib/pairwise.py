@@ -73,8 +73,7 @@ from .solver.linalg import one_blas_thread
 from .distances import SYMMETRIC, check_metric_params, metric_info, pair_record, pose_dependent
 
 __all__ = ["PairwiseResult", "PairError", "BlockProgress", "compute_pairwise", "pairwise_distances", "open_store",
-           "compute_block", "block_pairs",
-           "local_cluster", "default_block_size", "ARRAYS"]
+           "compute_block", "block_pairs", "local_cluster", "engine_executor", "default_block_size", "ARRAYS"]
 
 #: seconds one task should take (sets the default block size)
 TASK_SECONDS = 2.0
@@ -743,13 +742,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if pose_dependent(metric, params):  # likewise (check_pose: a pair, or a whole set to align)
         check_pose(x, metric=metric, stacklevel=4)
     symmetric = info.symmetric
-    if client is not None and scheduler is not None:
-        raise ValueError("give client or scheduler, not both")
-    if n_jobs is not None and n_jobs != -1 and (isinstance(n_jobs, bool) or not isinstance(n_jobs, (int, np.integer))
-                                                or n_jobs < 1):
-        raise ValueError(f"n_jobs must be a positive integer, -1 or None; got {n_jobs!r}")
-    if (client is not None or scheduler is not None) and n_jobs not in (None, -1):
-        raise ValueError("n_jobs sizes a local cluster; it cannot be combined with client or scheduler")
+    _check_where(n_jobs, client, scheduler)
     if block_size is not None:
         block_size = check_positive_int(block_size, name="block_size")
     want = {"format": _FORMAT, "metric": metric, "params": _full_params(info, rtol, params),
@@ -1044,6 +1037,58 @@ def _nanny_class():
 def _ignore_sigint():
     """Run on a worker of the engine's own LocalCluster: leave Ctrl-C to the process that started it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _check_where(n_jobs, client, scheduler) -> None:
+    """Where the work runs: ``n_jobs`` (a positive int, -1 or None), or a ``client``, or a ``scheduler``."""
+    if client is not None and scheduler is not None:
+        raise ValueError("give client or scheduler, not both")
+    if n_jobs is not None and n_jobs != -1 and (isinstance(n_jobs, bool) or not isinstance(n_jobs, (int, np.integer))
+                                                or n_jobs < 1):
+        raise ValueError(f"n_jobs must be a positive integer, -1 or None; got {n_jobs!r}")
+    if (client is not None or scheduler is not None) and n_jobs not in (None, -1):
+        raise ValueError("n_jobs sizes a local cluster; it cannot be combined with client or scheduler")
+
+
+@contextlib.contextmanager
+def engine_executor(*, n_jobs=None, client=None, scheduler=None, serial_seconds=None):
+    """The engine's workers as a :class:`concurrent.futures.Executor`, for work that is a map over
+    shapes rather than pairs (the intrinsic statistics' log maps, :mod:`shapelib.population`).
+
+    Yields ``(executor, n_workers, mode)``; ``executor`` is None for in-process work. ``client=``
+    or ``scheduler=`` use that Dask cluster (``client.get_executor()``); ``n_jobs=k > 1`` starts a
+    :func:`local_cluster` of ``k`` workers for the duration of the ``with`` block; ``n_jobs=1`` runs
+    in this process; ``n_jobs=None`` or ``-1`` runs in this process when ``serial_seconds`` (the
+    caller's projection of the serial time) is below the break-even
+    ``CLUSTER_OVERHEAD_SECONDS · W / (W − 1)`` on ``W`` cores, else on one worker per core — the
+    rule :func:`compute_pairwise` applies to matrices.
+    """
+    from distributed import Client
+
+    _check_where(n_jobs, client, scheduler)
+    if client is not None:
+        yield client.get_executor(pure=False), _cluster_size(client), "cluster"
+        return
+    if scheduler is not None:
+        try:
+            own = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise ValueError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from exc
+        try:
+            yield own.get_executor(pure=False), _cluster_size(own), "cluster"
+        finally:
+            own.close()
+        return
+    n_workers = _n_cores() if n_jobs in (None, -1) else int(n_jobs)
+    if n_jobs in (None, -1) and (n_workers < 2 or serial_seconds is None
+                                 or serial_seconds < CLUSTER_OVERHEAD_SECONDS * n_workers / (n_workers - 1)):
+        n_workers = 1
+    if n_workers == 1:
+        yield None, 1, "in-process"
+        return
+    with local_cluster(n_workers) as cluster, Client(cluster) as own:
+        own.run(_ignore_sigint)  # see local_cluster: Ctrl-C is the caller's
+        yield own.get_executor(pure=False), n_workers, f"LocalCluster({n_workers} processes)"
 
 
 def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, written, interrupts, token):
