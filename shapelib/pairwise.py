@@ -97,6 +97,8 @@ NANNY_CLOSE_SECONDS = 1.0
 LONG_RUN_SECONDS = 10.0
 #: the logger of the engine's run estimates
 logger = logging.getLogger("shapelib.pairwise")
+#: seconds between two looks for a Ctrl-C while the engine waits for Dask (:class:`_Interrupts`)
+POLL_SECONDS = 0.2
 #: side of the stored chunks (a multiple of the block size near this)
 CHUNK_SIDE = 64
 #: the per-pair arrays of the store: name -> (dtype, fill value)
@@ -599,17 +601,23 @@ class _Interrupts:
     """Ctrl-C during a run stops it, whatever code it lands in.
 
     Python runs a SIGINT handler in the main thread between two bytecodes, wherever the thread
-    is: also inside a finalizer (``__del__``, e.g. of a Dask future the loop lets go, or one the
-    garbage collector runs), where the KeyboardInterrupt it raises is printed as "Exception
-    ignored" and lost — the run then went on to the end. While the engine runs (main thread
-    only) the handler is wrapped: the exception the previous handler raises is recorded as well
-    as raised, and :meth:`check` (after every block, every half second while waiting for Dask,
-    and before returning) raises it again if it was swallowed. A handler that does not raise (a
-    program that ignores Ctrl-C its own way) is left to decide; ``SIG_IGN``/``SIG_DFL`` are kept.
+    is. Two places went wrong: inside a finalizer or weakref callback (``__del__`` of a Dask
+    future the loop lets go, ``WeakSet._remove``), where the KeyboardInterrupt is printed as
+    "Exception ignored" and lost — the run went on to the end; and inside the Dask client's own
+    calls (e.g. half-way through ``IOLoop.add_callback``), which left a caller's
+    :class:`distributed.Client` cancelling every later future. While the engine runs (main
+    thread only) the handler is wrapped: the exception the previous handler raises is recorded;
+    in process it is also raised at once (the thread is computing pairs), while Dask is in use
+    (:meth:`deferred`) it is only raised by :meth:`check`, which the engine calls after every
+    block, every :data:`POLL_SECONDS` while it waits for Dask, and before returning — so a
+    Ctrl-C stops the run within that time, from a point where the client is consistent. A
+    handler that does not raise (a program that handles Ctrl-C its own way) is left to decide;
+    ``SIG_IGN``/``SIG_DFL`` are kept.
     """
 
     def __init__(self):
         self.exc = None
+        self.defer = False
         self._previous = None
 
     def __enter__(self):
@@ -625,7 +633,17 @@ class _Interrupts:
             self._previous(signum, frame)
         except BaseException as exc:
             self.exc = exc
-            raise
+            if not self.defer:
+                raise
+
+    @contextlib.contextmanager
+    def deferred(self):
+        """Within: a Ctrl-C is recorded, and raised by the next :meth:`check`."""
+        self.defer = True
+        try:
+            yield self
+        finally:
+            self.defer = False
 
     def check(self):
         """Raise the interrupt recorded if it has not stopped the run yet."""
@@ -637,8 +655,8 @@ class _Interrupts:
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
             self._previous = None
-        if kind is None:
-            self.check()  # a Ctrl-C swallowed after the last check
+        if value is not self.exc:  # a Ctrl-C swallowed or deferred after the last check, or one that
+            self.check()           # the code it landed in turned into another error
         return False
 
 
@@ -801,8 +819,9 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
                     if written(a, b):
                         break
             elif todo:
-                _run_dask(x, st, todo, kw, client=client, scheduler=scheduler, n_workers=n_workers,
-                          written=written, interrupts=interrupts, token=_token(want, st.b))
+                with interrupts.deferred():  # never inside the Dask client's calls (see _Interrupts)
+                    _run_dask(x, st, todo, kw, client=client, scheduler=scheduler, n_workers=n_workers,
+                              written=written, interrupts=interrupts, token=_token(want, st.b))
         finally:
             bar.close()
         log["seconds"] = time.perf_counter() - t0
@@ -1029,7 +1048,8 @@ def _ignore_sigint():
 
 def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, written, interrupts, token):
     """Submit the blocks to Dask and write each one as it finishes (client side); ``written(a, b)``
-    after each block (True: stop). While waiting, ``interrupts.check()`` every half second."""
+    after each block (True: stop). While waiting, ``interrupts.check()`` every :data:`POLL_SECONDS`;
+    once the cluster is up, before anything is submitted."""
     import queue
 
     from distributed import Client
@@ -1048,6 +1068,7 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, written, interru
                 own_client = Client(cluster)
                 own_client.run(_ignore_sigint)  # see local_cluster: Ctrl-C is the caller's
             client = own_client
+        interrupts.check()  # a Ctrl-C while the cluster started
         # keep a bounded number of blocks in flight (the shapes of each travel with its task)
         limit = max(64, 8 * max(1, sum(client.nthreads().values())))
         pending = iter(todo)
@@ -1064,7 +1085,7 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, written, interru
             submit(*t)
         while inflight:
             try:
-                fut = finished.get(timeout=0.5)
+                fut = finished.get(timeout=POLL_SECONDS)
             except queue.Empty:
                 interrupts.check()  # a Ctrl-C lost while waiting still stops the run
                 continue

@@ -348,7 +348,7 @@ def test_distances_resume_after_interrupt_through_the_store(files, jobs):
 
     from shapelib.pairwise import _Store, compute_pairwise, open_store
     from tests.gated_metric import Gate
-    from tests.test_pairwise_faults import command_line, wait_for
+    from tests.conftest import command_line, wait_for
 
     src, x = _aligned_file(files, 5)
     n, off = len(x), ~np.eye(len(x), dtype=bool)

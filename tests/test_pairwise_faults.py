@@ -20,13 +20,12 @@ import subprocess
 import sys
 import textwrap
 import threading
-import time
 
 import numpy as np
 import pytest
 
 from shapelib.pairwise import _Store, block_pairs, compute_pairwise, open_store
-from tests.conftest import ROOT
+from tests.conftest import ROOT, command_line, wait_for
 from tests.gated_metric import Gate
 
 pytestmark = pytest.mark.processes
@@ -35,8 +34,6 @@ pytestmark = pytest.mark.processes
 PARAMS = dict(sigma2=0.3, n_steps=6)
 N_SHAPES = 6
 TOTAL = N_SHAPES * (N_SHAPES + 1) // 2  # upper-triangle blocks of size 1, diagonal included
-#: only to fail instead of hanging if something that must happen does not
-DEADLINE = 120
 
 
 def _shapes():
@@ -77,15 +74,6 @@ def _pairs_done(path) -> int:
         return sum(a != b for a, b in _Store.open(path).task_done())
     except Exception:  # not there yet, or caught between two writes: ask again
         return 0
-
-
-def wait_for(cond, what):
-    """Wait for something that must happen; the deadline only turns a hang into a failure."""
-    t0 = time.monotonic()
-    while not cond():
-        if time.monotonic() - t0 > DEADLINE:
-            raise AssertionError(f"{what} did not happen")
-        time.sleep(0.02)
 
 
 def _blocked(gate, store, *, free, waiting):
@@ -201,15 +189,6 @@ def test_killing_the_client_mid_run_then_rerunning_resumes(serial, tmp_path):
     _same_as(again, serial)
 
 
-def command_line(p) -> str:
-    import psutil
-
-    try:
-        return " ".join(p.cmdline())
-    except psutil.Error:  # gone, or a zombie, since it was listed
-        return ""
-
-
 def _new_children(before):
     import psutil
 
@@ -283,3 +262,33 @@ def test_a_ctrl_c_raised_inside_a_finalizer_still_stops_the_run(tmp_path):
         sys.unraisablehook = hook
     assert len(lost) == 1 and isinstance(lost[0].exc_value, KeyboardInterrupt)  # swallowed where it was raised
     assert open_store(tmp_path / "D.zarr").log["blocks_done"] == 3  # and still stopped the run there
+
+
+def test_a_ctrl_c_during_dask_calls_waits_for_a_safe_point_and_the_callers_client_still_works(serial, tmp_path):
+    """On Dask, a KeyboardInterrupt raised in the middle of the client's own calls (e.g. half-way
+    through scheduling a callback on its event loop) left the caller's Client cancelling every
+    later future. So while Dask is in use the engine records a Ctrl-C and raises it at its next
+    check (after the block, or within POLL_SECONDS while waiting). Here the Ctrl-C comes from the
+    callback itself: the callback runs on, the run stops right after it, and the same Client
+    then finishes the matrix."""
+    from distributed import Client
+
+    from shapelib.pairwise import local_cluster
+
+    store = tmp_path / "D.zarr"
+    after_signal = []
+
+    def ctrl_c_at_the_third_block(progress):
+        if progress.blocks_computed == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+            after_signal.append(progress.blocks_computed)  # still here: the interrupt was deferred
+        return False
+
+    with local_cluster(1) as cluster, Client(cluster) as client:
+        with pytest.raises(KeyboardInterrupt):
+            compute_pairwise(_shapes(), metric="alpha", client=client, block_size=1, store=store, progress=False,
+                             callback=ctrl_c_at_the_third_block, **PARAMS)
+        assert after_signal == [3] and open_store(store).log["blocks_done"] == 3
+        again = compute_pairwise(_shapes(), metric="alpha", client=client, store=store, progress=False, **PARAMS)
+    assert again.log["blocks_found_done"] == 3 and again.complete
+    _same_as(again, serial)

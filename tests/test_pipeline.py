@@ -6,13 +6,12 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 
 import psutil
 import pytest
 
 import run_all
-from tests.conftest import ROOT, requires_data
+from tests.conftest import ROOT, requires_data, wait_for
 
 GOOD = textwrap.dedent('''\
     # %% tags=["parameters"]
@@ -253,7 +252,7 @@ def test_killed_run_leaves_previous_results_intact(toy):
     ''')
     proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
     try:
-        _wait_for(lambda: started.exists() or proc.poll() is not None, "the notebook's first cell")
+        wait_for(lambda: started.exists() or proc.poll() is not None, "the notebook's first cell")
         assert proc.poll() is None and list(results.glob(".tmp-toy-*/toy.ipynb"))  # papermill is executing
     finally:
         _kill_tree(proc)
@@ -263,15 +262,6 @@ def test_killed_run_leaves_previous_results_intact(toy):
     (nbdir / "toy.py").write_text(GOOD)
     assert run_all.run_all(["toy"], quick=False, force=False, jobs=1, results_dir=results) == 0
     assert not list(results.glob(".tmp-*"))
-
-
-def _wait_for(cond, what, timeout=120):
-    """Wait for something that must happen; the deadline only turns a hang into a failure."""
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.05)
 
 
 def _snapshot(folder):
@@ -314,7 +304,7 @@ def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig)
             kernels = [c for c in children if c.ppid() == proc.pid]
             return bool(kernels) and sum(c.ppid() == kernels[0].pid for c in children) >= 2
 
-        _wait_for(kernel_and_two_workers_up, "the kernel and its two workers")
+        wait_for(kernel_and_two_workers_up, "the kernel and its two workers")
         assert list(results.glob(".tmp-toy-*"))
         if sig == signal.SIGINT:
             os.killpg(proc.pid, sig)
