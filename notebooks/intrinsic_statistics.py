@@ -455,6 +455,9 @@ if client is not None:
 
 # %%
 v = values
+sig = lambda p: "differ" if p <= 0.05 else "do not differ detectably"  # noqa: E731
+way = lambda c: ("point the same way" if c >= 0.8 else "point roughly the same way" if c >= 0.5  # noqa: E731
+                 else "point different ways")
 fr_text = ""
 if fisher_rao:
     fr_text = (
@@ -465,9 +468,6 @@ if fisher_rao:
         f"and α mean differences {way(v['intrinsic/adhd/fisher_rao/cos_alpha'])} (cosine {v['intrinsic/adhd/fisher_rao/cos_alpha']:.2f} between "
         f"the landmark displacements), and the Fisher–Rao and α pooled means differ by "
         f"{v['intrinsic/adhd/fisher_rao/mean_gap_l2']:.2g} of the α spread in L² density distance.")
-sig = lambda p: "differ" if p <= 0.05 else "do not differ detectably"  # noqa: E731
-way = lambda c: ("point the same way" if c >= 0.8 else "point roughly the same way" if c >= 0.5  # noqa: E731
-                 else "point different ways")
 lines = [
     "### Mean shapes, modes and age trends in the information geometry (`intrinsic_statistics`)", "",
     f"On {len(shapes)} ADHD-200 contours ({n_td} TD, {n_adhd} ADHD) at σ² = {sigma2:g} (centroid size "

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,7 +60,7 @@ from .energy import metric_length
 from .linalg import one_blas_thread
 from .minimise import minimise_path
 from .path_metric import GL3_NODES, GL3_WEIGHTS, METRICS, path_metric
-from .result import GeodesicResult, StopReason
+from .result import GeodesicResult, GeodesicWarning, StopReason
 
 __all__ = ["GeodesicOptions", "LogResult", "TangentSpace", "log_map", "exp_map", "exp_path", "log_maps",
            "tangent_space", "segment_derivatives", "path_as_result", "magnify", "DEFAULT_RCOND", "DEFAULT_LOG_STEPS"]
@@ -357,10 +358,6 @@ def log_map(base, shape, *, metric: str = "alpha", sigma2, n_steps: int = DEFAUL
     check_scale(np.stack([base, shape]), opts.sigma2, stacklevel=3)
     res = log_maps(base, shape[None], options=opts, inits=[init])[0]
     if not res.converged:
-        import warnings
-
-        from .result import GeodesicWarning
-
         warnings.warn(f"log map: the {metric} path solver stopped after {res.n_iter} iterations without "
                       f"converging ({res.stop_reason})", GeodesicWarning, stacklevel=2)
     return res if return_result else res.vector
@@ -512,10 +509,6 @@ def exp_map(base, vector, *, metric: str = "alpha", sigma2, n_steps: int = DEFAU
     check_scale(base[None], opts.sigma2, stacklevel=3)
     path, info = exp_path(base, vector, options=opts)
     if not info["converged"]:
-        import warnings
-
-        from .result import GeodesicWarning
-
         warnings.warn(f"exp map: a Newton solve of the discrete Euler–Lagrange recursion stopped at relative step "
                       f"{max(info['residuals']):.1e}", GeodesicWarning, stacklevel=2)
     if not return_result:

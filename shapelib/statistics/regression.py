@@ -186,13 +186,6 @@ def _start_covector(model, path, n):
     return da
 
 
-def _pinv_apply(ts: TangentSpace, covector):
-    """``g⁺ c`` on the retained subspace (the truncated inverse metric applied to a covector)."""
-    u = ts.basis
-    flat = (u @ ((u.T @ covector.ravel()) / ts.eigenvalues[:ts.rank]))
-    return flat.reshape(ts.base.shape)
-
-
 @dataclass
 class _State:
     a: np.ndarray
