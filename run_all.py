@@ -113,10 +113,12 @@ NOTEBOOKS: dict[str, dict] = {
     },
     "adhd200_population": {
         "params": {"rtol": 1e-3}, "store": True, "cores": "all",
-        "quick": {"n_shapes": 40, "n_subset": 8, "geodesic_n_steps": 2, "geodesic_max_iter": 1, "permutations": 199},
+        "quick": {"n_shapes": 40, "n_subset": 8, "geodesic_n_steps": 2, "geodesic_max_iter": 1, "permutations": 199,
+                  "sweep_points": 5, "sweep_permutations": 199},
         "data": ["adhd200/ADHD-200.Rdata", "adhd200/clinical_info.csv"],
         "expects": {"adhd200/permanova/": 108, "adhd200/knn/": 36, "adhd200/mantel/": 62, "adhd200/mds/": 14,
-                    "adhd200/bracket/": 6, "adhd200/correspondence/": 4, "adhd200/scale/": 4},
+                    "adhd200/bracket/": 6, "adhd200/correspondence/": 4, "adhd200/scale/": 4,
+                    "sigma/adhd200/": 27, "sigma/mosquito/": 23},
     },
 }
 

@@ -27,6 +27,7 @@ from .solver.logexp import exp_map, log_map, tangent_space
 from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
 from .solver.result import BracketStopReason, StopReason
 from .geometry.gmm import gmm_density, l2_distance
+from .geometry.bound_matrices import alpha_bound_matrix, bound_matrix_sweep, fisher_rao_bound_matrix
 from .geometry.metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
 from .geometry.procrustes import (
     PoseWarning,
@@ -38,6 +39,7 @@ from .geometry.procrustes import (
     procrustes_distance,
 )
 from .geometry.scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
+from .geometry.scale import Sigma2Estimate, estimate_sigma2
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
@@ -82,6 +84,11 @@ __all__ = [
     "StopReason",
     "alpha_metric",
     "alpha_quadratic_form",
+    "alpha_bound_matrix",  # shapelib.geometry.bound_matrices
+    "fisher_rao_bound_matrix",
+    "bound_matrix_sweep",
+    "estimate_sigma2",  # shapelib.geometry.scale
+    "Sigma2Estimate",
     "centroid_size",
     "diffeomorphism_warp",
     "distance",

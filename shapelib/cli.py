@@ -4,9 +4,9 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
 
     shapelib info FILE
     shapelib align FILE -o OUT [--size S]
-    shapelib distances FILE --metric M [--sigma2 S] [--rtol R] [--jobs N | --scheduler ADDRESS]
+    shapelib distances FILE --metric M [--sigma2 S|auto] [--rtol R] [--jobs N | --scheduler ADDRESS]
                            [--store D.zarr [--max-blocks N]] [--no-progress] -o D.csv
-    shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S -o path.csv [--plot P.png] [--animate A.gif]
+    shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S|auto -o path.csv [--plot P.png] [--animate A.gif]
     shapelib mean FILE --metric M --sigma2 S [--size S] [--jobs N | --scheduler ADDRESS] -o mean.tps [--plot P.png]
     shapelib pca FILE --metric M --sigma2 S [--size S] [--n-components K] -o scores.csv [--plot modes.png]
     shapelib study [run_all.py options: --quick, --only NAME, -p NAME=VALUE, -j N, --force, --list, ...]
@@ -134,7 +134,7 @@ def _metric_params(args):
         if value is not None:
             if name in params:
                 raise CLIError(f"--{name} given twice (also as --param {name}=...)")
-            params[name] = value
+            params[name] = 1.0 if value == "auto" else value  # auto: estimated once the shapes are read
     try:
         check_metric_params(args.metric, params, rtol=getattr(args, "rtol", None))
     except ValueError as exc:
@@ -160,6 +160,34 @@ def _notes_from(name):
     finally:
         lg.removeHandler(handler)
         lg.setLevel(old)
+
+
+def _sigma2_arg(text: str):
+    """``--sigma2``: a positive number, or ``auto`` (estimated from the file's shapes)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'auto', got {text!r}") from None
+
+
+def _auto_sigma2(args, params, shapes):
+    """``--sigma2 auto``: σ² from the landmarks' scatter (:func:`shapelib.estimate_sigma2`), said on stdout."""
+    if getattr(args, "sigma2", None) != "auto":
+        return params
+    from .geometry.scale import estimate_sigma2
+
+    try:
+        est = estimate_sigma2(shapes)
+    except ValueError as exc:
+        raise CLIError(f"--sigma2 auto: {exc}") from None
+    print(f"sigma2 = {est.sigma2:.6g} (auto: the landmarks' scatter around the mean shape, sigma = "
+          f"{est.sigma_over_spacing:.2g} landmark spacings)")
+    if est.pose_share > 0.1:
+        warnings.warn(f"--sigma2 auto: {est.pose_share:.0%} of the landmarks' scatter in {args.file} is position and "
+                      "orientation; the distances see the shapes as given: align them first (shapelib align)")
+    return {**params, "sigma2": float(f"{est.sigma2:.6g}")}
 
 
 def _index_of(specimens, ident, option):
@@ -244,8 +272,21 @@ def cmd_info(args) -> int:
             from .geometry.scale import landmark_spacing
 
             h = landmark_spacing(shapes[ok])
-            print(f"spacing     {h:.6g} mean nearest-landmark distance (sigma2 = {h * h:.3g} puts sigma at one "
-                  "spacing; align --size rescales)")
+            print(f"spacing     {h:.6g} mean nearest-landmark distance")
+            if ok.sum() >= 2:
+                from .geometry.scale import estimate_sigma2
+
+                try:
+                    est = estimate_sigma2(shapes[ok])
+                except ValueError as exc:
+                    print(f"sigma2      not estimated: {exc}")
+                else:
+                    print(f"sigma2      {est.sigma2:.4g} ± {est.standard_error:.2g} from the landmarks' scatter around "
+                          f"the mean shape (sigma = {est.sigma_over_spacing:.2g} spacings; `--sigma2 auto` uses it; "
+                          "align --size rescales it by size²)")
+                    if est.pose_share > 0.1:
+                        print(f"            {est.pose_share:.0%} of the scatter as given is position and orientation: "
+                              "align the shapes (shapelib align) before computing distances")
     shown = ", ".join(spec["id"].astype(str).iloc[:8])
     print(f"ids         {shown}" + (f", … ({n} in all)" if n > 8 else ""))
     return 0
@@ -317,6 +358,7 @@ def cmd_distances(args) -> int:
         if not args.store:
             raise CLIError("--max-blocks needs --store: the blocks computed are kept there to resume from")
         stop = lambda p: p.blocks_computed >= args.max_blocks  # noqa: E731
+    params = _auto_sigma2(args, params, shapes)
     shapes = _align_pose(args, shapes, params)
     try:
         with warnings.catch_warnings(), _notes_from("shapelib.pairwise"):  # the run's estimate, up front
@@ -394,6 +436,7 @@ def cmd_geodesic(args) -> int:
         params["n_steps"] = args.n_steps
     params.setdefault("n_steps", 16)
     shapes, spec = _read(args)
+    params = _auto_sigma2(args, params, shapes)
     if (plot or anim) and shapes.shape[2] != 2:
         raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
     links = []
@@ -515,17 +558,13 @@ def cmd_mean(args) -> int:
     shapes, spec, options = _intrinsic_input(args)
     if plot and shapes.shape[2] != 2:
         raise CLIError("--plot draws 2-D landmarks; this file is 3-D")
-    res = frechet_mean(shapes, metric=args.metric, sigma2=args.sigma2, **options)
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*negative.*", category=UserWarning)
-        io.write_landmarks(out, res.mean[None], pd.DataFrame({"id": ["frechet_mean"]}))
+    sigma2 = _auto_sigma2(args, {"sigma2": args.sigma2}, shapes)["sigma2"]
+    res = frechet_mean(shapes, metric=args.metric, sigma2=sigma2, **options)
+    io.write_landmarks(out, res.mean[None], pd.DataFrame({"id": ["frechet_mean"]}))  # reads back as written
     print(f"{res.summary()} -> {out}")
-    if out.suffix.lower() == ".tps" and (res.mean < 0).any():
-        print(f"note: the mean has negative coordinates; tpsDig reads them as missing landmarks: read {out.name} "
-              "with --negative-coordinates", file=sys.stderr)
     if plot:
         _plot_mean(shapes, res, plot, title=f"{args.metric} Fréchet mean of {len(shapes)} specimens "
-                                            f"(σ² = {args.sigma2:g})")
+                                            f"(σ² = {sigma2:g})")
         print(f"figure -> {plot}")
     return 0
 
@@ -560,7 +599,8 @@ def cmd_pca(args) -> int:
     if args.n_components is not None and args.n_components < 1:
         raise CLIError(f"--n-components must be >= 1; got {args.n_components}")
     shapes, spec, options = _intrinsic_input(args)
-    res = tangent_pca(shapes, metric=args.metric, sigma2=args.sigma2, n_components=args.n_components, modes=(),
+    sigma2 = _auto_sigma2(args, {"sigma2": args.sigma2}, shapes)["sigma2"]
+    res = tangent_pca(shapes, metric=args.metric, sigma2=sigma2, n_components=args.n_components, modes=(),
                       **options)
     names = [f"PC{j + 1}" for j in range(res.n_components)]
     frame = pd.DataFrame(res.scores, columns=names, index=pd.Index(spec["id"].astype(str), name="id"))
@@ -671,8 +711,9 @@ def _file_options(p):
 
 def _metric_options(p, *, metrics, required_sigma2=False):
     p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics) + " (listed below)")
-    p.add_argument("--sigma2", type=float, metavar="S", required=required_sigma2,
-                   help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
+    p.add_argument("--sigma2", type=_sigma2_arg, metavar="S", required=required_sigma2,
+                   help="σ² of the Gaussian mixture (eq. 5), or 'auto': estimated from the landmarks' scatter "
+                        "around the mean shape (`shapelib info` shows it); alpha and fisher_rao need it")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
     p.add_argument("--no-align", action="store_true",

@@ -71,6 +71,7 @@ from .geometry.scale import ScaleWarning, check_fisher_rao_scale, check_scale
 from .solver.geodesic import GeodesicWarning
 from .solver.linalg import one_blas_thread
 from .distances import SYMMETRIC, check_metric_params, metric_info, pair_record, pose_dependent
+from .geometry.bound_matrices import BOUND_METRICS, bound_block
 
 __all__ = ["PairwiseResult", "PairError", "BlockProgress", "compute_pairwise", "pairwise_distances", "open_store",
            "compute_block", "block_pairs", "local_cluster", "engine_executor", "default_block_size", "ARRAYS"]
@@ -292,6 +293,10 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     bi, bj = len(xi), len(xj)
+    if metric in BOUND_METRICS and rtol is None:
+        out = _bound_block(xi, xj, diagonal=diagonal, metric=metric, params=params)
+        if out is not None:
+            return out
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
     with _pair_work():
         for a in range(bi):
@@ -311,6 +316,51 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
             out[name][d] = 0
         out["converged"][d] = True
     return out
+
+
+#: a closed-form bound's matrix in this process is one block of at most this many shapes a side
+#: (one batched call, :mod:`shapelib.geometry.bound_matrices`)
+BOUND_BLOCK_MAX = 2048
+
+
+def _bound_block(xi, xj, *, diagonal, metric, params):
+    """A block of ``"alpha_bound"`` / ``"fisher_rao_bound"`` as one batched call
+    (:func:`shapelib.geometry.bound_matrices.bound_block`), in :func:`compute_block`'s format (each
+    pair's ``seconds`` is the block's wall time over its pairs). ``None`` when the call rejects
+    the block — a Fisher–Rao grid over all its shapes too large, or an input error — so that
+    :func:`compute_block` goes pair by pair, on each pair's own grid, naming a bad pair."""
+    t0 = time.perf_counter()
+    try:
+        with _pair_work():  # one BLAS thread, as every task; all the cores in this process's own run
+            d = bound_block(metric, xi, None if diagonal else xj, n_threads=1 if _in_dask_worker() else None,
+                            **params)
+    except ValueError:
+        return None
+    bi, bj = d.shape
+    n_pairs = bi * (bi - 1) // 2 if diagonal else bi * bj
+    out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
+    for name in ("matrix", "lower", "upper"):
+        out[name][...] = d
+    out["seconds"][...] = (time.perf_counter() - t0) / max(1, n_pairs)
+    out["converged"][...] = True
+    out["n_iter"][...] = 0
+    if diagonal:
+        idx = np.diag_indices(bi)
+        for name in ("energy", "seconds"):
+            out[name][idx] = 0
+    return out
+
+
+def _in_dask_worker() -> bool:
+    import sys
+
+    if "distributed" not in sys.modules:
+        return False
+    try:
+        sys.modules["distributed"].get_worker()
+    except ValueError:
+        return False
+    return True
 
 
 def default_block_size(seconds_per_pair: float, n: int, *, n_workers: int = 1, symmetric: bool = True) -> int:
@@ -685,6 +735,15 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
     bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice (once if the
     first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
     the calls took under ``budget`` seconds, and the fastest call counts."""
+    if metric in BOUND_METRICS and rtol is None:  # batched: the cost of a pair within a block
+        m = min(len(x), 64)
+        best = math.inf
+        for _ in range(2):  # the first call also pays one-off costs
+            t0 = time.perf_counter()
+            out = _bound_block(x[:m], x[:m], diagonal=True, metric=metric, params=params)
+            best = min(best, time.perf_counter() - t0)
+        if out is not None:
+            return best / max(1, m * (m - 1) // 2)
     times = []
     with _pair_work():
         # a pair far above TASK_SECONDS gets a block of its own either way: no second call
@@ -772,6 +831,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         b = int(block_size) if block_size is not None else default_block_size(
             seconds_per_pair, n, n_workers=n_workers if local else max(2, _cluster_size(client)),
             symmetric=symmetric)
+        if block_size is None and metric in BOUND_METRICS and rtol is None and local and n_workers == 1:
+            b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
         st = _Store.create(store, {**want, "block_size": b})
     done = st.task_done()
     todo = [t for t in block_pairs(n, st.b, symmetric=symmetric) if t not in done]

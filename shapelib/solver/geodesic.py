@@ -107,7 +107,10 @@ def fisher_rao_lower_bound(u, v, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
 
     ``2√p`` lies on the sphere of radius 2 in L² and the Fisher–Rao metric is the pull-back of
     L² by ``θ ↦ 2√p``, so no path of GMMs is shorter than the great circle. Computed stably as
-    ``4 arcsin(‖√p_u − √p_v‖ / 2)`` by quadrature.
+    ``4 arcsin(‖√p_u − √p_v‖ / 2)`` by quadrature, on a grid covering the two shapes
+    (:mod:`shapelib.geometry.quadrature`): with the default grid within 5e-8 (relative) of a grid
+    of step 0.2 σ and margin 9 σ on ADHD-200 pairs at σ² from 0.007 to 17. A whole population's
+    matrix: :func:`shapelib.geometry.bound_matrices.fisher_rao_bound_matrix`.
 
     Checked at entry as :func:`geodesic` is: landmark dimension, σ against the landmarks' scale
     (:class:`~shapelib.geometry.scale.ScaleWarning`) and their pose
