@@ -3,7 +3,10 @@
 :func:`compute_pairwise` (what :func:`pairwise_distances` calls) cuts the N×N
 matrix into ``block_size × block_size`` blocks — the upper-triangle blocks for symmetric metrics,
 every block (without the diagonal pairs) for the bending energies ``"tps"`` / ``"wendland"`` — and
-computes each block as one task, every pair through :func:`shapelib.distances.pair_record`.
+computes each block as one task, every pair through :func:`shapelib.distances.pair_record`. The
+closed-form bounds ``"alpha_bound"`` and ``"fisher_rao_bound"`` are the exception: a block of them is
+one batched call (matrix products, :mod:`shapelib.geometry.bound_matrices`), and in this process a
+population of up to :data:`BOUND_BLOCK_MAX` shapes is a single block.
 
 Where the tasks run
     ``client=`` (a :class:`distributed.Client`) or ``scheduler="tcp://host:port"`` runs them on

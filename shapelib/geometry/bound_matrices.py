@@ -102,8 +102,9 @@ ALPHA_NEAR_PLAIN = 0.05
 #: α blocks: rows × columns of shapes per exponential pass (``(2K) × (16K)`` Gaussians, ~1 MB for
 #: K = 50: the block stays in cache through its passes; measured best of 1–8 × 8–128 on ADHD-200)
 _ALPHA_ROWS, _ALPHA_COLS = 2, 16
-#: Fisher–Rao: grid nodes per chunk of the ψ matrix (N × chunk doubles)
+#: Fisher–Rao: grid nodes per chunk of the ψ matrix (N × chunk doubles), built this many shapes at a time
 _FR_CHUNK_NODES = 8192
+_FR_SHAPES = 128
 
 
 # ---------------------------------------------------------------------------------------------
@@ -350,32 +351,35 @@ def alpha_bound_block(rows, cols, *, sigma2, n_threads: int | None = None) -> np
 # ---------------------------------------------------------------------------------------------
 
 
-def _axis_factors(x, axes, s2):
-    """Per axis ``i``: ``exp(−(node_i − x_ai)² / 2σ²)``, shape ``(N, n_i, K)``."""
-    return [np.exp(-((ax[None, :, None] - x[:, None, :, i]) ** 2) * (0.5 / s2)) for i, ax in enumerate(axes)]
+def _axis_factor(x, ax, i, s2):
+    """``exp(−(node − x_ai)² / 2σ²)`` at the nodes ``ax`` of axis ``i``: ``(N, len(ax), K)``."""
+    return np.exp(-((ax[None, :, None] - x[:, None, :, i]) ** 2) * (0.5 / s2))
 
 
 def _psi_chunks(x, grid, s2):
     """Yield ``(start, ψ)`` with ψ = 2√p of every shape of ``x`` at a run of grid nodes, ``(N, chunk)``.
 
-    The nodes are the grid's C-order tensor product; each chunk is a range of the first axis.
-    Far from every landmark the product of factors underflows to 0: ψ there is below 1e-150
-    and its share of the integrals below 1e-300.
+    The nodes are the grid's C-order tensor product; each chunk is a range of the first axis, and
+    its rows are built a few shapes at a time, so the memory is ``O(N · chunk)`` whatever the grid.
+    Far from every landmark the product of factors underflows to 0: ψ there is below 1e-150 and
+    its share of the integrals below 1e-300.
     """
     n, k, d = x.shape
     axes = grid.axes
-    factors = _axis_factors(x, axes, s2)
     scale = 4.0 * (2 * np.pi * s2) ** (-d / 2) / k  # ψ² = 4 p
     inner = int(np.prod([len(a) for a in axes[1:]]))
-    if d == 2:
-        last = np.ascontiguousarray(factors[1].transpose(0, 2, 1))  # (N, K, n_1)
-    else:
-        rest = (factors[1][:, :, None, :] * factors[2][:, None, :, :]).reshape(n, inner, k)
-        last = np.ascontiguousarray(rest.transpose(0, 2, 1))  # (N, K, n_1 n_2)
     step = max(1, _FR_CHUNK_NODES // inner)
     for a0 in range(0, len(axes[0]), step):
         a1 = min(len(axes[0]), a0 + step)
-        psi = np.matmul(factors[0][:, a0:a1, :], last).reshape(n, -1)
+        psi = np.empty((n, (a1 - a0) * inner))
+        for s0 in range(0, n, _FR_SHAPES):
+            xs = x[s0:s0 + _FR_SHAPES]
+            first = _axis_factor(xs, axes[0][a0:a1], 0, s2)  # (ns, c, K)
+            last = _axis_factor(xs, axes[-1], d - 1, s2).transpose(0, 2, 1)  # (ns, K, n_last)
+            if d == 3:  # (F_x ⊙ F_y) F_zᵀ
+                first = (first[:, :, None, :] * _axis_factor(xs, axes[1], 1, s2)[:, None, :, :]).reshape(
+                    len(xs), -1, k)
+            psi[s0:s0 + len(xs)] = np.matmul(first, last).reshape(len(xs), -1)
         np.multiply(psi, scale, out=psi)
         np.sqrt(psi, out=psi)
         yield a0 * inner, psi
