@@ -60,3 +60,13 @@ def command_line(process) -> str:
         return " ".join(process.cmdline())
     except psutil.Error:
         return ""
+
+
+def ellipse(k, a=3.0, b=2.0, d=2):
+    """An outline of ``k`` landmarks on an ellipse with axes ``a``, ``b`` (d = 3: lifted by a
+    saddle ``0.8 sin 2t``): the test shapes of the intrinsic statistics."""
+    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
+    x = np.column_stack([a * np.cos(t), b * np.sin(t)])
+    if d == 3:
+        x = np.column_stack([x, 0.8 * np.sin(2 * t)])
+    return x
