@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._machine import loadavg  # noqa: E402
+from benchmarks._machine import loadavg, record  # noqa: E402
 
 from shapelib import bound_matrix_sweep, landmark_spacing, pairwise_distances  # noqa: E402
 from shapelib.datasets import load_adhd200  # noqa: E402
@@ -168,7 +168,11 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help="tiny subsets, n_steps=4 (smoke test)")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--record", action="store_true",
+                    help="write the results, machine and date to docs/_data/benchmarks/bench_pairwise.json (docs: Performance)")
     args = ap.parse_args(argv)
+    if args.quick and args.record:
+        ap.error("--record: a --quick run is a smoke test, not a measurement")
     sizes = QUICK_SIZES if args.quick else SIZES
     contours, _ = load_adhd200()
     x_all = to_centroid_size(contours)
@@ -247,6 +251,8 @@ def main(argv=None):
     print(f"load at the end {report['loadavg_end']}")
     if args.json:
         args.json.write_text(json.dumps(report, indent=1, default=str))
+    if args.record:
+        print(f"recorded {record('bench_pairwise', report, argv=argv)}")
     return report
 
 

@@ -50,20 +50,14 @@ from shapelib.datasets import load_corpus_callosum  # noqa: E402
 from shapelib import to_centroid_size  # noqa: E402
 
 G = importlib.import_module("shapelib.solver.geodesic")  # the module (the package exports the function)
+from shapelib.solver.energy import path_energy  # noqa: E402
+from shapelib.solver.linalg import block_tridiagonal_dense, one_blas_thread  # noqa: E402
+from shapelib.solver.path_metric import AlphaPathMetric  # noqa: E402
 
 METHODS = ("lm", "coarse_to_fine", "trust_exact", "saddle_free", "polynomial")
 
 
-def dense_hessian(diag, upper):
-    """The block-tridiagonal Hessian ``(diag, upper)`` as a dense symmetric matrix."""
-    m, q, _ = diag.shape
-    h = np.zeros((m * q, m * q))
-    for t in range(m):
-        h[t * q:(t + 1) * q, t * q:(t + 1) * q] = diag[t]
-    for t in range(m - 1):
-        h[t * q:(t + 1) * q, (t + 1) * q:(t + 2) * q] = upper[t]
-        h[(t + 1) * q:(t + 2) * q, t * q:(t + 1) * q] = upper[t].T
-    return h
+dense_hessian = block_tridiagonal_dense  # the block-tridiagonal Hessian (diag, upper) as a dense matrix
 
 
 def newton_decrement(h, g):
@@ -102,12 +96,12 @@ class PathProblem:
     def _eval(self, x):
         key = x.tobytes()
         if key != self._key:
-            e, g, blocks = G._energy(self.model, self.path(x), hessian="exact")
+            e, g, blocks = path_energy(self.model, self.path(x), hessian="exact")
             self._key, self._val = key, (e, g.ravel(), dense_hessian(*blocks))
         return self._val
 
     def energy(self, x):
-        return G._energy(self.model, self.path(x), gradient=False)[0]
+        return path_energy(self.model, self.path(x), gradient=False)[0]
 
     def grad(self, x):
         return self._eval(x)[1]
@@ -139,7 +133,7 @@ def run_coarse_to_fine(u, v, s2, n, tol, max_iter):
 
 
 def run_trust_exact(u, v, s2, n, tol, max_iter):
-    prob = PathProblem(G._AlphaModel(s2), u, v, n)
+    prob = PathProblem(AlphaPathMetric(s2), u, v, n)
     x0 = prob.path0[1:-1].ravel()
     state = {"it": 0, "certified": False, "x": x0}
 
@@ -159,7 +153,7 @@ def run_trust_exact(u, v, s2, n, tol, max_iter):
 
 
 def run_saddle_free(u, v, s2, n, tol, max_iter, floor=1e-12):
-    prob = PathProblem(G._AlphaModel(s2), u, v, n)
+    prob = PathProblem(AlphaPathMetric(s2), u, v, n)
     x = prob.path0[1:-1].ravel()
     it, certified = 0, False
     while it < max_iter:
@@ -195,7 +189,7 @@ def polynomial_basis(m, nq):
 
 def run_polynomial(u, v, s2, n, tol, max_iter, degree=4):
     """LM (same damping rules as the library) on polynomial-in-time paths with the dense exact Hessian."""
-    model = G._AlphaModel(s2)
+    model = AlphaPathMetric(s2)
     nq = 3 * degree  # Gauss–Legendre nodes in time (the energy with 4× as many is reported)
     s, phi, dphi, wq = polynomial_basis(degree, nq)
     k, d = u.shape
@@ -261,18 +255,22 @@ def main(argv=None):
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     ap.add_argument("--quick", action="store_true", help="n_steps 4, 3 iterations: checks that the script runs")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--record", action="store_true",
+                    help="write the results, machine and date to docs/_data/benchmarks/bench_solvers.json (docs: Performance)")
     args = ap.parse_args(argv)
+    if args.quick and args.record:
+        ap.error("--record: a --quick run is a smoke test, not a measurement")
     if args.quick:
         args.n_steps, args.max_iter = 4, 3
     shapes, ids = load_corpus_callosum()
     x = to_centroid_size(shapes)
     u, v = x[list(ids).index(1)], x[list(ids).index(2)]
-    bound2 = G._AlphaModel(args.sigma2).lower_bound(u, v) ** 2
+    bound2 = AlphaPathMetric(args.sigma2).lower_bound(u, v) ** 2
     report = {"sigma2": args.sigma2, "n_steps": args.n_steps, "tol": args.tol, "max_iter": args.max_iter,
               "K": len(u), "lower_bound_squared": bound2, "methods": {}}
     print(f"α geodesic, CC 1–2, K = {len(u)}, σ² = {args.sigma2}, n_steps = {args.n_steps}, "
           f"certificate: Newton decrement < {args.tol:g}·E, at most {args.max_iter} iterations")
-    with warnings.catch_warnings(), G.one_blas_thread():
+    with warnings.catch_warnings(), one_blas_thread():
         warnings.simplefilter("ignore", G.GeodesicWarning)
         for name in args.methods:
             t0 = time.perf_counter()
@@ -285,6 +283,8 @@ def main(argv=None):
                   flush=True)
     if args.json:
         args.json.write_text(json.dumps(report, indent=1) + "\n")
+    if args.record:
+        print(f"recorded {record('bench_solvers', report, argv=argv)}")
     return report
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_trajectories", "plot_metric_panels", "animate_geodesic", "outline"]
+__all__ = ["plot_trajectories", "plot_metric_panels", "plot_geodesic", "animate_geodesic", "outline", "parse_links",
+           "plot_shapes_along", "deformation_grid", "plot_deformation", "plot_modes", "plot_mean_difference"]
 
 
 def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
@@ -42,34 +43,239 @@ def plot_metric_panels(results: dict, *, figsize=(10, 4.5), lw: float = 1.0):
     return fig, axes
 
 
-def animate_geodesic(result, *, title="", closed=True):
+def animate_geodesic(result, *, title="", closed=True, links=None):
     """A matplotlib :class:`~matplotlib.animation.FuncAnimation` of the shapes along ``result.path``
     (a :class:`~shapelib.solver.geodesic.GeodesicResult`), one frame per path point, forth and back;
-    ``closed`` draws each shape as a closed outline. Save it with ``anim.save(path, writer=...)``."""
+    ``closed`` draws each shape as a closed outline in landmark order, unless ``links`` (pairs of
+    0-based landmark indices, :func:`parse_links`; ``[]``: points only) says which landmarks to join.
+    Save it with ``anim.save(path, writer=...)``."""
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation
 
     path = np.asarray(result.path)
     frames = list(range(len(path))) + list(range(len(path) - 2, 0, -1))
-    fig, ax = plt.subplots(figsize=(4.5, 4.5))
-    lo, hi = path.min(axis=(0, 1)), path.max(axis=(0, 1))
-    pad = 0.05 * float(np.max(hi - lo) or 1.0)
-    ax.set_xlim(lo[0] - pad, hi[0] + pad)
-    ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    ax.set_aspect("equal")
-    ax.plot(*outline(path[0], closed).T, "--", color="0.7", lw=0.8)
-    ax.plot(*outline(path[-1], closed).T, ":", color="0.7", lw=0.8)
-    (line,) = ax.plot([], [], "-o", color="k", ms=2.5, lw=1.2)
+    if links is None:
+        k = path.shape[1]
+        links = [(j, j + 1) for j in range(k - 1)] + ([(k - 1, 0)] if closed and k > 2 else [])
+    fig, ax = plt.subplots(figsize=_fitted_size(path, long_side=5.0))
+    _fit_axes(ax, path)
+    _draw_links(ax, path[0], links, ls="--", color="0.7", lw=0.8)
+    _draw_links(ax, path[-1], links, ls=":", color="0.7", lw=0.8)
+    segs = _draw_links(ax, path[0], links, ls="-", color="k", lw=1.2)
+    (dots,) = ax.plot(*path[0].T, "o", color="k", ms=2.5)
     label = ax.set_title(title)
 
     def draw(f):
-        line.set_data(*outline(path[f], closed).T)
+        for seg, (a, b) in zip(segs, links):
+            seg.set_data(path[f][[a, b], 0], path[f][[a, b], 1])
+        dots.set_data(*path[f].T)
         label.set_text(f"{title}  t = {f / (len(path) - 1):.2f}")
-        return (line,)
+        return (dots, *segs)
 
     return FuncAnimation(fig, draw, frames=frames, blit=False)
+
+
+def parse_links(text, n_landmarks: int) -> list[tuple[int, int]]:
+    """Which landmarks a drawing joins: ``"contour"`` (a closed outline in landmark order), or pairs
+    of landmark numbers counted from 1 as in the file, ``"1-2,2-3,5-1"`` (what geomorph's and Momocs'
+    ``links`` hold). Returns 0-based index pairs; ``ValueError`` naming a malformed pair or a
+    landmark number outside ``1..n_landmarks``."""
+    text = str(text).strip()
+    if text.lower() == "contour":
+        k = int(n_landmarks)
+        return [(j, (j + 1) % k) for j in range(k)] if k > 2 else [(0, 1)][: k - 1]
+    pairs = []
+    for token in filter(None, (t.strip() for t in text.split(","))):
+        parts = token.split("-")
+        if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+            raise ValueError(f"links: {token!r} is not a pair of landmark numbers like 1-2 (or give 'contour')")
+        a, b = (int(p) for p in parts)
+        for m in (a, b):
+            if not 1 <= m <= n_landmarks:
+                raise ValueError(f"links: {token!r} names landmark {m}, but the shapes have landmarks 1 to {n_landmarks}")
+        pairs.append((a - 1, b - 1))
+    if not pairs:
+        raise ValueError("links: no pairs given (e.g. 1-2,2-3, or 'contour')")
+    return pairs
+
+
+def plot_geodesic(result, *, links=(), title: str = "", long_side: float = 6.0):
+    """One geodesic (Figs. 4 and 6 style) in a figure fitted to the shapes: every landmark's
+    trajectory (solid) over the straight line between the ends (dashed), start landmarks as open
+    circles, end landmarks as filled squares, and, if ``links`` are given (0-based pairs,
+    :func:`parse_links`), the start and end shapes drawn by joining those landmarks. A legend
+    below the axes; the figure's proportions follow the shapes' extent (a thin wing is drawn wide,
+    not lost in a square). Returns the figure."""
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    path = np.asarray(result.path)
+    fig, ax = plt.subplots(figsize=_fitted_size(path, long_side=long_side, legend=True), layout="constrained")
+    if links:
+        _draw_links(ax, path[0], links, ls="--", color="0.55", lw=0.9)
+        _draw_links(ax, path[-1], links, ls="-", color="0.55", lw=0.9)
+    plot_trajectories(ax, path)
+    _fit_axes(ax, path)
+    ax.set_title(title)
+    handles = [Line2D([], [], color="k", lw=1.0), Line2D([], [], ls="--", color="0.6", lw=0.8),
+               Line2D([], [], ls="", marker="o", mfc="white", mec="k", ms=5),
+               Line2D([], [], ls="", marker="s", color="k", ms=4)]
+    labels = ["landmark trajectory", "straight line (initial path)", "start landmarks", "end landmarks"]
+    if links:
+        handles += [Line2D([], [], ls="--", color="0.55", lw=0.9), Line2D([], [], ls="-", color="0.55", lw=0.9)]
+        labels += ["start shape (links)", "end shape (links)"]
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(3, len(labels)), fontsize=8, frameon=False)
+    return fig
+
+
+def _fitted_size(path, *, long_side: float, legend: bool = False):
+    """Figure size whose proportions follow the x/y extent of the landmarks (within 1:4 and 4:1)."""
+    ext = np.ptp(np.asarray(path).reshape(-1, np.asarray(path).shape[-1])[:, :2], axis=0)
+    ratio = float(np.clip(ext[0] / ext[1], 0.25, 4.0)) if ext[1] > 0 else 4.0
+    w, h = (long_side, long_side / ratio) if ratio >= 1 else (long_side * ratio, long_side)
+    return (max(w, 3.0), max(h, 1.5) + (1.0 if legend else 0.0))
+
+
+def _fit_axes(ax, path):
+    """Equal scales on both axes, limits fitted to every landmark of the path with a 5 % margin."""
+    pts = np.asarray(path).reshape(-1, np.asarray(path).shape[-1])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * float(np.max(hi - lo) or 1.0)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal", adjustable="box")
+
+
+def _draw_links(ax, shape, links, **style):
+    return [ax.plot(shape[[a, b], 0], shape[[a, b], 1], **style)[0] for a, b in links]
 
 
 def outline(shape, closed: bool = True) -> np.ndarray:
     """The landmarks of ``shape`` in order, the first repeated at the end when ``closed``."""
     return np.vstack([shape, shape[:1]]) if closed else shape
+
+
+# ---------------------------------------------------------------------------------------------
+# Shapes out: intermediate shapes, deformation grids by the extrinsic warp, modes, group means
+# ---------------------------------------------------------------------------------------------
+
+
+def _draw_shape(ax, shape, *, closed, **kw):
+    shape = np.asarray(shape)
+    pts = outline(shape, closed)
+    if shape.shape[1] == 3:
+        return ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], **kw)
+    return ax.plot(pts[:, 0], pts[:, 1], **kw)
+
+
+def plot_shapes_along(ax, path, *, closed: bool = True, cmap: str = "viridis", every: int = 1, lw: float = 1.0,
+                      landmarks: bool = True):
+    """The shapes along a path (n+1, K, d) — a geodesic, a mode of variation — as outlines coloured
+    from start to end (``cmap``), every ``every``-th one and always the ends; 3-D shapes need an
+    axes with ``projection="3d"``."""
+    import matplotlib.pyplot as plt
+
+    path = np.asarray(path)
+    idx = sorted(set(range(0, len(path), max(1, int(every)))) | {len(path) - 1})
+    colours = plt.get_cmap(cmap)(np.linspace(0.0, 1.0, len(idx)))
+    for c, i in zip(colours, idx):
+        end = i in (0, len(path) - 1)
+        _draw_shape(ax, path[i], closed=closed, color=c, lw=lw * (1.6 if end else 0.8),
+                    marker="o" if landmarks and end else None, ms=2.5)
+    if path.shape[2] == 2:
+        ax.set_aspect("equal")
+    return ax
+
+
+def deformation_grid(result, *, mag: float = 1.0, n_lines: int = 15, margin: float = 0.15, points_per_line: int = 60,
+                     lam: float = 1e-3, grid_size: int = 48):
+    """A regular grid of the ambient plane around the start of a geodesic and the same grid
+    deformed along it by the paper's extrinsic warp (§III-E, :func:`shapelib.extrinsic_warp`),
+    the geodesic first magnified ``mag`` times (:func:`shapelib.solver.logexp.magnify`).
+
+    Returns
+    -------
+    grid, warped : ndarray (n_lines_total, points_per_line, 2)
+        Grid lines before and after (horizontal lines, then vertical ones).
+    end : ndarray (K, 2)
+        The end shape of the magnified geodesic.
+    """
+    from .comparison.warp import extrinsic_warp
+    from .solver.logexp import magnify
+
+    path = np.asarray(result.path)
+    if path.shape[2] != 2:
+        raise ValueError("deformation grids are drawn in the plane; these landmarks are 3-D")
+    geo = magnify(result, mag)
+    lo, hi = path[0].min(axis=0), path[0].max(axis=0)
+    pad = margin * float(np.max(hi - lo))
+    lo, hi = lo - pad, hi + pad
+    xs, ys = np.linspace(lo[0], hi[0], n_lines), np.linspace(lo[1], hi[1], max(2, int(n_lines * (hi[1] - lo[1]) /
+                                                                                      (hi[0] - lo[0]))))
+    s = np.linspace(0.0, 1.0, points_per_line)
+    horiz = [np.column_stack([lo[0] + s * (hi[0] - lo[0]), np.full_like(s, y)]) for y in ys]
+    vert = [np.column_stack([np.full_like(s, x), lo[1] + s * (hi[1] - lo[1])]) for x in xs]
+    grid = np.stack(horiz + vert)
+    moved = extrinsic_warp(grid.reshape(-1, 2), geo, lam=lam, grid_size=grid_size)[-1]
+    return grid, moved.reshape(grid.shape), geo.path[-1]
+
+
+def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed: bool = True, lw: float = 0.6,
+                     **grid_kw):
+    """The deformed grid of :func:`deformation_grid` with the start shape (grey, dashed) and the
+    magnified end shape (black) of the geodesic ``result``; ``mag`` as geomorph's
+    ``plotRefToTarget(mag=)``. Returns what :func:`deformation_grid` returns."""
+    grid, warped, end = deformation_grid(result, mag=mag, n_lines=n_lines, **grid_kw)
+    for line in warped:
+        ax.plot(line[:, 0], line[:, 1], "-", color="0.55", lw=lw)
+    _draw_shape(ax, result.path[0], closed=closed, color="0.5", ls="--", lw=1.0)
+    _draw_shape(ax, end, closed=closed, color="k", lw=1.4, marker="o", ms=2.5)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    return grid, warped, end
+
+
+def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool = True, figscale: float = 2.6):
+    """Shapes along the tangent-PCA modes (:class:`~shapelib.statistics.tangent_pca.TangentPCAResult`):
+    one row per component, one column per standard deviation, each over the mean (grey, dashed);
+    the mode's explained variance in the row title. Returns the figure."""
+    import matplotlib.pyplot as plt
+
+    d = pca.mean.shape[1]
+    fig = plt.figure(figsize=(figscale * len(sd), figscale * len(components)), layout="constrained")
+    sub = {"projection": "3d"} if d == 3 else {}
+    for r, j in enumerate(components):
+        shapes = pca.mode_shapes.get(j)
+        if shapes is None or len(shapes) != len(sd):
+            shapes = pca.modes((j,), sd)[j]
+        for c, (s, shape) in enumerate(zip(sd, shapes)):
+            ax = fig.add_subplot(len(components), len(sd), r * len(sd) + c + 1, **sub)
+            _draw_shape(ax, pca.mean, closed=closed, color="0.6", ls="--", lw=0.8)
+            _draw_shape(ax, shape, closed=closed, color="k", lw=1.2, marker="o", ms=2)
+            if d == 2:
+                ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(f"PC{j + 1} ({100 * pca.explained_variance_ratio[j]:.1f} %), {s:+g} SD", fontsize=8)
+    return fig
+
+
+def plot_mean_difference(test, *, mag: float = 3.0, closed: bool = True, every: int = 2, n_lines: int = 15,
+                         figsize=(9, 4), **grid_kw):
+    """Two panels for a :class:`~shapelib.statistics.group.MeanDifferenceResult`: the shapes along
+    the geodesic between the two groups' Fréchet means, and the extrinsic-warp grid of that
+    geodesic magnified ``mag`` times; the permutation p-value in the title. Returns the figure."""
+    import matplotlib.pyplot as plt
+
+    if test.geodesic is None:
+        raise ValueError("the test was run with group_means=False: there is no geodesic between the means")
+    fig, axes = plt.subplots(1, 2, figsize=figsize, layout="constrained")
+    a, b = test.labels
+    plot_shapes_along(axes[0], test.geodesic.path, closed=closed, every=every)
+    axes[0].set_title(f"geodesic from the {a} mean to the {b} mean", fontsize=9)
+    plot_deformation(axes[1], test.geodesic, mag=mag, n_lines=n_lines, closed=closed, **grid_kw)
+    axes[1].set_title(f"{a} → {b}, magnified {mag:g}×", fontsize=9)
+    fig.suptitle(f"{test.pooled.options.metric}: distance {test.distance:.3g}, permutation p = {test.p_value:.3g}",
+                 fontsize=10)
+    return fig

@@ -19,7 +19,7 @@ RANK = {
     "solver": 2,
     "comparison": 3,
     "distances": 4, "statistics": 4,
-    "io": 5, "pairwise": 5, "plotting": 5,
+    "io": 5, "pairwise": 5, "plotting": 5, "population": 6,
     "datasets": 6,
     "study": 7,
     "cli": 8,

@@ -1,7 +1,8 @@
 """The solver comparison in benchmarks/ keeps running and its methods do what they claim.
 
-Quick mode only (n_steps = 4, 3 iterations each); the measurements themselves are in the
-README and come from the full run, which takes minutes.
+Quick mode only (n_steps = 4, 3 iterations each); the measurements themselves come from the full
+run, which takes minutes, and are shown on the documentation's performance page
+(docs/_data/benchmarks/).
 """
 
 import importlib.util
@@ -25,14 +26,15 @@ def test_bench_solvers_quick_run_decreases_the_energy_and_respects_the_bound(tmp
     report = bench.main(["--quick", "--json", str(tmp_path / "out.json")])
     assert (tmp_path / "out.json").is_file()
     assert set(report["methods"]) == set(bench.METHODS)
-    geo = importlib.import_module("shapelib.solver.geodesic")
     from shapelib.datasets import load_corpus_callosum
+    from shapelib.solver.energy import path_energy
+    from shapelib.solver.path_metric import AlphaPathMetric
     from shapelib import to_centroid_size
 
     shapes, ids = load_corpus_callosum()
     x = to_centroid_size(shapes)
     u, v = x[list(ids).index(1)], x[list(ids).index(2)]
-    start = geo._energy(geo._AlphaModel(0.5), bench.straight_line(u, v, report["n_steps"]), gradient=False)[0]
+    start = path_energy(AlphaPathMetric(0.5), bench.straight_line(u, v, report["n_steps"]), gradient=False)[0]
     for name, out in report["methods"].items():
         assert out["iterations"] >= 1, name
         # every method decreased the straight-line energy and stayed above the squared lower bound
@@ -57,12 +59,13 @@ def test_polynomial_basis_is_a_lagrange_basis_with_exact_derivative():
 
 def test_dense_hessian_matches_the_block_product(rng):
     bench = _load_bench_solvers()
-    geo = importlib.import_module("shapelib.solver.geodesic")
+    from shapelib.solver.linalg import hess_vec
+
     diag = rng.normal(size=(3, 4, 4))
     diag = diag + diag.transpose(0, 2, 1)
     upper = rng.normal(size=(2, 4, 4))
     xv = rng.normal(size=(3, 4))
-    np.testing.assert_allclose(bench.dense_hessian(diag, upper) @ xv.ravel(), geo._hess_vec(diag, upper, xv).ravel(),
+    np.testing.assert_allclose(bench.dense_hessian(diag, upper) @ xv.ravel(), hess_vec(diag, upper, xv).ravel(),
                                atol=1e-12)
 
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from shapelib.comparison.diffeomorphism import (
-    _DiffeomorphismModel,
+    DiffeomorphismPathMetric,
     diffeomorphism_quadratic_form,
     diffeomorphism_warp,
     landmark_diffeomorphism,
@@ -35,7 +35,7 @@ def test_quadratic_form_closed_form(rng):
 
 def test_gradients_against_finite_differences(rng):
     theta, vel = rng.normal(size=(2, 4, 2))
-    m = _DiffeomorphismModel(5.0, 0.9)
+    m = DiffeomorphismPathMetric(5.0, 0.9)
     q, dt, dv = m.qform_grad(theta[None], vel[None], None)
     eps = 1e-6
     for arr, grad, which in ((theta, dt[0], 0), (vel, dv[0], 1)):

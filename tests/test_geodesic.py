@@ -3,17 +3,13 @@ import warnings
 import numpy as np
 import pytest
 
-from shapelib.solver.geodesic import (
-    GeodesicWarning,
-    _block_cholesky,
-    _block_solve,
-    _energy,
-    _hess_vec,
-    _model,
-    fisher_rao_lower_bound,
-    geodesic,
-    path_length,
-)
+from shapelib.solver.energy import path_energy as _energy
+from shapelib.solver.geodesic import GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+from shapelib.solver.linalg import block_cholesky as _block_cholesky
+from shapelib.solver.linalg import block_solve as _block_solve
+from shapelib.solver.linalg import block_tridiagonal_dense
+from shapelib.solver.linalg import hess_vec as _hess_vec
+from shapelib.solver.path_metric import path_metric
 
 METRICS = ["alpha", "fisher_rao"]
 
@@ -104,7 +100,7 @@ def test_non_convergence_warns(pair):
         r = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=8, max_iter=1)
     assert not r.converged and r.n_iter == 1
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
+        warnings.simplefilter("error", GeodesicWarning)  # (the pair is rotated on purpose: a PoseWarning)
         geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=8, max_iter=1, warn=False)
 
 
@@ -155,15 +151,7 @@ def test_shooting_the_geodesic_ode_lands_on_the_target(metric):
     assert misses[1] < misses[0] / 2.5
 
 
-def _dense(diag, upper):
-    m, q, _ = diag.shape
-    h = np.zeros((m * q, m * q))
-    for t in range(m):
-        h[t * q:(t + 1) * q, t * q:(t + 1) * q] = diag[t]
-        if t < m - 1:
-            h[t * q:(t + 1) * q, (t + 1) * q:(t + 2) * q] = upper[t]
-            h[(t + 1) * q:(t + 2) * q, t * q:(t + 1) * q] = upper[t].T
-    return h
+_dense = block_tridiagonal_dense
 
 
 @pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
@@ -173,7 +161,7 @@ def test_exact_path_hessian_against_finite_differences(pair, rng, metric):
     n = 4
     path = np.linspace(u, v, n + 1) + 0.1 * rng.normal(size=(n + 1,) + u.shape)
     path[0], path[-1] = u, v
-    model = _model(metric, 0.5, 0.35, 6.0)
+    model = path_metric(metric, 0.5, grid_spacing=0.35, grid_margin=6.0)
     _, grad, (diag, upper) = _energy(model, path, hessian="exact")
     h = _dense(diag, upper)
     eps = 1e-6
@@ -212,7 +200,7 @@ def test_solution_is_a_certified_local_minimum(pair, metric):
     r = geodesic(u, v, metric=metric, sigma2=0.5, n_steps=6, tol=1e-12, max_iter=500)
     assert r.converged and r.log["stopped_by"] == "newton_decrement" and r.log["hessian"] == "exact"
     assert r.log["newton_decrement"] < 1e-12 * r.energy
-    model = _model(metric, 0.5, 0.35, 6.0)
+    model = path_metric(metric, 0.5, grid_spacing=0.35, grid_margin=6.0)
     energy, grad, blocks = _energy(model, r.path, hessian="exact")
     assert np.linalg.eigvalsh(_dense(*blocks))[0] > 0
     gen = np.random.default_rng(1)
@@ -245,7 +233,7 @@ def test_target_energy_stop(pair, metric):
     from shapelib.solver.geodesic import minimise_path
 
     u, v = pair
-    model = _model(metric, 0.5, 0.35, 6.0)
+    model = path_metric(metric, 0.5, grid_spacing=0.35, grid_margin=6.0)
     opts = dict(n_steps=4, tol=1e-12, window=2, init=None, warn=False, length_scale=np.sqrt(0.5), sigma2=0.5)
     e0 = _energy(model, minimise_path(model, u, v, max_iter=0, **opts).path, gradient=False)[0]
     one = minimise_path(model, u, v, max_iter=1, **opts)

@@ -4,8 +4,12 @@ tests/test_metrics.py and tests/test_geodesic.py)."""
 import numpy as np
 import pytest
 
-from shapelib import _kernels
-from shapelib.solver.geodesic import _GL3_NODES, _AlphaModel, _energy, _exact_path_hessian, _segment_nodes
+from shapelib.geometry import _kernels
+from shapelib.solver.energy import exact_path_hessian as _exact_path_hessian
+from shapelib.solver.energy import path_energy as _energy
+from shapelib.solver.energy import segment_nodes as _segment_nodes
+from shapelib.solver.path_metric import GL3_NODES as _GL3_NODES
+from shapelib.solver.path_metric import AlphaPathMetric as _AlphaModel
 from shapelib.geometry.metrics import _alpha_qform, _alpha_qform_grad
 
 

@@ -27,7 +27,10 @@ from __future__ import annotations
 import numpy as np
 
 from .._validate import as_shape, as_shape_pair, check_positive
-from ..solver.geodesic import GeodesicResult, minimise_path
+from ..geometry.procrustes import check_pose
+from ..solver.minimise import minimise_path
+from ..solver.path_metric import PathMetric
+from ..solver.result import GeodesicResult
 
 __all__ = ["landmark_diffeomorphism", "diffeomorphism_warp", "diffeomorphism_quadratic_form"]
 
@@ -37,7 +40,10 @@ def _kernel(x, y, width):
     return np.exp(-np.einsum("...abi,...abi->...ab", delta, delta) / (2 * width**2)), delta
 
 
-class _DiffeomorphismModel:
+class DiffeomorphismPathMetric(PathMetric):
+    """The landmark-diffeomorphism (Camion–Younes) metric ``λ φ̇ᵀ(K + λI)⁻¹φ̇`` (eq. 3) as the path
+    solver sees it (model Hessian only: no ``qform_hessian``)."""
+
     name = "diffeomorphism"
 
     def __init__(self, lam: float, width: float):
@@ -86,7 +92,7 @@ def diffeomorphism_quadratic_form(theta, velocity, *, lam: float = 10.0, kernel_
     vel = as_shape(velocity, name="velocity")
     if vel.shape != theta.shape:
         raise ValueError(f"velocity must have the shape of theta {theta.shape}; got {vel.shape}")
-    m = _DiffeomorphismModel(check_positive(lam, name="lam"), check_positive(kernel_width, name="kernel_width"))
+    m = DiffeomorphismPathMetric(check_positive(lam, name="lam"), check_positive(kernel_width, name="kernel_width"))
     return float(m.qform(theta[None], vel[None], None)[0])
 
 
@@ -113,8 +119,9 @@ def landmark_diffeomorphism(u, v, *, lam: float = 10.0, kernel_width: float = 1.
         landmark trajectories; ``lower_bound`` = √(λ/(λ + K))‖v − u‖.
     """
     u, v = as_shape_pair(u, v)
+    check_pose(np.stack([u, v]), metric="diffeomorphism")  # the kernel sees where the landmarks are
     width = check_positive(kernel_width, name="kernel_width")
-    model = _DiffeomorphismModel(check_positive(lam, name="lam"), width)
+    model = DiffeomorphismPathMetric(check_positive(lam, name="lam"), width)
     return minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
                          warn=warn, length_scale=width, stacklevel=3)
 
@@ -137,7 +144,7 @@ def diffeomorphism_warp(points, result: GeodesicResult, *, lam: float | None = N
     x = as_shape(points, name="points").copy()
     path = result.path
     n = len(path) - 1
-    model = _DiffeomorphismModel(lam, width)
+    model = DiffeomorphismPathMetric(lam, width)
 
     def field(pts, phi, vel):
         _, _, w = model._solve(phi[None], vel[None])

@@ -3,7 +3,7 @@ Hessian of the piecewise-linear path energy.
 
 The formulas are documented once, in :mod:`shapelib.geometry.metrics` (eq. 22: :func:`~shapelib.geometry.metrics._alpha_qform`,
 :func:`~shapelib.geometry.metrics._alpha_qform_grad`, :func:`~shapelib.geometry.metrics.alpha_qform_hessian`) and
-:mod:`shapelib.geodesic` (:func:`~shapelib.solver.geodesic._exact_path_hessian`). The numpy versions
+:mod:`shapelib.solver.energy` (:func:`~shapelib.solver.energy.exact_path_hessian`). The numpy versions
 there are the test oracle (``tests/test_kernels.py``: equal to ~1e-12); these loops compute
 the same sums pair by pair, without the (m, K, K) temporaries, and use the symmetry of the
 summand in (a, b) so that every Gaussian overlap is evaluated once per unordered pair.
@@ -24,6 +24,12 @@ import numpy as np
 from numba import njit
 
 __all__ = ["alpha_qform", "alpha_qform_grad", "alpha_path_grad_hessian"]
+
+
+#: ``ψ = 2√p`` below this (``p`` below float64's smallest normal number) only far from every
+#: landmark, where ``coef ∝ √p`` and ``ψ̇`` are as small: the terms divided by ψ are dropped there
+#: (their products with ``coef`` are below 1e-300), instead of dividing by zero or a subnormal.
+PSI_FLOOR = 1e-150
 
 
 @njit(cache=True, fastmath=False)
@@ -154,12 +160,12 @@ def _alpha_qform_grad(theta, vel, s2, dims):
 def _alpha_path_grad_hessian(path, s2, tau, tw, csign, dims):
     """Exact Hessian of the α path energy, block tridiagonal over the interior points, with
     ``Q``, ``∂Q/∂θ`` and ``∂Q/∂v`` at the Gauss–Legendre nodes of every segment (those of
-    :func:`_alpha_qform_grad` at ``geodesic._segment_nodes``, same order of summation, so the
+    :func:`_alpha_qform_grad` at ``shapelib.solver.energy.segment_nodes``, same order of summation, so the
     same numbers): the Hessian's pass evaluates every pair's Gaussian overlap anyway.
 
     ``path`` (n + 1, K, d); the energy is ``Σ_t Σ_k w_k Q(θ_t + τ_k Δ_t, n Δ_t) / n`` (3-point
     Gauss–Legendre nodes ``tau``). On segment t, ``∂/∂θ_t = (1 − τ) ∂_θ − n ∂_v`` and
-    ``∂/∂θ_{t+1} = τ ∂_θ + n ∂_v`` (``geodesic._exact_path_hessian``); the second derivatives of
+    ``∂/∂θ_{t+1} = τ ∂_θ + n ∂_v`` (``shapelib.solver.energy.exact_path_hessian``); the second derivatives of
     one pair term of Q (``H``, ``M``, ``N`` and ``g`` of ``metrics.alpha_qform_hessian``) are
     summed over the nodes with the six weights ``tw`` = ``w(1−τ)²/n, w(1−τ)τ/n, wτ²/n,
     w(1−τ), wτ, w n`` and then combined into the segment blocks (t, t), (t, t+1), (t+1, t+1);
@@ -375,7 +381,9 @@ def fr_qform_grad(x, weight, theta, vel, s2, psi, coef):
         for a in range(k):
             pd += coef[m, a] * rv[a]
         q += pd * pd
-        ratio = pd / psi[m]
+        # ψ falls below PSI_FLOOR only far from every landmark, where coef (∝ √p) and ψ̇ vanish with
+        # it: the node adds nothing (never a division by zero, nor by a subnormal number)
+        ratio = pd / psi[m] if psi[m] > PSI_FLOOR else 0.0
         for a in range(k):
             pc[a] = pd * coef[m, a]
         for i in range(d):
@@ -427,8 +435,9 @@ def fr_hessian_parts(x, theta, vel, s2, psi, coef):
         pd = 0.0
         for a in range(k):
             pd += coef[m, a] * rv[a]
-        u = 2.0 * pd / psi[m]
-        bfac = pd * pd / psi[m]
+        inv_psi = 1.0 / psi[m] if psi[m] > PSI_FLOOR else 0.0  # far from every landmark: see fr_qform_grad
+        u = 2.0 * pd * inv_psi
+        bfac = pd * pd * inv_psi
         for a in range(k):
             aa[a] = pd * coef[m, a]
             bb[a] = bfac * coef[m, a]

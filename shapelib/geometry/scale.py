@@ -33,7 +33,8 @@ from .procrustes import generalized_procrustes, preshape
 from .sigma2 import predictive_sigma2, scatter_sigma2
 
 __all__ = ["landmark_spacing", "sigma_ratio", "to_centroid_size", "ScaleWarning", "PAPER_CENTROID_SIZE",
-           "SIGMA_RATIO_MIN", "check_scale", "estimate_sigma2", "Sigma2Estimate", "SIGMA2_METHODS"]
+           "SIGMA_RATIO_MIN", "check_scale", "FISHER_RAO_RATIO_MIN", "check_fisher_rao_scale", "estimate_sigma2",
+           "Sigma2Estimate", "SIGMA2_METHODS"]
 
 #: Centroid size at which Table I's distances appear to have been computed (see table1_pairwise).
 PAPER_CENTROID_SIZE = 20.0
@@ -120,8 +121,8 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
     (every shape is one blob). Returns ``σ / spacing``. ``stacklevel`` is counted from this
     function, as :func:`warnings.warn` counts it (3: the caller of its caller).
     """
-    x = np.asarray(shapes, dtype=np.float64)
-    x = x.reshape((-1,) + x.shape[-2:])
+    x = _as_collection(shapes)
+    sigma2 = check_sigma2(sigma2)
     sigma = float(np.sqrt(sigma2))
     if x.shape[1] < 2:
         return float("inf")
@@ -145,6 +146,36 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
             f"{fix}{_advice(x, spacing)}",
             ScaleWarning, stacklevel=stacklevel)
     return ratio
+
+
+#: Below this σ / spacing the Gaussians of neighbouring landmarks do not overlap even in float64:
+#: midway between landmarks one spacing ``h`` apart each is ``exp(−h²/(8σ²))`` of its peak, below
+#: machine epsilon (2.2e-16) for σ < h / √(8 ln(1/ε)) ≈ 0.059 h. The Fisher–Rao quantities divide
+#: by √p, which then vanishes between the landmarks: their quadrature has nothing to resolve.
+FISHER_RAO_RATIO_MIN = float(1.0 / np.sqrt(8.0 * np.log(1.0 / np.finfo(np.float64).eps)))
+
+
+def check_fisher_rao_scale(shapes, sigma2, *, metric: str = "fisher_rao", ratio: float | None = None) -> None:
+    """Raise ``ValueError`` before any work when σ is below :data:`FISHER_RAO_RATIO_MIN` times the
+    mean nearest-landmark spacing: the Fisher–Rao metric (eq. 6) and its bound would see isolated
+    points whose densities underflow between them (a division by zero, or a meaningless value).
+    ``ratio``: σ / spacing if already known (:func:`check_scale` returns it)."""
+    sigma2 = check_sigma2(sigma2)
+    if ratio is None:
+        x = _as_collection(shapes)
+        if x.shape[1] < 2:
+            return
+        spacing = landmark_spacing(x)
+        ratio = np.sqrt(sigma2) / spacing if spacing > 0 else float("inf")
+    if ratio < FISHER_RAO_RATIO_MIN:
+        spacing = np.sqrt(sigma2) / ratio
+        raise ValueError(
+            f"{metric}: sigma2 = {sigma2:.3g} is too small for these landmarks: sigma = {np.sqrt(sigma2):.3g} is "
+            f"{ratio:.3g} times their mean nearest-landmark spacing {spacing:.3g}, below {FISHER_RAO_RATIO_MIN:.2g}, "
+            f"where the Gaussians of neighbouring landmarks do not overlap even in double precision and the "
+            f"Fisher-Rao quadrature has nothing to resolve (it divides by the density, which vanishes between "
+            f"them). Use sigma2 >= {(FISHER_RAO_RATIO_MIN * spacing) ** 2:.3g} (sigma at one spacing: "
+            f"{spacing ** 2:.3g}), or bring the shapes to a scale that fits sigma2 (shapelib.to_centroid_size)")
 
 
 def _advice(x, spacing) -> str:

@@ -32,7 +32,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validate import as_shape_pair, check_positive, check_positive_int, check_sigma2
-from .geodesic import METRICS, GeodesicWarning, _check_entry, _model, fisher_rao_lower_bound, minimise_path
+from .geodesic import check_entry, fisher_rao_lower_bound
+from .minimise import minimise_path
+from .path_metric import METRICS, path_metric
+from .result import BracketStopReason, GeodesicWarning
 from ..geometry.gmm import l2_distance
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import SIGMA_RATIO_MIN
@@ -79,6 +82,7 @@ class DistanceBracket:
     converged : bool
         ``rel_gap ≤ rtol``.
     stopped_by : str
+        A :class:`~shapelib.solver.result.BracketStopReason` value (also :attr:`stop_reason`):
         ``"rtol"``, ``"stalled"`` (the gap stopped shrinking; reported as it is),
         ``"trivial"`` (``u == v``) or ``"max_n_steps"``.
     seconds : float
@@ -100,6 +104,11 @@ class DistanceBracket:
     stopped_by: str
     seconds: float
     log: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def stop_reason(self) -> BracketStopReason:
+        """Why the refinement stopped (:class:`~shapelib.solver.result.BracketStopReason`)."""
+        return BracketStopReason(self.stopped_by)
 
     def summary(self) -> str:
         """One line: the interval, its relative width and why it stopped."""
@@ -221,14 +230,14 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     At σ² = 0.5 on the corpus callosum pairs of Table I (centroid size 20) every pair reaches
     1e-3 with a few iterations; at σ² = 0.1 most pairs stop ``"stalled"`` at a gap of a few
     1e-3, because the α geodesic is measurably longer than the L² chord there
-    (``docs/solver.md``). The 1e-9 Newton-decrement certificate of a local minimum remains
+    (``docs/guide/solver.md``). The 1e-9 Newton-decrement certificate of a local minimum remains
     available through :func:`shapelib.solver.geodesic.geodesic` (``tol=``).
     """
     t0 = time.perf_counter()
     _check_metric(metric)
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
-    ratio = _check_entry(u, v, s2, metric=metric, stacklevel=3)
+    ratio = check_entry(u, v, s2, metric=metric, stacklevel=3)
     rtol = check_positive(rtol, name="rtol")
     n = check_positive_int(n_steps, name="n_steps")
     max_n = check_positive_int(max_n_steps, name="max_n_steps")
@@ -244,7 +253,7 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         hessian = DEFAULT_HESSIAN[metric]
     if hessian not in ("exact", "model"):
         raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")
-    model = _model(metric, s2, grid_spacing, grid_margin)
+    model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter,
                "level_tol": level_tol, "min_shrink": float(min_shrink), "hessian": hessian, "sigma_ratio": ratio,
                **model.settings()}

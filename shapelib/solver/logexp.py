@@ -1,0 +1,569 @@
+"""Logarithm and exponential maps of the α-order and Fisher–Rao metrics, by discrete geodesic calculus.
+
+The statistics of a population of shapes (Fréchet mean, tangent PCA, geodesic regression) need
+two maps at a base shape ``θ₀``: the **logarithm** ``log_θ₀(θ)``, the initial velocity of the
+geodesic from ``θ₀`` to ``θ``, and the **exponential** ``exp_θ₀(v)``, the end point at ``t = 1``
+of the geodesic leaving ``θ₀`` with velocity ``v``. Both are defined here on the same discrete
+path energy the geodesic solver minimises (eq. 8 on piecewise-linear paths through ``n + 1``
+points, :mod:`shapelib.solver.energy`), following the variational time discretisation of
+geodesic calculus (Rumpf & Wirth, *IMA J. Numer. Anal.* 35, 2015):
+
+* ``log_θ₀(θ) = n (θ₁ − θ₀)``, where ``θ₀, θ₁, …, θₙ = θ`` is the discrete geodesic
+  (:func:`shapelib.solver.minimise.minimise_path`);
+* ``exp_θ₀(v)``: set ``θ₁ = θ₀ + v / n`` and solve the discrete Euler–Lagrange equations
+  ``∂_b S(θ_{t−1}, θ_t) + ∂_a S(θ_t, θ_{t+1}) = 0`` for ``θ₂, …, θₙ`` one point at a time
+  (``S(a, b)`` the energy of one segment), by Newton's method.
+
+The two are inverse to each other at the same ``n``: the discrete geodesic satisfies the discrete
+Euler–Lagrange equations at every interior point, so the recursion started from its first
+segment retraces it. As ``n`` grows both converge to the continuous maps (the log vector with
+an O(1/n) error: measured on ADHD-200 corpus callosum contours, α at σ² = 1.2, 1.0 % at n = 8 and
+2.3 % at n = 4 in the metric norm, against n = 32).
+
+The flat directions
+    The metric tensor of a dense contour is nearly singular: sliding a landmark along the
+    contour barely changes the density, and the eigenvalues of ``g`` span 10–15 orders of
+    magnitude (50 landmarks of a corpus callosum at σ² = 1.2: the 60th of 100 eigenvalues is
+    4e-7 of the largest, the last 6e-14). Tangent directions that change no density carry almost
+    no length, so a geodesic's velocity along them is not determined by the densities, and
+    ``g⁻¹`` is never formed here:
+
+    * the log map needs no inverse (it reads the velocity off the optimal path); its components
+      in the flat directions are whatever the path solver left there, and carry ~no metric norm;
+    * each Newton step of the exponential solves ``M δ = −R`` (``M ≈ −2n g``, the mixed second
+      derivative of the segment energy) by **truncated SVD**: singular values below ``rcond``
+      times the largest are dropped, so in directions where the metric is weaker than
+      ``rcond`` of its strongest the landmarks keep their velocity (the flat metric's geodesic);
+    * norms and inner products of tangent vectors are taken in ``g(θ₀)``
+      (:class:`TangentSpace`), where the flat directions weigh nothing; the statistics use the
+      **retained subspace** of ``g(θ₀)`` (eigenvalues above ``rcond`` of the largest) and report
+      the share of the metric norm outside it.
+
+    Default ``rcond`` = :data:`DEFAULT_RCOND` (1e-6): on the corpus callosum at σ² = 1.2 it keeps
+    58 of 100 directions, and the directions dropped hold 2e-7 of the population's metric variance.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._validate import as_shape, as_shape_pair, check_dimension, check_nonnegative_int, check_positive, \
+    check_positive_int, check_sigma2
+from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
+from ..geometry.scale import check_scale
+from .energy import metric_length
+from .linalg import one_blas_thread
+from .minimise import minimise_path
+from .path_metric import GL3_NODES, GL3_WEIGHTS, METRICS, path_metric
+from .result import GeodesicResult, GeodesicWarning, StopReason
+
+__all__ = ["GeodesicOptions", "LogResult", "TangentSpace", "log_map", "exp_map", "exp_path", "log_maps",
+           "tangent_space", "segment_derivatives", "path_as_result", "magnify", "DEFAULT_RCOND", "DEFAULT_LOG_STEPS"]
+
+#: relative eigenvalue (singular value) cut-off of the retained subspace
+DEFAULT_RCOND = 1e-6
+#: time steps of the discrete log and exp maps in the statistics
+DEFAULT_LOG_STEPS = 4
+
+
+@dataclass(frozen=True)
+class GeodesicOptions:
+    """How the log and exp maps are computed (one picklable record, passed to every worker).
+
+    Attributes
+    ----------
+    metric : {"alpha", "fisher_rao"}
+    sigma2 : float
+        σ² of the GMM representation (eq. 5).
+    n_steps : int
+        Time steps ``n`` of the discrete geodesics.
+    tol : float
+        Stop of each path solve (:func:`shapelib.geodesic`'s ``tol``: Newton decrement or relative
+        energy change over ``window`` iterations below it).
+    max_iter : int
+        Levenberg–Marquardt iterations per path solve.
+    rcond : float
+        Relative cut-off of the retained subspace (see the module docstring).
+    grid_spacing, grid_margin : float
+        Fisher–Rao quadrature grid (:mod:`shapelib.geometry.quadrature`).
+    window : int
+        Iterations over which the energy decrease is measured.
+    """
+
+    metric: str
+    sigma2: float
+    n_steps: int = DEFAULT_LOG_STEPS
+    tol: float = 1e-6
+    max_iter: int = 200
+    rcond: float = DEFAULT_RCOND
+    grid_spacing: float = DEFAULT_SPACING
+    grid_margin: float = DEFAULT_MARGIN
+    window: int = 5
+
+    def __post_init__(self):
+        if self.metric not in METRICS:
+            raise ValueError(f"metric must be one of {METRICS}; got {self.metric!r}")
+        object.__setattr__(self, "sigma2", check_sigma2(self.sigma2))
+        object.__setattr__(self, "n_steps", check_positive_int(self.n_steps, name="n_steps"))
+        object.__setattr__(self, "tol", check_positive(self.tol, name="tol"))
+        object.__setattr__(self, "max_iter", check_nonnegative_int(self.max_iter, name="max_iter"))
+        object.__setattr__(self, "window", check_positive_int(self.window, name="window"))
+        rcond = check_positive(self.rcond, name="rcond")
+        if rcond >= 1:
+            raise ValueError(f"rcond must lie in (0, 1); got {self.rcond!r}")
+        object.__setattr__(self, "rcond", rcond)
+        check_positive(self.grid_spacing, name="grid_spacing")
+        check_positive(self.grid_margin, name="grid_margin")
+
+    def model(self):
+        """The :class:`~shapelib.solver.path_metric.PathMetric` of these options."""
+        return path_metric(self.metric, self.sigma2, grid_spacing=self.grid_spacing, grid_margin=self.grid_margin)
+
+    def replace(self, **changes) -> "GeodesicOptions":
+        """A copy with ``changes`` applied."""
+        kw = {f: getattr(self, f) for f in self.__dataclass_fields__}
+        kw.update(changes)
+        return GeodesicOptions(**kw)
+
+
+# ---------------------------------------------------------------------------------------------
+# The tangent space at a base shape: metric, retained subspace, coordinates
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class TangentSpace:
+    """The tangent space at ``base`` with the metric ``g(base)`` and its retained subspace.
+
+    ``g = U Λ Uᵀ`` (eigenvalues descending). The retained subspace is spanned by the columns of
+    ``U`` whose eigenvalue exceeds ``rcond · λ_max``; its **coordinates** ``z = Λ_r^{1/2} U_rᵀ v``
+    are isometric (``zᵀz' = vᵀ g v'`` for vectors in the subspace), so Euclidean statistics of ``z``
+    are metric statistics of ``v``. Since ``U`` is orthogonal in both the Euclidean and the metric
+    inner product, :meth:`project` is the orthogonal projection onto the subspace in both.
+
+    Attributes
+    ----------
+    base : ndarray (K, d)
+    metric_tensor : ndarray (K d, K d)
+    eigenvalues : ndarray (K d,)
+        Descending.
+    eigenvectors : ndarray (K d, K d)
+        Columns, in the order of ``eigenvalues``.
+    rank : int
+        Dimension of the retained subspace.
+    rcond : float
+    """
+
+    base: np.ndarray
+    metric_tensor: np.ndarray
+    eigenvalues: np.ndarray
+    eigenvectors: np.ndarray
+    rank: int
+    rcond: float
+
+    @property
+    def shape(self):
+        return self.base.shape
+
+    def _flat(self, v):
+        v = np.asarray(v, dtype=np.float64)
+        k, d = self.base.shape
+        if v.shape[-2:] != (k, d):
+            raise ValueError(f"tangent vectors must have shape (..., {k}, {d}); got {v.shape}")
+        return v.reshape(*v.shape[:-2], k * d)
+
+    def inner(self, v, w) -> np.ndarray:
+        """``vᵀ g w`` for vectors (..., K, d) (broadcast)."""
+        return np.einsum("...i,ij,...j->...", self._flat(v), self.metric_tensor, self._flat(w))
+
+    def norm(self, v) -> np.ndarray:
+        """Metric norm ``√(vᵀ g v)``."""
+        return np.sqrt(np.maximum(self.inner(v, v), 0.0))
+
+    def gram(self, vectors) -> np.ndarray:
+        """Matrix of metric inner products of vectors (N, K, d): ``V g Vᵀ`` (no truncation)."""
+        f = self._flat(vectors)
+        return f @ self.metric_tensor @ f.T
+
+    @property
+    def basis(self) -> np.ndarray:
+        """``U_r``: the retained eigenvectors, (K d, rank)."""
+        return self.eigenvectors[:, :self.rank]
+
+    def coords(self, v) -> np.ndarray:
+        """Isometric coordinates ``z = Λ_r^{1/2} U_rᵀ v`` (..., rank) of vectors (..., K, d)."""
+        return (self._flat(v) @ self.basis) * np.sqrt(self.eigenvalues[:self.rank])
+
+    def vectors(self, z) -> np.ndarray:
+        """The tangent vectors (..., K, d) in the retained subspace with coordinates ``z`` (..., rank)."""
+        z = np.asarray(z, dtype=np.float64)
+        flat = (z / np.sqrt(self.eigenvalues[:self.rank])) @ self.basis.T
+        return flat.reshape(*z.shape[:-1], *self.base.shape)
+
+    def project(self, v) -> np.ndarray:
+        """Orthogonal projection (Euclidean and metric alike) onto the retained subspace."""
+        f = self._flat(v)
+        return ((f @ self.basis) @ self.basis.T).reshape(np.shape(v))
+
+    def discarded_fraction(self, vectors) -> float:
+        """Share of ``Σ ‖v_i‖²_g`` outside the retained subspace (0 when all of it is retained)."""
+        total = float(np.sum(self.inner(vectors, vectors)))
+        if total <= 0:
+            return 0.0
+        kept = float(np.sum(self.coords(vectors) ** 2))
+        return max(0.0, 1.0 - kept / total)
+
+
+def tangent_space(base, *, metric: str = "alpha", sigma2=None, rcond: float = DEFAULT_RCOND,
+                  grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN,
+                  options: GeodesicOptions | None = None) -> TangentSpace:
+    """The :class:`TangentSpace` at ``base``: ``g(base)`` (eq. 22 or eq. 6), its eigenvectors and the
+    retained subspace (eigenvalues above ``rcond`` of the largest)."""
+    opts = options if options is not None else GeodesicOptions(metric, sigma2, rcond=rcond, grid_spacing=grid_spacing,
+                                                                grid_margin=grid_margin)
+    base = as_shape(base, name="base")
+    model = opts.model()
+    g = model.tensors(base[None], model.prepare(base[None]))[0]
+    g = 0.5 * (g + g.T)
+    w, u = np.linalg.eigh(g)
+    w, u = w[::-1], u[:, ::-1]
+    if not w[0] > 0:
+        raise ValueError("the metric tensor at base is zero (sigma2 far too small for these landmarks?)")
+    rank = int(np.count_nonzero(w > opts.rcond * w[0]))
+    return TangentSpace(base=base, metric_tensor=g, eigenvalues=w, eigenvectors=u, rank=rank, rcond=opts.rcond)
+
+
+# ---------------------------------------------------------------------------------------------
+# Log map
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class LogResult:
+    """A log map and the discrete geodesic it is read from.
+
+    Attributes
+    ----------
+    vector : ndarray (K, d)
+        ``log_base(shape) = n (θ₁ − θ₀)``.
+    path : ndarray (n + 1, K, d)
+        The discrete geodesic from ``base`` to ``shape`` (a warm start for the next solve).
+    energy : float
+        Its path energy (eq. 8), ≈ the squared geodesic distance.
+    converged : bool
+    n_iter : int
+    stop_reason : str
+        A :class:`~shapelib.solver.result.StopReason` value.
+    seconds : float
+    """
+
+    vector: np.ndarray
+    path: np.ndarray
+    energy: float
+    converged: bool
+    n_iter: int
+    stop_reason: str
+    seconds: float = 0.0
+
+    def summary(self) -> str:
+        return (f"log map: energy {self.energy:.6g}, {self.n_iter} iterations, converged {self.converged} "
+                f"({self.stop_reason})")
+
+
+def _solve_log(model, base, shape, opts: GeodesicOptions, init) -> LogResult:
+    t0 = time.perf_counter()
+    n = opts.n_steps
+    if init is not None:
+        init = np.array(init, dtype=np.float64)
+        if init.shape != (n + 1, *base.shape):
+            init = None  # another discretisation: start from the straight line
+    res = minimise_path(model, base, shape, n_steps=n, tol=opts.tol, max_iter=opts.max_iter, window=opts.window,
+                        init=init, warn=False, length_scale=math.sqrt(opts.sigma2), sigma2=opts.sigma2,
+                        hessian="exact", stacklevel=3, lower_bound=0.0)
+    path = res.path
+    return LogResult(vector=n * (path[1] - path[0]), path=path, energy=float(res.energy), converged=bool(res.converged),
+                     n_iter=int(res.n_iter), stop_reason=str(res.log["stopped_by"]),
+                     seconds=time.perf_counter() - t0)
+
+
+def log_maps(base, shapes, *, options: GeodesicOptions, inits=None) -> list:
+    """Log maps of every shape of ``shapes`` (N, K, d) at ``base``, in this process.
+
+    ``base`` is one shape (K, d) or one per shape (N, K, d) (the residuals of a regression).
+    ``inits``: a sequence of N warm-start paths (or None entries), e.g. the paths of the previous
+    iteration moved to the new base. This is the unit of work the statistics hand to an executor
+    (:func:`shapelib.statistics.population_logs.population_logs`); inputs are assumed validated.
+
+    Returns
+    -------
+    list of LogResult
+    """
+    shapes = np.asarray(shapes, dtype=np.float64)
+    base = np.asarray(base, dtype=np.float64)
+    bases = np.broadcast_to(base, shapes.shape) if base.ndim == 2 else base
+    model = options.model()
+    inits = [None] * len(shapes) if inits is None else inits
+    with one_blas_thread():
+        return [_solve_log(model, b, s, options, i) for b, s, i in zip(bases, shapes, inits)]
+
+
+def _check_entry(base, other, s2, metric, names):
+    base, other = as_shape_pair(base, other, names=names)
+    if metric not in METRICS:
+        raise ValueError(f"metric must be one of {METRICS}; got {metric!r}")
+    check_dimension(base, name=names[0])
+    return base, other
+
+
+def log_map(base, shape, *, metric: str = "alpha", sigma2, n_steps: int = DEFAULT_LOG_STEPS, tol: float = 1e-8,
+            max_iter: int = 500, init=None, grid_spacing: float = DEFAULT_SPACING,
+            grid_margin: float = DEFAULT_MARGIN, return_result: bool = False):
+    """Riemannian logarithm: the initial velocity of the geodesic from ``base`` to ``shape``.
+
+    ``log_base(shape) = n (θ₁ − θ₀)`` on the discrete geodesic ``θ₀ = base, θ₁, …, θₙ = shape``
+    that minimises the path energy (eq. 8; :func:`shapelib.geodesic`). ``exp_map(base,
+    log_map(base, shape))`` returns ``shape`` (at the same ``n_steps``) up to the flat
+    directions (module docstring). Its metric norm ``√(vᵀ g(base) v)`` is the geodesic distance
+    up to the discretisation.
+
+    Parameters
+    ----------
+    base, shape : array_like, shape (K, d)
+        Landmarks in correspondence, d = 2 or 3.
+    metric : {"alpha", "fisher_rao"}
+    sigma2 : float
+    n_steps : int
+        Time steps of the discrete geodesic (the log vector's error is O(1/n)).
+    tol, max_iter
+        Path solver stop (:func:`shapelib.geodesic`).
+    init : array_like (n_steps + 1, K, d), optional
+        Warm start.
+    grid_spacing, grid_margin : float
+        Fisher–Rao quadrature.
+    return_result : bool
+        Return the :class:`LogResult` (vector, path, energy, convergence) instead of the vector.
+
+    Returns
+    -------
+    ndarray (K, d) or LogResult
+    """
+    base, shape = _check_entry(base, shape, sigma2, metric, ("base", "shape"))
+    opts = GeodesicOptions(metric, sigma2, n_steps=n_steps, tol=tol, max_iter=max_iter, grid_spacing=grid_spacing,
+                           grid_margin=grid_margin)
+    check_scale(np.stack([base, shape]), opts.sigma2, stacklevel=3)
+    res = log_maps(base, shape[None], options=opts, inits=[init])[0]
+    if not res.converged:
+        warnings.warn(f"log map: the {metric} path solver stopped after {res.n_iter} iterations without "
+                      f"converging ({res.stop_reason})", GeodesicWarning, stacklevel=2)
+    return res if return_result else res.vector
+
+
+# ---------------------------------------------------------------------------------------------
+# Exp map: the discrete Euler–Lagrange recursion
+# ---------------------------------------------------------------------------------------------
+
+
+def segment_derivatives(model, a, b, n, ctx, *, hessian: bool):
+    """``∂S/∂a``, ``∂S/∂b`` of the segment energy ``S(a, b) = (1/n) Σ_k w_k Q(a + τ_k(b − a), n(b − a))``
+    and, with ``hessian``, the mixed block ``∂²S/∂a∂b`` (rows a, columns b)."""
+    k, d = a.shape
+    tau, w = GL3_NODES, GL3_WEIGHTS
+    theta = a[None] + tau[:, None, None] * (b - a)[None]
+    vel = np.repeat((n * (b - a))[None], len(tau), axis=0)
+    if hessian:
+        _, q_t, q_v, (q_tt, q_tv, q_vv) = model.qform_grad_hessian(theta, vel, ctx)
+    else:
+        _, q_t, q_v = model.qform_grad(theta, vel, ctx)
+    da = np.einsum("k,kij->ij", w * (1 - tau), q_t) / n - np.einsum("k,kij->ij", w, q_v)
+    db = np.einsum("k,kij->ij", w * tau, q_t) / n + np.einsum("k,kij->ij", w, q_v)
+    if not hessian:
+        return da, db, None
+    q_vt = q_tv.transpose(0, 2, 1)
+    mixed = (np.einsum("k,kij->ij", w * (1 - tau) * tau / n, q_tt) + np.einsum("k,kij->ij", w * (1 - tau), q_tv)
+             - np.einsum("k,kij->ij", w * tau, q_vt) - np.einsum("k,kij->ij", w * n, q_vv))
+    return da, db, mixed
+
+
+@dataclass
+class _StepInfo:
+    newton_iters: list = field(default_factory=list)
+    residuals: list = field(default_factory=list)
+
+
+def _el_step(model, prev, cur, n, rcond, tol, max_newton, info):
+    """θ_{t+1} from θ_{t−1}, θ_t: the discrete Euler–Lagrange equation ``R(b) = ∂_b S(θ_{t−1}, θ_t) +
+    ∂_a S(θ_t, b) = 0``, by Newton's method with truncated-SVD steps and backtracking.
+
+    With ``M = ∂R/∂b = U S Vᵀ`` (≈ −2n g, nearly singular), a step solves ``M δ = −R`` on the singular
+    values above ``rcond`` of the largest and leaves the rest of ``b`` where it is (starting from the
+    constant-velocity point ``2θ_t − θ_{t−1}``, the landmarks keep their velocity in the dropped
+    directions). The step is halved until the residual decreases in the norm ``‖S^{-1/2} Uᵀ R‖``
+    (the size of ``R`` as a displacement). Converged when that residual is below ``tol`` times the
+    segment's size in the same metric, ``‖S^{1/2} Vᵀ (b − θ_t)‖``.
+    """
+    ctx = model.prepare(np.stack([prev, cur, 2 * cur - prev]))
+    _, force_prev, _ = segment_derivatives(model, prev, cur, n, ctx, hessian=False)
+
+    def residual(b, hessian):
+        da, _, mixed = segment_derivatives(model, cur, b, n, ctx, hessian=hessian)
+        return (force_prev + da).ravel(), mixed
+
+    nxt = 2 * cur - prev  # constant velocity: exact for a flat metric, kept in the dropped directions
+    resid, mixed = residual(nxt, True)
+    rel = np.inf
+    for it in range(max_newton):
+        u, s, vt = np.linalg.svd(mixed)
+        keep = s > rcond * s[0]
+        u, s, vt = u[:, keep], s[keep], vt[keep]
+        root = np.sqrt(s)
+
+        def size(r):
+            return float(np.linalg.norm((u.T @ r) / root))
+
+        f = size(resid)
+        seg = float(np.linalg.norm(root * (vt @ (nxt - cur).ravel())))
+        rel = f / max(seg, 1e-300)
+        if rel <= tol:
+            info.newton_iters.append(it)
+            info.residuals.append(rel)
+            return nxt, True
+        delta = -(vt.T @ ((u.T @ resid) / s)).reshape(nxt.shape)
+        lam = 1.0
+        while lam >= 1.0 / 1024:
+            trial_r, _ = residual(nxt + lam * delta, False)
+            if size(trial_r) < f:
+                break
+            lam *= 0.5
+        else:  # no decrease along the Newton direction: the residual is at its floor
+            break
+        nxt = nxt + lam * delta
+        if model.name == "fisher_rao":  # the quadrature grid follows the new point
+            ctx = model.prepare(np.stack([prev, cur, nxt]))
+            _, force_prev, _ = segment_derivatives(model, prev, cur, n, ctx, hessian=False)
+        resid, mixed = residual(nxt, True)
+    info.newton_iters.append(max_newton)
+    info.residuals.append(rel)
+    return nxt, False
+
+
+def exp_path(base, vector, *, options: GeodesicOptions, n_steps: int | None = None, newton_tol: float = 1e-5,
+             max_newton: int = 30):
+    """The discrete geodesic ``θ₀ = base, θ₁ = base + v/n, θ₂, …, θₙ`` of :func:`exp_map` and a
+    convergence record ``{"converged", "newton_iters", "residuals"}`` (inputs validated by the
+    caller). ``n_steps`` overrides ``options.n_steps``."""
+    n = options.n_steps if n_steps is None else n_steps
+    model = options.model()
+    base = np.asarray(base, dtype=np.float64)
+    vector = np.asarray(vector, dtype=np.float64)
+    path = [base, base + vector / n]
+    info = _StepInfo()
+    ok = True
+    if np.any(vector):
+        with one_blas_thread():
+            for _ in range(n - 1):
+                nxt, conv = _el_step(model, path[-2], path[-1], n, options.rcond, newton_tol, max_newton, info)
+                ok &= conv
+                path.append(nxt)
+    else:
+        path = [base] * (n + 1)
+    return np.stack(path), {"converged": bool(ok), "newton_iters": info.newton_iters, "residuals": info.residuals}
+
+
+def exp_map(base, vector, *, metric: str = "alpha", sigma2, n_steps: int = DEFAULT_LOG_STEPS,
+            rcond: float = DEFAULT_RCOND, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN,
+            return_result: bool = False):
+    """Riemannian exponential: the shape reached at ``t = 1`` by the geodesic leaving ``base`` with
+    velocity ``vector``.
+
+    Discrete geodesic shooting on the path energy of :func:`shapelib.geodesic`: ``θ₁ = base +
+    vector / n``, then each ``θ_{t+1}`` solves the discrete Euler–Lagrange equation at ``θ_t``
+    (the path energy is stationary there), by Newton's method whose linear systems drop the
+    directions with singular values below ``rcond`` of the largest: along those (landmarks
+    sliding on the contour) the landmarks keep their velocity. No ``g⁻¹`` is formed. The inverse
+    of :func:`log_map` at the same ``n_steps``.
+
+    Parameters
+    ----------
+    base : array_like (K, d)
+    vector : array_like (K, d)
+        Initial velocity (a tangent vector at ``base``).
+    metric, sigma2, n_steps, rcond, grid_spacing, grid_margin
+        As in :func:`log_map`; ``rcond`` is the truncation.
+    return_result : bool
+        Return a :class:`~shapelib.solver.result.GeodesicResult` of the whole discrete geodesic
+        (its ``path``, ``length``, ``energy``; usable by :func:`shapelib.extrinsic_warp`) instead
+        of the end point.
+
+    Returns
+    -------
+    ndarray (K, d) or GeodesicResult
+    """
+    base, vector = _check_entry(base, vector, sigma2, metric, ("base", "vector"))
+    opts = GeodesicOptions(metric, sigma2, n_steps=n_steps, rcond=rcond, grid_spacing=grid_spacing,
+                           grid_margin=grid_margin)
+    check_scale(base[None], opts.sigma2, stacklevel=3)
+    path, info = exp_path(base, vector, options=opts)
+    if not info["converged"]:
+        warnings.warn(f"exp map: a Newton solve of the discrete Euler–Lagrange recursion stopped at relative step "
+                      f"{max(info['residuals']):.1e}", GeodesicWarning, stacklevel=2)
+    if not return_result:
+        return path[-1]
+    return path_as_result(path, options=opts, log={"exp": info})
+
+
+def path_as_result(path, *, options: GeodesicOptions, log=None) -> GeodesicResult:
+    """A :class:`GeodesicResult` for a discrete geodesic computed outside the path solver (e.g. by
+    :func:`exp_path`): its length and energy under ``options``' metric; ``lower_bound`` the
+    metric's closed-form bound between the ends."""
+    from .energy import path_energy
+
+    model = options.model()
+    path = np.asarray(path, dtype=np.float64)
+    steps = np.linalg.norm(np.diff(path, axis=0), axis=2)
+    return GeodesicResult(path=path, length=metric_length(model, path), energy=path_energy(model, path, gradient=False)[0],
+                          lower_bound=float(model.lower_bound(path[0], path[-1])), converged=True, n_iter=0,
+                          grad_norm=None, rel_energy_change=0.0,
+                          max_step_over_sigma=float(steps.max() / math.sqrt(options.sigma2)) if steps.size else 0.0,
+                          metric=options.metric, sigma2=options.sigma2,
+                          log={"stopped_by": StopReason.TRIVIAL.value, **(log or {})})
+
+
+def magnify(result: GeodesicResult, mag: float, *, rcond: float = DEFAULT_RCOND) -> GeodesicResult:
+    """The geodesic of ``result`` scaled to ``mag`` times its length from its start: the discrete
+    geodesic ``exp_start(mag · log_start(end))`` with the same step size, so its first ``n`` points
+    retrace ``result.path`` and it continues beyond the end (``mag > 1``) or stops short of it
+    (``mag < 1``) — the magnified deformation of geomorph's ``plotRefToTarget(mag=)``, along the
+    geodesic instead of a thin-plate spline.
+
+    Parameters
+    ----------
+    result : GeodesicResult
+        An α or Fisher–Rao geodesic (:func:`shapelib.geodesic`, :func:`exp_map` with
+        ``return_result=True``).
+    mag : float
+        Magnification (> 0).
+    rcond : float
+        Truncation of the exponential map (:func:`exp_map`).
+
+    Returns
+    -------
+    GeodesicResult
+    """
+    mag = check_positive(mag, name="mag")
+    if result.metric not in METRICS or result.sigma2 is None:
+        raise ValueError(f"magnify needs an alpha or fisher_rao geodesic; got metric {result.metric!r}")
+    n = result.n_steps
+    steps = max(1, int(round(mag * n)))
+    opts = GeodesicOptions(result.metric, result.sigma2, n_steps=steps, rcond=rcond,
+                           grid_spacing=result.log.get("grid_spacing", DEFAULT_SPACING),
+                           grid_margin=result.log.get("grid_margin", DEFAULT_MARGIN))
+    if mag == 1.0:
+        return result
+    velocity = n * (result.path[1] - result.path[0])
+    path, info = exp_path(result.path[0], mag * velocity, options=opts)
+    return path_as_result(path, options=opts, log={"exp": info, "magnification": mag})

@@ -1,0 +1,152 @@
+"""What a path solve returns: :class:`GeodesicResult`, its :class:`StopReason` and the warning
+raised when the solver stops early."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["GeodesicResult", "GeodesicWarning", "StopReason", "BracketStopReason"]
+
+
+class StopReason(str, enum.Enum):
+    """Why :func:`shapelib.solver.minimise.minimise_path` stopped (``GeodesicResult.stop_reason``).
+
+    A ``str`` enum: ``result.log["stopped_by"] == "newton_decrement"`` and
+    ``result.stop_reason is StopReason.NEWTON_DECREMENT`` say the same.
+    """
+
+    #: nothing to solve: one time step, or identical ends (converged)
+    TRIVIAL = "trivial"
+    #: the Newton decrement on the exact, positive-definite Hessian is below ``tol · E``: a
+    #: certified local minimum (converged)
+    NEWTON_DECREMENT = "newton_decrement"
+    #: the relative energy decrease over ``window`` iterations fell below ``tol`` (converged)
+    ENERGY_WINDOW = "energy_window"
+    #: no damped step decreases the energy at machine precision: a local minimum (converged)
+    NO_DECREASE = "no_decrease"
+    #: the energy reached the caller's ``target_energy`` (the bracket's stop; converged)
+    TARGET_ENERGY = "target_energy"
+    #: ``max_iter`` iterations without another stop (not converged)
+    MAX_ITER = "max_iter"
+    #: σ so small that the landmarks' Gaussians do not interact (not converged; see ``log["reason"]``)
+    UNDERFLOW = "underflow"
+
+    @property
+    def converged(self) -> bool:
+        """Whether a result stopped for this reason counts as converged."""
+        return self not in (StopReason.MAX_ITER, StopReason.UNDERFLOW)
+
+    def __str__(self) -> str:
+        return self.value
+
+
+class BracketStopReason(str, enum.Enum):
+    """Why :func:`shapelib.distance_bracket` stopped refining (``DistanceBracket.stop_reason``)."""
+
+    #: the relative gap ``upper / lower − 1`` is at most ``rtol`` (converged)
+    RTOL = "rtol"
+    #: the gap stopped shrinking by the required fraction per doubling of ``n_steps``, or converges
+    #: geometrically to a limit above ``rtol``; the bracket is reported as it is (not converged)
+    STALLED = "stalled"
+    #: ``max_n_steps`` reached with the gap above ``rtol`` (not converged)
+    MAX_N_STEPS = "max_n_steps"
+    #: ``u == v`` (converged)
+    TRIVIAL = "trivial"
+
+    @property
+    def converged(self) -> bool:
+        return self in (BracketStopReason.RTOL, BracketStopReason.TRIVIAL)
+
+    def __str__(self) -> str:
+        return self.value
+
+
+class GeodesicWarning(RuntimeWarning):
+    """The geodesic solver stopped before meeting its tolerance."""
+
+
+@dataclass
+class GeodesicResult:
+    """A computed geodesic and its certificate.
+
+    Attributes
+    ----------
+    path : ndarray, shape (n_steps + 1, K, d)
+        Landmarks at times ``t = 0, 1/n, …, 1``; ``path[0]`` and ``path[-1]`` are the inputs.
+        The intermediate shapes are the intrinsic deformation (Figs. 4–8).
+    length : float
+        Riemannian length ``∫ √(θ̇ᵀ g θ̇) dt`` of the piecewise-linear path (an upper bound on
+        the geodesic distance).
+    energy : float
+        Path energy (eq. 8) of the piecewise-linear path, 3-point Gauss–Legendre per segment
+        (≥ length² ≥ lower_bound²; ≈ length² for a converged, constant-speed geodesic).
+    lower_bound : float
+        Closed-form (α) or great-circle (Fisher–Rao) lower bound on the geodesic distance.
+    converged : bool
+    n_iter : int
+        Levenberg–Marquardt iterations.
+    grad_norm : float or None
+        Euclidean norm of the energy gradient at the solution; None when the solve stopped on
+        ``target_energy`` (the start or the last step met it), where the gradient at the final
+        path is not evaluated.
+    rel_energy_change : float
+        Relative energy decrease of the last accepted step.
+    max_step_over_sigma : float
+        Largest landmark displacement between consecutive path points, in units of σ (of the
+        kernel width for landmark diffeomorphisms).
+    log : dict
+        Energy per iteration, damping, timings, the metric's settings; ``hessian`` ("exact"
+        or "model"), ``stopped_by`` (a :class:`StopReason` value, also :attr:`stop_reason`;
+        "underflow" comes with a ``reason``) and the
+        last ``newton_decrement`` (exact Hessian only, None where it was not positive definite,
+        or not computed because the damped decrement, a lower bound on it, was already above
+        ``tol · E``).
+    """
+
+    path: np.ndarray
+    length: float
+    energy: float
+    lower_bound: float
+    converged: bool
+    n_iter: int
+    grad_norm: float | None
+    rel_energy_change: float
+    max_step_over_sigma: float
+    metric: str
+    sigma2: float | None
+    log: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def stop_reason(self) -> "StopReason":
+        """Why the solver stopped (:class:`StopReason`)."""
+        return StopReason(self.log["stopped_by"])
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.path) - 1
+
+    @property
+    def times(self) -> np.ndarray:
+        return np.linspace(0.0, 1.0, len(self.path))
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Landmark velocities on each segment, shape (n_steps, K, d)."""
+        return self.n_steps * np.diff(self.path, axis=0)
+
+    def summary(self) -> str:
+        """One line: metric, length with its certified lower bound, convergence."""
+        return (f"{self.metric}: length {self.length:.6g} (lower bound {self.lower_bound:.6g}), "
+                f"converged {self.converged} in {self.n_iter} iterations ({self.log.get('stopped_by', '?')})")
+
+    def shape_at(self, t: float) -> np.ndarray:
+        """Landmarks at time ``t ∈ [0, 1]`` (linear between path points)."""
+        if not 0.0 <= t <= 1.0:
+            raise ValueError(f"t must lie in [0, 1]; got {t!r}")
+        s = t * self.n_steps
+        i = min(int(np.floor(s)), self.n_steps - 1)
+        return self.path[i] + (s - i) * (self.path[i + 1] - self.path[i])
+

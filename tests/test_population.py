@@ -1,0 +1,82 @@
+"""The intrinsic statistics on the engine (shapelib.population): a real Dask LocalCluster started by
+``n_jobs=2`` or given as ``client=``, against the in-process answer."""
+
+import numpy as np
+import pytest
+
+import shapelib
+from shapelib.statistics import frechet
+from tests.conftest import ellipse
+
+
+
+
+@pytest.fixture(scope="module")
+def shapes():
+    rng = np.random.default_rng(2)
+    return np.stack([ellipse(10) + 0.3 * rng.normal(size=(10, 2)) for _ in range(10)])
+
+
+@pytest.fixture(scope="module")
+def reference(shapes):
+    return frechet.frechet_mean(shapes, sigma2=1.0, tol=1e-4)
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client
+
+    from shapelib.pairwise import local_cluster
+
+    with local_cluster(2) as cluster, Client(cluster) as c:
+        yield c
+
+
+def test_frechet_mean_on_a_local_cluster_started_by_n_jobs(shapes, reference):
+    res = shapelib.frechet_mean(shapes, sigma2=1.0, tol=1e-4, n_jobs=2)
+    assert res.history[-1]["mode"] == "LocalCluster(2 processes)"
+    assert np.allclose(res.mean, reference.mean, atol=1e-12)
+    assert res.n_iter == reference.n_iter
+
+
+def test_frechet_mean_on_a_given_client(shapes, reference, client):
+    res = shapelib.frechet_mean(shapes, sigma2=1.0, tol=1e-4, client=client)
+    assert res.history[-1]["mode"] == "cluster" and res.history[-1]["n_workers"] == 2
+    assert np.allclose(res.mean, reference.mean, atol=1e-12)
+
+
+def test_small_work_stays_in_process(shapes, reference):
+    res = shapelib.frechet_mean(shapes, sigma2=1.0, tol=1e-4)  # n_jobs=None: a few seconds at most
+    assert res.history[-1]["mode"] == "in-process"
+    assert np.array_equal(res.mean, reference.mean)
+
+
+def test_where_it_runs_is_checked(shapes, client):
+    with pytest.raises(ValueError, match="n_jobs"):
+        shapelib.frechet_mean(shapes, sigma2=1.0, n_jobs=0)
+    with pytest.raises(ValueError, match="not both"):
+        shapelib.frechet_mean(shapes, sigma2=1.0, client=client, scheduler="tcp://127.0.0.1:1")
+
+
+def test_regression_and_group_test_on_a_given_client(shapes, reference, client):
+    from shapelib.statistics import group, regression
+
+    t = np.linspace(0.0, 1.0, len(shapes))
+    here = regression.geodesic_regression(shapes, t, sigma2=1.0, mean=reference)
+    there = shapelib.geodesic_regression(shapes, t, sigma2=1.0, mean=reference, client=client)
+    assert there.history[-1]["mode"] == "cluster"
+    assert np.allclose(here.path, there.path, atol=1e-12) and here.r2 == there.r2
+    labels = np.arange(len(shapes)) % 2
+    here = group.mean_difference_test(shapes, labels, sigma2=1.0, pooled=reference, seed=0)
+    there = shapelib.mean_difference_test(shapes, labels, sigma2=1.0, pooled=reference, seed=0, client=client)
+    assert here.p_value == there.p_value and np.allclose(here.means[1].mean, there.means[1].mean, atol=1e-12)
+
+
+def test_tangent_pca_through_the_package(shapes, reference):
+    from shapelib.statistics.tangent_pca import tangent_pca
+
+    a = shapelib.tangent_pca(shapes, sigma2=1.0, mean=reference, modes=())
+    b = tangent_pca(shapes, sigma2=1.0, mean=reference, modes=())
+    assert np.array_equal(a.scores, b.scores)
+    c = shapelib.tangent_pca(shapes, sigma2=1.0, mean=reference.mean, modes=(), n_jobs=1)
+    assert np.allclose(c.explained_variance, a.explained_variance, rtol=1e-4)
