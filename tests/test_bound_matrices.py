@@ -18,6 +18,11 @@ from shapelib.geometry.bound_matrices import (
 from shapelib.geometry.gmm import _l2_sq_near
 
 
+#: the populations here are noisy copies of one random shape, at σ chosen for the identities tested
+#: (small σ on purpose): the pose and scale advice of the per-pair entry points is not the subject
+pytestmark = [pytest.mark.filterwarnings("ignore::shapelib.geometry.procrustes.PoseWarning"),
+              pytest.mark.filterwarnings("ignore::shapelib.geometry.scale.ScaleWarning")]
+
 def _population(rng, n, k, d, *, spread=0.15, size=3.0):
     """``n`` noisy copies of one random shape (a population: close shapes, the hard case)."""
     base = rng.normal(size=(k, d)) * size

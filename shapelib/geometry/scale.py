@@ -189,9 +189,10 @@ def _advice(x, spacing) -> str:
     text = (f": shapelib.estimate_sigma2(shapes) gives sigma2 = {est.sigma2:.3g} here (the landmarks' scatter "
             f"around their mean, sigma = {est.sigma_over_spacing:.2g} spacings)")
     if est.sigma_over_spacing < SIGMA_RATIO_MIN:
-        text += (f"; that is below {SIGMA_RATIO_MIN:g} spacings too: the landmarks vary less than they are apart, "
-                 f"geodesics at such sigma are straight lines, and the closed-form bounds are the distances to use "
-                 f"(paths bend from sigma2 = {(SIGMA_RATIO_MIN * spacing) ** 2:.3g})")
+        text += (f"; that is below {SIGMA_RATIO_MIN:g} spacings too: the landmarks vary less than they are apart. "
+                 f"At such sigma the closed-form bounds (alpha_bound, fisher_rao_bound) are still exact and compare the "
+                 f"shapes landmark by landmark, while geodesics are straight lines (paths bend from sigma2 = "
+                 f"{(SIGMA_RATIO_MIN * spacing) ** 2:.3g})")
     return text + "."
 
 

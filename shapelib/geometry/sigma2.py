@@ -16,7 +16,8 @@ Landmark scatter (``scatter_sigma2``; the rule :func:`shapelib.geometry.scale.es
     density of the difference of two corresponding landmarks under the model, so displacements
     of the size the population shows are weighed as typical, larger ones as signal.
     Position and orientation are not landmark noise: the shapes are first superimposed rigidly
-    (generalised Procrustes with rotations and translations, sizes kept), which fits
+    (:func:`~shapelib.geometry.procrustes.pose_align`: generalised Procrustes with rotations and
+    translations, sizes kept), which fits
     ``d(d + 1)/2`` pose parameters per shape, so the denominator is
     ``(N − 1) K d − N d(d + 1)/2`` (without it σ̂² of aligned shapes is low by ``d(d + 1)/(2 K d)``:
     3 % for 50 planar landmarks). Shapes already scaled to one size (:func:`shapelib.to_centroid_size`)
@@ -45,30 +46,9 @@ from scipy.optimize import minimize_scalar
 from scipy.special import logsumexp
 
 from .._validate import as_shapes, check_positive_int
-from .procrustes import procrustes_align
+from .procrustes import pose_align
 
-__all__ = ["scatter_sigma2", "predictive_sigma2", "rigid_superimposition"]
-
-
-def rigid_superimposition(shapes, *, tol: float = 1e-12, max_iter: int = 100) -> np.ndarray:
-    """Generalised Procrustes superimposition with rotations and translations only (sizes kept).
-
-    Every shape is centred and rotated onto the mean of the others' current positions until the
-    mean stops changing (relative ``tol``). Returns the superimposed ``(N, K, d)`` shapes.
-    """
-    x = as_shapes(shapes, name="shapes")
-    aligned = x - x.mean(axis=1, keepdims=True)
-    mean = aligned.mean(axis=0)
-    for _ in range(max_iter):
-        if not np.any(mean):
-            break
-        aligned = np.stack([procrustes_align(mean, s, scaling=False) for s in aligned])
-        new = aligned.mean(axis=0)
-        done = np.linalg.norm(new - mean) <= tol * max(np.linalg.norm(new), 1e-300)
-        mean = new
-        if done:
-            break
-    return aligned
+__all__ = ["scatter_sigma2", "predictive_sigma2"]
 
 
 def scatter_sigma2(shapes, *, superimpose: bool = True):
@@ -79,7 +59,7 @@ def scatter_sigma2(shapes, *, superimpose: bool = True):
     shapes : array_like, shape (N, K, d)
         Shapes in landmark correspondence, N ≥ 2.
     superimpose : bool
-        First superimpose them rigidly (:func:`rigid_superimposition`) and count the pose
+        First superimpose them rigidly (:func:`~shapelib.geometry.procrustes.pose_align`) and count the pose
         parameters in the denominator (module docstring); ``False``: the scatter as given.
 
     Returns
@@ -102,7 +82,7 @@ def scatter_sigma2(shapes, *, superimpose: bool = True):
     n, k, d = x.shape
     df = (n - 1) * k * d
     if superimpose:
-        x = rigid_superimposition(x)
+        x, _ = pose_align(x)
         df -= n * d * (d + 1) // 2
     if df < 1:
         raise ValueError(f"shapes: {n} shapes of {k} landmarks in {d}-D leave no degrees of freedom once their "
@@ -121,7 +101,7 @@ def predictive_sigma2(shapes, *, partners: int | None = None, seed: int = 0) -> 
     Parameters
     ----------
     shapes : array_like, shape (N, K, d)
-        Shapes, N ≥ 2 (superimposed rigidly first, :func:`rigid_superimposition`; the landmark
+        Shapes, N ≥ 2 (superimposed rigidly first, :func:`~shapelib.geometry.procrustes.pose_align`; the landmark
         correspondence is used for that only).
     partners : int, optional
         Shapes ``j`` each shape ``i`` is predicted from (drawn at random without replacement);
@@ -135,7 +115,7 @@ def predictive_sigma2(shapes, *, partners: int | None = None, seed: int = 0) -> 
         ``s² / 2`` for the ``s²`` maximising the mean log-likelihood, times ``K d / (K d − d(d + 1)/2)``
         for the pose parameters the superimposition fitted (as :func:`scatter_sigma2`).
     """
-    x = rigid_superimposition(as_shapes(shapes, name="shapes", min_shapes=2))
+    x, _ = pose_align(as_shapes(shapes, name="shapes", min_shapes=2))
     n, k, d = x.shape
     most = n - 1
     if partners is None:
