@@ -174,9 +174,19 @@ fig = plotting.plot_mean_difference(alpha_test, mag=magnification, every=4)
 save_figure(fig, output_dir, "alpha_td_adhd_means")
 plt.show()
 
-# where the two differences move the contour: displacement per landmark, α against Procrustes
+# where the two differences move the contour: displacement per landmark, α against Procrustes. The α
+# difference of the landmark representatives also holds slides along the contour that change no
+# density (the weak directions of the metric); drawn is its part in the directions of g(pooled mean)
+# above 1e-3 of the largest eigenvalue, which carries all but the recorded share of its metric norm.
+keep = ts.eigenvalues > 1e-3 * ts.eigenvalues[0]
+basis = ts.eigenvectors[:, keep]
+d_alpha_seen = (basis @ (basis.T @ d_alpha.ravel())).reshape(d_alpha.shape)
+values["intrinsic/adhd/alpha/difference_weak_share"] = float(1 - ts.inner(d_alpha_seen, d_alpha_seen)
+                                                             / ts.inner(d_alpha, d_alpha))
+print(f"share of the α difference's squared metric norm in the weak directions: "
+      f"{values['intrinsic/adhd/alpha/difference_weak_share']:.1e}")
 fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), layout="constrained")
-for ax, (name, base, diff) in zip(axes, [("α Fréchet means", alpha_test.means[0].mean, d_alpha),
+for ax, (name, base, diff) in zip(axes, [("α Fréchet means", alpha_test.means[0].mean, d_alpha_seen),
                                          ("GPA means", gpa_td, d_proc)]):
     ax.plot(*plotting.outline(base).T, "-", color="0.6", lw=0.8)
     ax.plot(*plotting.outline(base + magnification * 10 * diff).T, "-", color="k", lw=1.2)
