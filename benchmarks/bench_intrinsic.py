@@ -133,8 +133,9 @@ def main(argv=None):
         if not isinstance(rec, dict):
             continue
         target = TARGETS.get(key)
+        rate = rec.get("log_maps_per_s")
         print(f"| {key} | {rec['seconds']:.1f} | {'≤ %g' % target if target else ''} | {rec.get('iterations', '')} | "
-              f"{rec.get('log_maps_per_s', float('nan')):.1f} |")
+              f"{'' if rate is None else f'{rate:.1f}'} |")
     print(f"machine: {report['machine']}")
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))

@@ -51,6 +51,8 @@ def test_figures_are_drawn(test_result, tmp_path):
     fig = plotting.plot_modes(pca, components=(0, 1), sd=(-2, 0, 2))
     fig.savefig(tmp_path / "modes.png")
     assert len(fig.axes) == 6
+    fig = plotting.plot_modes(pca, components=(0,), sd=(-2, 2), closed=None)  # landmarks without an outline
+    assert all(line.get_linestyle() == "None" for line in fig.axes[0].lines)
     plt.close("all")
     assert (tmp_path / "difference.png").stat().st_size > 1000
 
