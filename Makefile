@@ -1,5 +1,6 @@
 # Quick start:  make results   (set up .venv, regenerate every result into results/)
 #               make test      (run the test suite)
+#               make docs      (build the documentation into docs/_build/html)
 #               make lab       (open the notebooks in JupyterLab)
 # run_all.py options go through ARGS, e.g.  make results ARGS="--only fig04_line_bending -p sigma2=0.02"
 PYTHON ?= python3
@@ -8,12 +9,16 @@ PY     := $(VENV)/bin/python
 JOBS   ?=
 ARGS   ?=
 
-.PHONY: setup results quick test lab bench clean
+.PHONY: setup results quick test docs lab bench clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[study,dev]'
+	touch $@
+
+$(VENV)/.docs-installed: $(VENV)/.installed pyproject.toml
+	$(PY) -m pip install --quiet -e '.[docs]'
 	touch $@
 
 setup: $(VENV)/.installed
@@ -27,12 +32,23 @@ quick: setup
 test: setup
 	$(PY) -m pytest
 
+# the study notebooks are executed (run_all.py: the paper's figures with their full parameters,
+# the others with their quick ones; unchanged ones are not re-run) and rendered with their figures;
+# SHAPELIB_DOCS_NOTEBOOKS=results renders a full run's from results/ instead
+docs: $(VENV)/.docs-installed
+	$(VENV)/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
+	@echo "documentation: docs/_build/html/index.html"
+
 # the notebooks are jupytext .py files: right-click one, Open With > Jupytext Notebook
 lab: setup
 	$(VENV)/bin/jupyter lab --notebook-dir=.
 
+# measurements for the documentation's performance page (docs/_data/benchmarks/*.json; minutes);
+# benchmarks/bench_solvers.py --record (about 13 min) is run by hand
 bench: setup
-	$(PY) benchmarks/bench_geodesic.py
+	$(PY) benchmarks/bench_geodesic.py --record
+	$(PY) benchmarks/bench_bracket.py --record
+	$(PY) benchmarks/bench_pairwise.py --record
 
 clean:
-	rm -rf $(VENV) results/*/ results/REPORT.md
+	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/notebooks/*.ipynb

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._machine import loadavg  # noqa: E402
+from benchmarks._machine import loadavg, record  # noqa: E402
 
 from shapelib.solver.bracket import distance_bracket  # noqa: E402
 from shapelib.datasets import load_corpus_callosum  # noqa: E402
@@ -80,7 +80,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--repeat", type=int, default=3, help="rounds per case; the best is reported")
     ap.add_argument("--fisher-rao-pairs", type=int, default=21, help="pairs for the (slow) Fisher-Rao case")
     ap.add_argument("--json", type=Path, help="write the report here")
+    ap.add_argument("--record", action="store_true",
+                    help="write the results, machine and date to docs/_data/benchmarks/bench_bracket.json (docs: Performance)")
     args = ap.parse_args(argv)
+    if args.quick and args.record:
+        ap.error("--record: a --quick run is a smoke test, not a measurement")
 
     shapes, _ = load_corpus_callosum()
     x = to_centroid_size(shapes)
@@ -88,7 +92,7 @@ def main(argv=None) -> dict:
     if args.quick:
         pairs, args.repeat, args.fisher_rao_pairs = pairs[:2], 1, 1
     report = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": platform.python_version()},
-              "rtol": args.rtol, "loadavg_before": loadavg(), "cases": {}}
+              "rtol": args.rtol, "repeat": args.repeat, "loadavg_before": loadavg(), "cases": {}}
     for name, metric, s2, target in CASES:
         case_pairs = pairs[: args.fisher_rao_pairs] if metric == "fisher_rao" else pairs
         res = run_case(x, case_pairs, metric, s2, rtol=args.rtol, repeat=args.repeat)
@@ -103,6 +107,8 @@ def main(argv=None) -> dict:
     report["loadavg_after"] = loadavg()
     if args.json:
         args.json.write_text(json.dumps(report, indent=1))
+    if args.record:
+        print(f"recorded {record('bench_bracket', report, argv=argv)}")
     return report
 
 

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._machine import loadavg  # noqa: E402
+from benchmarks._machine import loadavg, record  # noqa: E402
 
 from shapelib.datasets import load_corpus_callosum  # noqa: E402
 from shapelib.geometry.metrics import fisher_rao_metric  # noqa: E402
@@ -177,6 +177,8 @@ def main(argv=None):
                     help="rows whose first run takes under 5 s are run this many times and reported as the "
                          "fastest, with the median (single runs vary by ~10 %% on the 2-core machine)")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--record", action="store_true",
+                    help="write the results, machine and date to docs/_data/benchmarks/bench_geodesic.json (docs: Performance)")
     ap.add_argument("--tensor-comparison", action="store_true")
     args = ap.parse_args(argv)
     shapes, ids = load_corpus_callosum()
@@ -218,6 +220,8 @@ def main(argv=None):
         report["fisher_rao_metric"] = tensor_comparison(u, args.sigma2)
     if args.json:
         args.json.write_text(json.dumps(report, indent=1) + "\n")
+    if args.record:
+        print(f"recorded {record('bench_geodesic', report, argv=argv)}")
 
 
 if __name__ == "__main__":

@@ -14,9 +14,19 @@ full 647-shape matrices (208,981 pairs) of the α and Fisher–Rao geodesic dist
 from the mean measured seconds per pair and the measured 2-worker efficiency.
 
 The geodesic metrics use the certified bracket (``--rtol``, :func:`shapelib.solver.bracket.distance_bracket`).
+
+Then the closed-form bound matrices of the whole population as matrix products
+(:mod:`shapelib.geometry.bound_matrices`), at ``--bound-sigma2`` (1.2, the population study's σ²):
+the Fisher–Rao and α bound matrices of all 647 shapes, each directly and through
+``pairwise_distances(..., n_jobs=1)`` (the engine's batched path, one block in this process); for
+the α bound the time per Gaussian against a bare ``numpy.exp`` over as many numbers (the floor); the
+per-pair functions on a sample of pairs, projected to all pairs (what the matrix cost before); and
+a ``--sweep-points``-value σ² sweep of both bounds (σ from 0.2 to 10 mean landmark spacings,
+:func:`shapelib.bound_matrix_sweep`), best of ``--repeat`` runs each.
 Not a test: numbers depend on the machine and its load (the load average, ``os.getloadavg``, is recorded).
 
     python benchmarks/bench_pairwise.py [--sigma2 0.5] [--workers 1 2] [--json out.json] [--quick]
+    python benchmarks/bench_pairwise.py --metrics --bound-sigma2 1.2      # the bound matrices only
 """
 
 from __future__ import annotations
@@ -24,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import platform
 import sys
 import time
 import warnings
@@ -32,9 +43,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._machine import loadavg  # noqa: E402
+from benchmarks._machine import loadavg, record  # noqa: E402
 
+from shapelib import bound_matrix_sweep, landmark_spacing, pairwise_distances  # noqa: E402
 from shapelib.datasets import load_adhd200  # noqa: E402
+from shapelib.geometry.bound_matrices import alpha_bound_matrix, fisher_rao_bound_matrix  # noqa: E402
 from shapelib.distances import pair_record  # noqa: E402
 from shapelib.pairwise import compute_pairwise  # noqa: E402
 from shapelib import to_centroid_size  # noqa: E402
@@ -91,21 +104,80 @@ def run(x, metric, params, *, workers, client):
             "blocks": r.log["blocks_total"], "nonconverged": len(r.nonconverged_pairs())}
 
 
+def _best_of(fn, repeat):
+    """Fastest wall time of ``repeat`` calls and the last result."""
+    times, out = [], None
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), times, out
+
+
+def bound_rows(x, *, sigma2, sweep_points, repeat, sample_pairs, seed):
+    """The bound-matrix rows of the report (module docstring)."""
+    n, k, d = x.shape
+    out = {"n_shapes": n, "sigma2": sigma2}
+    # warm (thread pool, grids, imports) on a few shapes
+    alpha_bound_matrix(x[:8], sigma2=sigma2)
+    fisher_rao_bound_matrix(x[:8], sigma2=sigma2)
+    for name, fn in (("fisher_rao_bound", fisher_rao_bound_matrix), ("alpha_bound", alpha_bound_matrix)):
+        best, runs, mat = _best_of(lambda: fn(x, sigma2=sigma2), repeat)
+        eng, eng_runs, res = _best_of(lambda: pairwise_distances(x, metric=name, sigma2=sigma2, n_jobs=1, progress=False,
+                                                                return_result=True), repeat)
+        rng = np.random.default_rng(seed)
+        pairs = [tuple(rng.choice(n, 2, replace=False)) for _ in range(sample_pairs)]
+        t0 = time.perf_counter()
+        per_pair = [pair_record(x[i], x[j], metric=name, sigma2=sigma2)["value"] for i, j in pairs]
+        per_pair_s = (time.perf_counter() - t0) / len(pairs)
+        agree = max(abs(mat[i, j] / v - 1) for (i, j), v in zip(pairs, per_pair))
+        out[name] = {"matrix_seconds": best, "matrix_runs": runs, "engine_seconds": eng, "engine_runs": eng_runs,
+                     "engine_blocks": res.log["blocks_total"], "per_pair_seconds": per_pair_s,
+                     "per_pair_projected_seconds": per_pair_s * n * (n - 1) / 2,
+                     "max_rel_diff_per_pair": agree}
+    gaussians = n * (n - 1) // 2 * k * k  # one cross Gaussian per landmark pair of every pair of shapes
+    arg = -np.random.default_rng(seed).random(gaussians) * 30.0
+    floor, _, _ = _best_of(lambda: np.exp(arg, out=arg), repeat)
+    del arg
+    a = out["alpha_bound"]
+    out["alpha_bound"].update({"gaussians": gaussians, "ns_per_gaussian": a["matrix_seconds"] / gaussians * 1e9,
+                               "bare_exp_seconds": floor, "bare_exp_ns": floor / gaussians * 1e9,
+                               "times_bare_exp": a["matrix_seconds"] / floor})
+    spacing = landmark_spacing(x)
+    s2s = (np.geomspace(0.2, 10.0, sweep_points) * spacing) ** 2
+    sweep = {"sigma2": s2s.tolist(), "sigma_over_spacing": [0.2, 10.0]}
+    for name in ("alpha_bound", "fisher_rao_bound"):
+        best, runs, _ = _best_of(lambda: bound_matrix_sweep(x, metric=name, sigma2s=s2s), repeat)
+        sweep[name] = {"seconds": best, "runs": runs}
+    sweep["both_seconds"] = sweep["alpha_bound"]["seconds"] + sweep["fisher_rao_bound"]["seconds"]
+    out["sweep"] = sweep
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sigma2", type=float, default=0.5)
     ap.add_argument("--rtol", type=float, default=1e-3)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--metrics", nargs="+", default=list(SIZES), choices=list(SIZES))
+    ap.add_argument("--metrics", nargs="*", default=list(SIZES), choices=list(SIZES))
+    ap.add_argument("--bound-sigma2", type=float, default=1.2, help="sigma2 of the bound-matrix rows")
+    ap.add_argument("--sweep-points", type=int, default=20, help="sigma2 values of the sweep row")
+    ap.add_argument("--repeat", type=int, default=2, help="runs of each bound-matrix row (the fastest counts)")
+    ap.add_argument("--no-bounds", action="store_true", help="skip the bound-matrix rows")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help="tiny subsets, n_steps=4 (smoke test)")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--record", action="store_true",
+                    help="write the results, machine and date to docs/_data/benchmarks/bench_pairwise.json (docs: Performance)")
     args = ap.parse_args(argv)
+    if args.quick and args.record:
+        ap.error("--record: a --quick run is a smoke test, not a measurement")
     sizes = QUICK_SIZES if args.quick else SIZES
     contours, _ = load_adhd200()
     x_all = to_centroid_size(contours)
     order = np.random.default_rng(args.seed).permutation(len(x_all))
     report = {"machine_cores": os.cpu_count(), "loadavg_start": loadavg(), "sigma2": args.sigma2,
+              "date": time.strftime("%Y-%m-%d %H:%M %Z"), "machine": platform.platform(),
               "geodesics": f"bracket rtol={args.rtol}",
               "quick": args.quick, "metrics": {}}
     print(f"ADHD-200, centroid size 20, sigma2={args.sigma2}; geodesics: {report['geodesics']}; "
@@ -117,7 +189,7 @@ def main(argv=None):
         from shapelib.pairwise import local_cluster  # the cluster n_jobs=w starts, malloc settings included
 
         for w in args.workers:
-            if w > 1:
+            if w > 1 and args.metrics:
                 t0 = time.perf_counter()
                 cluster = local_cluster(w)
                 client = Client(cluster)
@@ -155,10 +227,31 @@ def main(argv=None):
         report["projection"][metric] = {"seconds_per_pair": per_pair, "efficiency_used": eff, "hours": proj}
         print(f"full {FULL_N}-shape {metric} matrix ({full_pairs} pairs, {per_pair:.2f} s/pair, efficiency "
               f"{eff:.2f}): " + ", ".join(f"{n} workers {h:.1f} h" for n, h in proj.items()))
+    if not args.no_bounds:
+        xb = x_all[order[:40]] if args.quick else x_all
+        b = report["bound_matrices"] = bound_rows(xb, sigma2=args.bound_sigma2, sweep_points=3 if args.quick else
+                                                  args.sweep_points, repeat=1 if args.quick else args.repeat,
+                                                  sample_pairs=10 if args.quick else 200, seed=args.seed)
+        print(f"bound matrices of {b['n_shapes']} shapes, sigma2 = {b['sigma2']:g} (fastest of the runs; load "
+              f"{loadavg()}):")
+        for name in ("fisher_rao_bound", "alpha_bound"):
+            r = b[name]
+            print(f"  {name:>16}: matrix {r['matrix_seconds']:.2f} s, through pairwise_distances(n_jobs=1) "
+                  f"{r['engine_seconds']:.2f} s ({r['engine_blocks']} block); pair by pair {r['per_pair_seconds'] * 1e3:.2f} "
+                  f"ms/pair = {r['per_pair_projected_seconds']:.0f} s projected; max rel. difference to the per-pair "
+                  f"function {r['max_rel_diff_per_pair']:.1e}")
+        a = b["alpha_bound"]
+        print(f"  alpha_bound per Gaussian: {a['ns_per_gaussian']:.2f} ns ({a['gaussians']:,} Gaussians) against a bare "
+              f"numpy.exp of as many numbers {a['bare_exp_ns']:.2f} ns: {a['times_bare_exp']:.1f}x the floor")
+        sw = b["sweep"]
+        print(f"  {len(sw['sigma2'])}-value sigma2 sweep (sigma 0.2-10 spacings): alpha {sw['alpha_bound']['seconds']:.1f} s, "
+              f"Fisher-Rao {sw['fisher_rao_bound']['seconds']:.1f} s, both {sw['both_seconds']:.1f} s")
     report["loadavg_end"] = loadavg()
     print(f"load at the end {report['loadavg_end']}")
     if args.json:
         args.json.write_text(json.dumps(report, indent=1, default=str))
+    if args.record:
+        print(f"recorded {record('bench_pairwise', report, argv=argv)}")
     return report
 
 

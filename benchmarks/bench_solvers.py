@@ -255,7 +255,11 @@ def main(argv=None):
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     ap.add_argument("--quick", action="store_true", help="n_steps 4, 3 iterations: checks that the script runs")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--record", action="store_true",
+                    help="write the results, machine and date to docs/_data/benchmarks/bench_solvers.json (docs: Performance)")
     args = ap.parse_args(argv)
+    if args.quick and args.record:
+        ap.error("--record: a --quick run is a smoke test, not a measurement")
     if args.quick:
         args.n_steps, args.max_iter = 4, 3
     shapes, ids = load_corpus_callosum()
@@ -279,6 +283,8 @@ def main(argv=None):
                   flush=True)
     if args.json:
         args.json.write_text(json.dumps(report, indent=1) + "\n")
+    if args.record:
+        print(f"recorded {record('bench_solvers', report, argv=argv)}")
     return report
 
 

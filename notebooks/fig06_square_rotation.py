@@ -14,11 +14,16 @@ n_steps = 24
 max_iter = 300
 
 # %%
+import warnings
 import numpy as np
 
 from shapelib import geodesic
 from shapelib.plotting import plot_metric_panels
 from shapelib.study import record_values, record_verdict, save_figure
+from shapelib import PoseWarning
+
+# The rotation is the experiment: the pose difference is the deformation shown.
+warnings.filterwarnings("ignore", category=PoseWarning)
 
 u = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
 a = -np.deg2rad(210.0)  # clockwise

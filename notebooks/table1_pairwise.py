@@ -18,6 +18,7 @@ info_metrics = ["alpha", "fisher_rao"]
 n_steps = 8
 max_iter = 200
 fisher_rao_max_iter = 200
+fisher_rao_grid_spacing = None  # None: the library's quadrature grid (run_all --quick passes a coarser one)
 tol = 1e-6
 n_jobs = 2
 wendland_support = 0.1
@@ -100,13 +101,14 @@ diffeo_cols = {f"diffeomorphism_w{w:g}": float(w) for w in diffeomorphism_kernel
 jobs = []  # (column, path kind, metric, options): one pairwise_distances call each
 for metric in info_metrics:
     cap = fisher_rao_max_iter if metric == "fisher_rao" else max_iter
+    grid = dict(grid_spacing=fisher_rao_grid_spacing) if metric == "fisher_rao" and fisher_rao_grid_spacing else {}
     for s2 in sigma2s:
-        base = dict(sigma2=s2, tol=tol)
+        base = dict(sigma2=s2, tol=tol) | grid
         # the geodesic: certified local minimum (Newton decrement < tol·E) or, with geodesic_rtol, the
         # certified distance bracket (shapelib.distance_bracket: path refined until upper/lower − 1 ≤ rtol)
         jobs.append((f"{metric}_s2_{s2}", "geodesic", metric,
                      base | dict(n_steps=n_steps, max_iter=cap) if geodesic_rtol is None
-                     else dict(sigma2=s2, rtol=geodesic_rtol, n_steps=n_steps)))
+                     else dict(sigma2=s2, rtol=geodesic_rtol, n_steps=n_steps) | grid))
         jobs.append((f"{metric}_s2_{s2}", "straight_line", metric, base | dict(n_steps=straight_line_n_steps, max_iter=0)))
 for col, width in diffeo_cols.items():
     base = dict(lam=diffeomorphism_lam, kernel_width=width, tol=tol)

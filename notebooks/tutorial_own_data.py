@@ -12,7 +12,7 @@
 # 5. a **dendrogram** (SciPy) and an **MDS ordination** (scikit-learn);
 # 6. a **geodesic** between two specimens, as a figure and an animation.
 #
-# The same steps on the command line are in the README ("Use it on your own data").
+# The same steps on the command line are in the documentation's guide "Your own data" (docs/guide/own-data.md).
 
 # %% tags=["parameters"]
 from shapelib.study import default_output_dir

@@ -21,21 +21,25 @@ Where each equation lives:
 
 from .solver.bracket import DistanceBracket, distance_bracket
 from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
-from .distances import distance, pair_record
+from .distances import MetricInfo, distance, metric_info, pair_record, register_metric
 from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
 from .solver.logexp import exp_map, log_map, tangent_space
 from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
 from .solver.result import BracketStopReason, StopReason
 from .geometry.gmm import gmm_density, l2_distance
+from .geometry.bound_matrices import alpha_bound_matrix, bound_matrix_sweep, fisher_rao_bound_matrix
 from .geometry.metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
 from .geometry.procrustes import (
+    PoseWarning,
     centroid_size,
     generalized_procrustes,
+    pose_align,
     preshape,
     procrustes_align,
     procrustes_distance,
 )
 from .geometry.scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
+from .geometry.scale import Sigma2Estimate, estimate_sigma2
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
@@ -69,6 +73,9 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "MetricInfo",
+    "metric_info",
+    "register_metric",
     "AlphaPathMetric",
     "BracketStopReason",
     "FisherRaoPathMetric",
@@ -77,6 +84,11 @@ __all__ = [
     "StopReason",
     "alpha_metric",
     "alpha_quadratic_form",
+    "alpha_bound_matrix",  # shapelib.geometry.bound_matrices
+    "fisher_rao_bound_matrix",
+    "bound_matrix_sweep",
+    "estimate_sigma2",  # shapelib.geometry.scale
+    "Sigma2Estimate",
     "centroid_size",
     "diffeomorphism_warp",
     "distance",
@@ -103,6 +115,8 @@ __all__ = [
     "pair_record",
     "pairwise_distances",
     "path_length",
+    "PoseWarning",
+    "pose_align",
     "preshape",
     "procrustes_align",
     "procrustes_distance",

@@ -6,15 +6,20 @@ the offending shape or value, so that a researcher sees what is wrong with their
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import numbers
 
 import numpy as np
 
 __all__ = ["as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_positive_int",
-           "check_nonnegative_int", "check_dimension"]
+           "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked"]
+
+#: landmark dimensions every shape-taking entry point accepts (``dims=`` of :func:`as_shape`)
+LANDMARK_DIMS = (2, 3)
 
 
-def as_shape(x, *, name: str = "shape", min_landmarks: int = 1) -> np.ndarray:
+def as_shape(x, *, name: str = "shape", min_landmarks: int = 1, dims=LANDMARK_DIMS) -> np.ndarray:
     """Return ``x`` as a float64 ``(K, d)`` landmark array, or raise ``ValueError``.
 
     Parameters
@@ -25,6 +30,10 @@ def as_shape(x, *, name: str = "shape", min_landmarks: int = 1) -> np.ndarray:
         Argument name used in error messages.
     min_landmarks : int
         Smallest admissible K.
+    dims : tuple of int or None
+        Admissible d (:func:`check_dimension`: a transposed shape or a geomorph ``p × k × n``
+        array is named as such); ``None`` for point sets of any dimension (e.g. a spline with an
+        explicit kernel).
     """
     try:
         arr = np.asarray(x, dtype=np.float64)
@@ -45,13 +54,15 @@ def as_shape(x, *, name: str = "shape", min_landmarks: int = 1) -> np.ndarray:
         raise ValueError(
             f"{name} contains non-finite values (first at landmark {bad[0]}, coordinate {bad[1]})"
         )
+    if dims is not None:
+        check_dimension(arr, name=name, allowed=dims)
     return arr
 
 
-def as_shape_pair(u, v, *, names=("u", "v"), min_landmarks: int = 1):
+def as_shape_pair(u, v, *, names=("u", "v"), min_landmarks: int = 1, dims=LANDMARK_DIMS):
     """Validate two shapes that must be in landmark correspondence (same ``(K, d)``)."""
-    a = as_shape(u, name=names[0], min_landmarks=min_landmarks)
-    b = as_shape(v, name=names[1], min_landmarks=min_landmarks)
+    a = as_shape(u, name=names[0], min_landmarks=min_landmarks, dims=dims)
+    b = as_shape(v, name=names[1], min_landmarks=min_landmarks, dims=dims)
     if a.shape != b.shape:
         raise ValueError(
             f"{names[0]} and {names[1]} must have the same number of landmarks and dimension; "
@@ -60,8 +71,11 @@ def as_shape_pair(u, v, *, names=("u", "v"), min_landmarks: int = 1):
     return a, b
 
 
-def as_shapes(x, *, name: str = "shapes", min_shapes: int = 1, min_landmarks: int = 1) -> np.ndarray:
-    """Return ``x`` as a float64 ``(N, K, d)`` collection of shapes, or raise ``ValueError``."""
+def as_shapes(x, *, name: str = "shapes", min_shapes: int = 1, min_landmarks: int = 1,
+              dims=LANDMARK_DIMS) -> np.ndarray:
+    """Return ``x`` as a float64 ``(N, K, d)`` collection of shapes, or raise ``ValueError``
+    (``dims`` as in :func:`as_shape`: the layout is checked on the whole array first, so a
+    geomorph ``p × k × n`` array is named as one)."""
     if isinstance(x, (list, tuple)) and len(x) and not np.isscalar(x[0]):
         shapes = [np.asarray(s, dtype=np.float64) for s in x]
         if len({s.shape for s in shapes}) > 1:
@@ -76,8 +90,10 @@ def as_shapes(x, *, name: str = "shapes", min_shapes: int = 1, min_landmarks: in
         raise ValueError(f"{name} must have shape (N, K, d); got shape {arr.shape}")
     if arr.shape[0] < min_shapes:
         raise ValueError(f"{name} must contain at least {min_shapes} shape(s); got shape {arr.shape}")
+    if dims is not None:
+        check_dimension(arr, name=name, allowed=dims)
     for i in range(arr.shape[0]):
-        as_shape(arr[i], name=f"{name}[{i}]", min_landmarks=min_landmarks)
+        as_shape(arr[i], name=f"{name}[{i}]", min_landmarks=min_landmarks, dims=None)
     return arr
 
 
@@ -129,7 +145,8 @@ def check_dimension(x: np.ndarray, *, name: str = "u", allowed=(2, 3)) -> np.nda
     if d not in allowed:
         dims = " or ".join(map(str, allowed))
         if x.ndim == 3 and x.shape[1] in allowed:
-            hint = f"; the array looks like geomorph's p x k x n layout {x.shape}: convert it with shapelib.io.from_pkn"
+            hint = (f"; the array looks like geomorph's p x k x n layout {x.shape}: convert it with shapelib.io.from_pkn "
+                    "(or, if it is (N, d, K), with numpy.swapaxes(array, 1, 2))")
         else:
             hint = "; a geomorph-style p x k x n array converts with shapelib.io.from_pkn(array)"
         raise ValueError(
@@ -138,3 +155,22 @@ def check_dimension(x: np.ndarray, *, name: str = "u", allowed=(2, 3)) -> np.nda
             f"(specimens, landmarks, coordinates); a shape stored as (d, K) must be transposed{hint}"
         )
     return x
+
+
+_SET_CHECKED = contextvars.ContextVar("shapelib_set_checked", default=False)
+
+
+@contextlib.contextmanager
+def set_checked():
+    """Within this context the per-pair pose and scale warnings are skipped: the caller (the
+    pairwise engine) has checked the whole set of shapes once, and warned once."""
+    token = _SET_CHECKED.set(True)
+    try:
+        yield
+    finally:
+        _SET_CHECKED.reset(token)
+
+
+def set_was_checked() -> bool:
+    """True inside :func:`set_checked`."""
+    return _SET_CHECKED.get()

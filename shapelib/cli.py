@@ -4,16 +4,20 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
 
     shapelib info FILE
     shapelib align FILE -o OUT [--size S]
-    shapelib distances FILE --metric M [--sigma2 S] [--rtol R] [--jobs N | --scheduler ADDRESS]
-                           [--store D.zarr] [--no-progress] -o D.csv
-    shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S -o path.csv [--plot P.png] [--animate A.gif]
+    shapelib distances FILE --metric M [--sigma2 S|auto] [--rtol R] [--jobs N | --scheduler ADDRESS]
+                           [--store D.zarr [--max-blocks N]] [--no-progress] -o D.csv
+    shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S|auto -o path.csv [--plot P.png] [--animate A.gif]
     shapelib mean FILE --metric M --sigma2 S [--size S] [--jobs N | --scheduler ADDRESS] -o mean.tps [--plot P.png]
     shapelib pca FILE --metric M --sigma2 S [--size S] [--n-components K] -o scores.csv [--plot modes.png]
     shapelib study [run_all.py options: --quick, --only NAME, -p NAME=VALUE, -j N, --force, --list, ...]
 
 Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
 input ends the command with one line ``shapelib: error: …`` on stderr (naming the file, specimen,
-landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does.
+landmark or parameter) and exit status 1; usage errors exit with 2, as argparse does. A Ctrl-C
+ends it with ``shapelib: interrupted`` and status 130; ``distances --max-blocks N`` stopping before
+the matrix is complete exits with status 75 (``EX_TEMPFAIL``: rerun to resume), writing no ``-o``.
+A geodesic (``geodesic``, or a pair of ``distances`` without ``--rtol``) whose solver did not
+converge is written, said in a warning, and the command exits with status 4 (:data:`EXIT_UNCONVERGED`).
 ``shapelib study`` is ``run_all.py`` itself: its help, usage errors and exit codes are run_all's.
 """
 
@@ -21,6 +25,8 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
+import logging
 import os
 import re
 import sys
@@ -30,10 +36,18 @@ from pathlib import Path
 import numpy as np
 
 PROG = "shapelib"
+#: exit status of ``distances --max-blocks`` stopping before the matrix is complete (sysexits' EX_TEMPFAIL)
+EXIT_STOPPED = 75
 
 
 class CLIError(ValueError):
     """A user-facing error: printed as one line, exit status 1."""
+
+
+#: exit status of ``distances`` and ``geodesic`` when the results are written but the geodesic
+#: solver did not converge on some of them (a warning names them); a bracket that is only wider
+#: than ``--rtol`` is certified, said in its own words, and exits 0
+EXIT_UNCONVERGED = 4
 
 
 # ---------------------------------------------------------------------------------------------
@@ -47,7 +61,8 @@ def _read(args, *, missing="error"):
     kw = {"missing": missing}
     fmt = io._format_of(args.file)
     if fmt == "tps":
-        kw.update(scale=args.scale, negative="coordinates" if args.negative_coordinates else "missing")
+        # without the flag, each specimen's own marker decides (files written by shapelib say so)
+        kw.update(scale=args.scale, negative="coordinates" if args.negative_coordinates else None)
     elif args.scale or args.negative_coordinates:
         flag = "--scale" if args.scale else "--negative-coordinates"
         raise CLIError(f"{flag} applies to .tps files only; {args.file} is {fmt}")
@@ -119,7 +134,7 @@ def _metric_params(args):
         if value is not None:
             if name in params:
                 raise CLIError(f"--{name} given twice (also as --param {name}=...)")
-            params[name] = value
+            params[name] = 1.0 if value == "auto" else value  # auto: estimated once the shapes are read
     try:
         check_metric_params(args.metric, params, rtol=getattr(args, "rtol", None))
     except ValueError as exc:
@@ -127,6 +142,52 @@ def _metric_params(args):
             raise CLIError(f"--metric {args.metric} needs --sigma2 (σ² of the Gaussian mixture, eq. 5)") from None
         raise CLIError(f"--metric {args.metric}: {exc}") from None
     return params
+
+
+@contextlib.contextmanager
+def _notes_from(name):
+    """Print the INFO records of logger ``name`` (e.g. the engine's run estimate) as ``shapelib: note:`` lines."""
+    class Note(logging.Handler):
+        def emit(self, record):
+            print(f"{PROG}: note: {record.getMessage()}", file=sys.stderr, flush=True)
+
+    lg, handler = logging.getLogger(name), Note(logging.INFO)
+    old = lg.level
+    lg.addHandler(handler)
+    lg.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        lg.removeHandler(handler)
+        lg.setLevel(old)
+
+
+def _sigma2_arg(text: str):
+    """``--sigma2``: a positive number, or ``auto`` (estimated from the file's shapes)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'auto', got {text!r}") from None
+
+
+def _auto_sigma2(args, params, shapes):
+    """``--sigma2 auto``: σ² from the landmarks' scatter (:func:`shapelib.estimate_sigma2`), said on stdout."""
+    if getattr(args, "sigma2", None) != "auto":
+        return params
+    from .geometry.scale import estimate_sigma2
+
+    try:
+        est = estimate_sigma2(shapes)
+    except ValueError as exc:
+        raise CLIError(f"--sigma2 auto: {exc}") from None
+    print(f"sigma2 = {est.sigma2:.6g} (auto: the landmarks' scatter around the mean shape, sigma = "
+          f"{est.sigma_over_spacing:.2g} landmark spacings)")
+    if est.pose_share > 0.1:
+        warnings.warn(f"--sigma2 auto: {est.pose_share:.0%} of the landmarks' scatter in {args.file} is position and "
+                      "orientation; the distances see the shapes as given: align them first (shapelib align)")
+    return {**params, "sigma2": float(f"{est.sigma2:.6g}")}
 
 
 def _index_of(specimens, ident, option):
@@ -141,6 +202,25 @@ def _index_of(specimens, ident, option):
         raise CLIError(f"{option} {ident}: {len(hits)} specimens have that id (rows {', '.join(str(h + 1) for h in hits)}); "
                        "make the ids unique")
     return int(hits[0])
+
+
+def _align_pose(args, shapes, params):
+    """The shapes a pose-dependent metric sees: aligned by rotations and translations (sizes kept,
+    so σ² keeps its meaning), unless --no-align or they are aligned already (within
+    :data:`~shapelib.geometry.procrustes.POSE_TOL`); a note on stderr says how far that moved them."""
+    from .distances import pose_dependent
+    from .geometry.procrustes import POSE_TOL, pose_align
+
+    if args.no_align or not pose_dependent(args.metric, params) or shapes.shape[1] < 2:
+        return shapes
+    aligned, moved = pose_align(shapes)
+    if moved.max() <= POSE_TOL:
+        return shapes  # aligned already (e.g. by `shapelib align`): the file's values as they are
+    if moved.max() > POSE_TOL:
+        print(f"{PROG}: note: {args.metric} depends on the pose of the shapes: aligned the {len(shapes)} specimens of "
+              f"{args.file} first (generalized Procrustes rotations and translations, sizes kept), which moved them "
+              f"by up to {100 * moved.max():.3g} % of their size; --no-align uses the file's pose", file=sys.stderr)
+    return aligned
 
 
 # ---------------------------------------------------------------------------------------------
@@ -192,8 +272,21 @@ def cmd_info(args) -> int:
             from .geometry.scale import landmark_spacing
 
             h = landmark_spacing(shapes[ok])
-            print(f"spacing     {h:.6g} mean nearest-landmark distance (sigma2 = {h * h:.3g} puts sigma at one "
-                  "spacing; align --size rescales)")
+            print(f"spacing     {h:.6g} mean nearest-landmark distance")
+            if ok.sum() >= 2:
+                from .geometry.scale import estimate_sigma2
+
+                try:
+                    est = estimate_sigma2(shapes[ok])
+                except ValueError as exc:
+                    print(f"sigma2      not estimated: {exc}")
+                else:
+                    print(f"sigma2      {est.sigma2:.4g} ± {est.standard_error:.2g} from the landmarks' scatter around "
+                          f"the mean shape (sigma = {est.sigma_over_spacing:.2g} spacings; `--sigma2 auto` uses it; "
+                          "align --size rescales it by size²)")
+                    if est.pose_share > 0.1:
+                        print(f"            {est.pose_share:.0%} of the scatter as given is position and orientation: "
+                              "align the shapes (shapelib align) before computing distances")
     shown = ", ".join(spec["id"].astype(str).iloc[:8])
     print(f"ids         {shown}" + (f", … ({n} in all)" if n > 8 else ""))
     return 0
@@ -225,14 +318,13 @@ def cmd_align(args) -> int:
         kw["layout"] = "long"
     if fmt == "csv" and spec.attrs.get("landmarks"):
         kw["landmarks"] = spec.attrs["landmarks"]
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*negative.*", category=UserWarning)
-        io.write_landmarks(out, aligned, spec, **kw)
+    io.write_landmarks(out, aligned, spec, **kw)
     print(f"aligned {len(aligned)} specimen{'s' if len(aligned) != 1 else ''} (generalized Procrustes, {'full' if args.scaling else 'unit-size'} "
           f"scaling, centroid size {args.size or 1:g}) -> {out}")
-    if fmt == "tps":
-        print(f"note: aligned coordinates are centred, so some are negative; tpsDig reads negative values as "
-              f"missing landmarks: read {out.name} with --negative-coordinates", file=sys.stderr)
+    if fmt == "tps" and (aligned < 0).any():
+        print(f"{PROG}: note: aligned coordinates are centred, so some are negative: each specimen of {out.name} says "
+              f"so in a COMMENT= line, which shapelib reads back as coordinates (tpsDig itself reads negative values "
+              f"as missing landmarks)", file=sys.stderr)
     return 0
 
 
@@ -241,6 +333,7 @@ def cmd_distances(args) -> int:
 
     from .pairwise import pairwise_distances
     from .pairwise import PairError
+    from .solver.geodesic import GeodesicWarning
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     diag = _output_path(args.pairs, suffixes=(".csv",), option="--pairs") if args.pairs else None
@@ -258,16 +351,32 @@ def cmd_distances(args) -> int:
         raise CLIError(f"--block-size must be >= 1; got {args.block_size}")
     if args.store and Path(args.store).exists() and not Path(args.store).is_dir():
         raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
+    stop = None
+    if args.max_blocks is not None:
+        if args.max_blocks < 1:
+            raise CLIError(f"--max-blocks must be >= 1; got {args.max_blocks}")
+        if not args.store:
+            raise CLIError("--max-blocks needs --store: the blocks computed are kept there to resume from")
+        stop = lambda p: p.blocks_computed >= args.max_blocks  # noqa: E731
+    params = _auto_sigma2(args, params, shapes)
+    shapes = _align_pose(args, shapes, params)
     try:
-        with warnings.catch_warnings():  # printed below with the specimens' ids instead
-            warnings.filterwarnings("ignore", message=r".* pairs did not converge")
+        with warnings.catch_warnings(), _notes_from("shapelib.pairwise"):  # the run's estimate, up front
+            # the convergence summary is printed below with the specimens' ids instead
+            warnings.simplefilter("ignore", GeodesicWarning)
             result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
                                         store=args.store, block_size=args.block_size, progress=not args.no_progress,
-                                        rtol=args.rtol, return_result=True, **params)
+                                        rtol=args.rtol, return_result=True, callback=stop, **params)
     except PairError as exc:  # name the specimens, as every other input error does
         note = " (the metric counts landmarks from 0)" if re.search(r"landmarks? \d", exc.reason) else ""
         raise CLIError(f"{args.file}: specimens {ids[exc.i]!r} (#{exc.i + 1}) and {ids[exc.j]!r} (#{exc.j + 1}), "
                        f"as u and v: {exc.reason}{note}") from None
+    log = result.log or {}
+    if not result.complete:  # --max-blocks stopped it: no matrix, the store is there to resume
+        print(f"{PROG}: stopped after {log['blocks_computed']} block(s) (--max-blocks), {log['blocks_done']} of "
+              f"{log['blocks_total']} in store {args.store}; -o not written: rerun the command (without "
+              "--max-blocks to finish) to resume", file=sys.stderr)
+        return EXIT_STOPPED
     frame = pd.DataFrame(result.matrix, index=pd.Index(ids, name="id"), columns=ids)
     _write_frame(frame, out, float_format=lambda v: repr(float(v)))
     bad = result.nonconverged_pairs()
@@ -277,7 +386,6 @@ def cmd_distances(args) -> int:
             if col in pairs:
                 pairs.insert(pairs.columns.get_loc(col) + 1, f"id_{col}", [ids[int(t)] for t in pairs[col]])
         _write_frame(pairs, diag, index=False)
-    log = result.log or {}
     resumed = ""
     if args.store and log.get("blocks_found_done"):
         resumed = (f", resumed: {log['blocks_found_done']} of {log.get('blocks_total', '?')} blocks were already "
@@ -286,8 +394,19 @@ def cmd_distances(args) -> int:
           + (f" (store {args.store}{resumed})" if args.store else ""))
     if bad:
         listed = ", ".join(f"{ids[i]}–{ids[j]}" for i, j in bad[:5]) + (", …" if len(bad) > 5 else "")
-        print(f"shapelib: warning: {len(bad)} pair(s) did not converge: {listed}"
-              + ("" if diag else " (--pairs FILE.csv writes every pair's diagnostics)"), file=sys.stderr)
+        more = "" if diag else " (--pairs FILE.csv writes every pair's bracket and status)"
+        total = len(result.status())
+        if args.rtol is not None:  # certified, only wider than asked: said as such, exit 0
+            gap = result.rel_gap(*np.array(bad).T)
+            print(f"{PROG}: warning: {len(bad)} of {total} pairs: the certified bracket is wider than --rtol "
+                  f"{args.rtol:g} (relative gap median {100 * float(np.median(gap)):.3g} %, max "
+                  f"{100 * float(np.max(gap)):.3g} %; {listed}): each distance lies in its bracket [lower, upper] "
+                  f"and the matrix holds the upper end; the solver did not fail{more}", file=sys.stderr)
+        else:
+            print(f"{PROG}: warning: {len(bad)} of {total} pairs: solver failed (the geodesic solver stopped before "
+                  f"its tolerance; their values are lengths of unconverged paths, upper bounds only): {listed}{more}; "
+                  f"exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+            return EXIT_UNCONVERGED
     return 0
 
 
@@ -317,10 +436,26 @@ def cmd_geodesic(args) -> int:
         params["n_steps"] = args.n_steps
     params.setdefault("n_steps", 16)
     shapes, spec = _read(args)
+    params = _auto_sigma2(args, params, shapes)
     if (plot or anim) and shapes.shape[2] != 2:
         raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
+    links = []
+    if args.links is not None:
+        if not (plot or anim):
+            raise CLIError("--links applies to --plot and --animate")
+        from .plotting import parse_links
+
+        try:
+            links = parse_links(args.links, shapes.shape[1])
+        except ValueError as exc:
+            raise CLIError(f"--{exc}") from None
     i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
-    result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
+    shapes = _align_pose(args, shapes, params)  # the whole file, as `shapelib distances` aligns it
+    from .solver.geodesic import GeodesicWarning
+
+    with warnings.catch_warnings():  # said below in the command line's words
+        warnings.simplefilter("ignore", GeodesicWarning)
+        result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
     n1, k, d = result.path.shape
     t = np.repeat(np.linspace(0.0, 1.0, n1), k)
     frame = pd.DataFrame({"step": np.repeat(np.arange(n1), k), "t": t, "landmark": np.tile(np.arange(1, k + 1), n1),
@@ -328,33 +463,39 @@ def cmd_geodesic(args) -> int:
     _write_frame(frame, out, index=False, float_format=lambda v: repr(float(v)))
     print(f"{spec['id'].iloc[i]} -> {spec['id'].iloc[j]}: {result.summary()} -> {out}")
     if plot:
-        _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}")
+        _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
+                   links=links)
         print(f"figure -> {plot}")
     if anim:
         _animate_path(result, anim, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
-                      fps=args.fps)
+                      fps=args.fps, links=links)
         print(f"animation -> {anim}")
+    if not result.converged:
+        stopped = result.log.get("stopped_by")
+        why = result.log.get("reason") or f"stopped by {stopped} after {result.n_iter} iterations"
+        todo = ("bring the shapes to a scale that fits --sigma2 (shapelib align --size 20) or use a larger --sigma2"
+                if stopped == "underflow" else "raise --param max_iter")
+        print(f"{PROG}: warning: the {args.metric} geodesic did not converge ({why}): {out} holds the path it had, "
+              f"whose length {result.length:.6g} is an upper bound only (lower bound {result.lower_bound:.6g}); "
+              f"{todo}; exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+        return EXIT_UNCONVERGED
     return 0
 
 
-def _plot_path(result, path, *, title):
+def _plot_path(result, path, *, title, links):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .plotting import outline, plot_trajectories
+    from .plotting import plot_geodesic
 
-    fig, ax = plt.subplots(figsize=(5, 5))
-    ax.plot(*outline(result.path[0], True).T, "--", color="0.6", lw=0.8)
-    ax.plot(*outline(result.path[-1], True).T, "-", color="0.6", lw=0.8)
-    plot_trajectories(ax, result.path)
-    ax.set_title(title)
+    fig = plot_geodesic(result, links=links, title=title)
     fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
     plt.close(fig)
 
 
-def _animate_path(result, path, *, title, fps):
+def _animate_path(result, path, *, title, fps, links=()):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -363,7 +504,7 @@ def _animate_path(result, path, *, title, fps):
 
     from .plotting import animate_geodesic
 
-    anim = animate_geodesic(result, title=title)
+    anim = animate_geodesic(result, title=title, links=list(links))
     writer = PillowWriter(fps=fps) if Path(path).suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
     tmp = Path(path).with_name(f".{Path(path).stem}.tmp{Path(path).suffix}")
     try:
@@ -417,17 +558,13 @@ def cmd_mean(args) -> int:
     shapes, spec, options = _intrinsic_input(args)
     if plot and shapes.shape[2] != 2:
         raise CLIError("--plot draws 2-D landmarks; this file is 3-D")
-    res = frechet_mean(shapes, metric=args.metric, sigma2=args.sigma2, **options)
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*negative.*", category=UserWarning)
-        io.write_landmarks(out, res.mean[None], pd.DataFrame({"id": ["frechet_mean"]}))
+    sigma2 = _auto_sigma2(args, {"sigma2": args.sigma2}, shapes)["sigma2"]
+    res = frechet_mean(shapes, metric=args.metric, sigma2=sigma2, **options)
+    io.write_landmarks(out, res.mean[None], pd.DataFrame({"id": ["frechet_mean"]}))  # reads back as written
     print(f"{res.summary()} -> {out}")
-    if out.suffix.lower() == ".tps" and (res.mean < 0).any():
-        print(f"note: the mean has negative coordinates; tpsDig reads them as missing landmarks: read {out.name} "
-              "with --negative-coordinates", file=sys.stderr)
     if plot:
         _plot_mean(shapes, res, plot, title=f"{args.metric} Fréchet mean of {len(shapes)} specimens "
-                                            f"(σ² = {args.sigma2:g})")
+                                            f"(σ² = {sigma2:g})")
         print(f"figure -> {plot}")
     return 0
 
@@ -462,7 +599,8 @@ def cmd_pca(args) -> int:
     if args.n_components is not None and args.n_components < 1:
         raise CLIError(f"--n-components must be >= 1; got {args.n_components}")
     shapes, spec, options = _intrinsic_input(args)
-    res = tangent_pca(shapes, metric=args.metric, sigma2=args.sigma2, n_components=args.n_components, modes=(),
+    sigma2 = _auto_sigma2(args, {"sigma2": args.sigma2}, shapes)["sigma2"]
+    res = tangent_pca(shapes, metric=args.metric, sigma2=sigma2, n_components=args.n_components, modes=(),
                       **options)
     names = [f"PC{j + 1}" for j in range(res.n_components)]
     frame = pd.DataFrame(res.scores, columns=names, index=pd.Index(spec["id"].astype(str), name="id"))
@@ -549,13 +687,13 @@ def cmd_study(run_all_args) -> int:
 EXAMPLES = {
     "info": "example:\n  shapelib info fish.tps",
     "align": "examples:\n  shapelib align fish.tps -o aligned.tps --size 20\n  shapelib align fish.csv -o aligned.csv",
-    "distances": ("examples:\n  shapelib distances aligned.tps --negative-coordinates --metric procrustes -o procrustes.csv\n"
-                  "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 \\\n"
+    "distances": ("examples:\n  shapelib distances aligned.tps --metric procrustes -o procrustes.csv\n"
+                  "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 \\\n"
                   "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
-                  "  shapelib distances fish.csv --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
+                  "  shapelib distances aligned.tps --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
                   "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
-    "geodesic": ("example:\n  shapelib geodesic aligned.tps --negative-coordinates --from fish-1 --to Heart-1 \\\n"
-                 "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --animate path.gif"),
+    "geodesic": ("example:\n  shapelib geodesic aligned.tps --from fish-1 --to Heart-1 \\\n"
+                 "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --links contour --animate path.gif"),
     "mean": ("example:\n  shapelib mean wings.tps --size 20 --metric alpha --sigma2 1.2 --jobs 2 -o mean.tps --plot mean.png"),
     "pca": ("example:\n  shapelib pca wings.tps --size 20 --metric alpha --sigma2 1.2 -o scores.csv --plot modes.png"),
 }
@@ -566,33 +704,46 @@ def _file_options(p):
     g = p.add_argument_group("reading the file")
     g.add_argument("--scale", action="store_true", help=".tps: multiply coordinates by each specimen's SCALE=")
     g.add_argument("--negative-coordinates", action="store_true",
-                   help=".tps: negative values are coordinates (e.g. aligned shapes), not tpsDig's missing landmarks")
+                   help=".tps: negative values are coordinates (e.g. aligned shapes), not tpsDig's missing landmarks "
+                        "(not needed for files shapelib wrote: they say so themselves)")
     g.add_argument("--pkn", action="store_true", help=".npy/.npz: the array is geomorph's p x k x n layout")
 
 
 def _metric_options(p, *, metrics, required_sigma2=False):
-    p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics))
-    p.add_argument("--sigma2", type=float, metavar="S", required=required_sigma2,
-                   help="σ² of the Gaussian mixture (eq. 5); alpha and fisher_rao need it")
+    p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics) + " (listed below)")
+    p.add_argument("--sigma2", type=_sigma2_arg, metavar="S", required=required_sigma2,
+                   help="σ² of the Gaussian mixture (eq. 5), or 'auto': estimated from the landmarks' scatter "
+                        "around the mean shape (`shapelib info` shows it); alpha and fisher_rao need it")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
+    p.add_argument("--no-align", action="store_true",
+                   help="use the file's pose: by default the specimens are aligned first (rotations and "
+                        "translations, sizes kept) for the metrics that depend on pose (alpha, fisher_rao, their "
+                        "bounds, diffeomorphism, hausdorff)")
 
 
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
-    from .distances import METRICS, PATH_METRICS
+    from .distances import METRICS, PATH_METRICS, metric_info
 
     parser = argparse.ArgumentParser(
         prog=PROG, description="Landmark shape analysis with information geometry (Peter & Rangarajan).",
         epilog="examples:\n  shapelib info fish.tps\n  shapelib align fish.tps -o aligned.tps --size 20\n"
-               "  shapelib distances aligned.tps --negative-coordinates --metric alpha --sigma2 0.5 -o alpha.csv\n"
+               "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 -o alpha.csv\n"
                "run `shapelib COMMAND --help` for each command's options.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
+    def described(names):  # the registry's one-line descriptions, for the epilogs
+        width = max(map(len, names))
+        return "\n\nmetrics (--metric):\n" + "\n".join(f"  {n:<{width}}  {metric_info(n).description}" for n in names)
+
+    epilogs = {"distances": EXAMPLES["distances"] + described(list(METRICS)),
+               "geodesic": EXAMPLES["geodesic"] + described(list(PATH_METRICS))}
+
     def add(name, help_):
-        sp = sub.add_parser(name, help=help_, description=help_, epilog=EXAMPLES.get(name),
+        sp = sub.add_parser(name, help=help_, description=help_, epilog=epilogs.get(name, EXAMPLES.get(name)),
                             formatter_class=argparse.RawDescriptionHelpFormatter)
         sp.set_defaults(subparser=sp)  # a stray option is reported with this command's usage
         return sp
@@ -619,6 +770,9 @@ def build_parser() -> argparse.ArgumentParser:
                        "from the measured cost of one pair)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
     p.add_argument("--store", metavar="D.zarr", help="zarr store of finished blocks; rerun the command to resume")
+    p.add_argument("--max-blocks", type=int, metavar="N",
+                   help=f"with --store: stop after computing N blocks, write no -o and exit with status {EXIT_STOPPED} "
+                        "(rerun to resume)")
     p.add_argument("--block-size", type=int, metavar="B",
                    help="shapes per block side, the unit of work and of resuming (default: from the measured cost)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -639,6 +793,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="path.png", help="landmark trajectories (Figs. 4 and 6 style)")
     p.add_argument("--animate", metavar="path.gif", help="animation of the deforming shape (.gif; .mp4 with ffmpeg)")
     p.add_argument("--fps", type=int, default=8, help="animation frames per second (default 8)")
+    p.add_argument("--links", metavar="L", help="landmarks to join in --plot and --animate: pairs of landmark "
+                   "numbers as in the file, e.g. 1-2,2-3,3-1 (geomorph's and Momocs' links), or 'contour' for a "
+                   "closed outline in landmark order; default: points only")
     p.set_defaults(func=cmd_geodesic)
 
     _add_intrinsic_commands(add)
@@ -650,7 +807,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _one_line_warnings(message, category, filename, lineno, file=None, line=None):
-    print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr)
+    text = " ".join(str(message).split())
+    from .geometry.procrustes import PoseWarning
+
+    if issubclass(category, PoseWarning):  # only --no-align gets here: say it in command-line terms
+        text = text.split(" Align them first")[0] + " Drop --no-align to align them (rotations and translations, sizes kept)."
+    print(f"{PROG}: warning: {text}", file=sys.stderr)
 
 
 def _interrupted(exc: BaseException) -> bool:

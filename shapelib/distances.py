@@ -1,5 +1,6 @@
 """One entry point for every shape distance in the study: :func:`distance`, :func:`pair_record`
-(the matrix of a whole population: :func:`shapelib.pairwise_distances`).
+(the matrix of a whole population: :func:`shapelib.pairwise_distances`), over one registry of
+metrics (:func:`metric_info`, :func:`register_metric`).
 
 ``metric`` names and what they compute (keyword options in brackets):
 
@@ -26,6 +27,11 @@
 ``"wendland"``
     Wendland ψ₃,₁ spline bending energy [``support``, ``affine``] (not symmetric).
 
+Each metric is one :class:`MetricInfo` record (its function, whether it is symmetric, a path
+metric, certifiable to ``rtol``, the function whose keyword options it takes, its lower-bound
+metric, a one-line description); :func:`register_metric` adds one, after which every entry point
+(the pairwise engine and its Dask workers, the CLI's ``--metric``) accepts its name.
+
 Every per-pair computation of the library (the pairwise engine :mod:`shapelib.pairwise`, the CLI,
 the notebooks) goes through :func:`pair_record`. Paper-specific conventions (alignment, scale,
 squared values) belong to the study notebooks.
@@ -33,114 +39,288 @@ squared values) belong to the study notebooks.
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import math
 import time
+from collections.abc import Callable, Mapping, Sequence, Set
+from dataclasses import dataclass
+from functools import partial
 
 from ._validate import as_shape_pair
+from .comparison.diffeomorphism import landmark_diffeomorphism
+from .comparison.hausdorff import hausdorff_distance
+from .comparison.splines import tps_bending_energy, wendland_bending_energy
+from .geometry.procrustes import procrustes_distance
+from .solver.bracket import distance_bracket
+from .solver.geodesic import alpha_lower_bound, fisher_rao_lower_bound, geodesic
 
 __all__ = ["distance", "pair_record", "path_result", "check_metric_params",
-           "METRICS", "SYMMETRIC", "PATH_METRICS", "RECORD_FIELDS"]
+           "MetricInfo", "metric_info", "register_metric",
+           "METRICS", "SYMMETRIC", "PATH_METRICS", "BRACKET_METRICS", "RECORD_FIELDS"]
 
-
-PATH_METRICS = ("alpha", "fisher_rao", "diffeomorphism")
-#: path metrics whose distance can be certified to a relative tolerance (``rtol=``)
-BRACKET_METRICS = ("alpha", "fisher_rao")
 #: keys of :func:`pair_record`'s dict, in order
 RECORD_FIELDS = ("value", "lower", "upper", "energy", "converged", "n_iter", "seconds")
+#: keyword names a metric's function may have that are not metric options
+_FIXED = frozenset({"u", "v", "metric", "rtol"})
+
+
+@dataclass(frozen=True)
+class MetricInfo:
+    """One metric of the registry (what :func:`register_metric` records; cf. the ``MetricInfo``
+    records of :mod:`scipy.spatial.distance`).
+
+    Attributes
+    ----------
+    name : str
+        What ``metric=`` is given as.
+    function : callable
+        ``function(u, v, **params)``: the distance (a float), or for a path metric the path's
+        result (with ``length``, ``lower_bound``, ``energy``, ``converged``, ``n_iter``, as
+        :class:`~shapelib.solver.geodesic.GeodesicResult`). Sent to Dask workers with each task, pickled
+        by reference: a module-level function (or a :func:`functools.partial` of one) in a module
+        the workers can import.
+    symmetric : bool
+        ``d(u, v) = d(v, u)``: the pairwise engine computes each unordered pair once.
+    path : bool
+        A path metric (``function`` returns the geodesic; :func:`path_result`).
+    bracket : callable or None
+        ``bracket(u, v, *, rtol, **params)`` returning a certified bracket (``lower``, ``upper``,
+        ``energy``, ``converged``, ``n_iter``, as :class:`~shapelib.solver.bracket.DistanceBracket`): the
+        metric can be certified to a relative tolerance (``rtol=``). None: it cannot.
+    accepts : callable
+        The function whose keyword options (its signature) are the metric's options; default
+        ``function``. A ``**kwargs`` in its signature turns the option check off.
+    lower_bound : str or None
+        Name of the registered metric that bounds this one from below, if any.
+    description : str
+        One line, shown by ``shapelib distances --help``.
+    """
+
+    name: str
+    function: Callable
+    symmetric: bool = True
+    path: bool = False
+    bracket: Callable | None = None
+    accepts: Callable | None = None
+    lower_bound: str | None = None
+    description: str = ""
+
+    def options_of(self, rtol=None) -> Callable:
+        """The function whose keyword options the metric takes (the bracket's with ``rtol``)."""
+        if rtol is not None and self.bracket is not None:
+            return self.bracket
+        return self.accepts if self.accepts is not None else self.function
+
+    def compute(self, u, v, **params) -> float:
+        """The distance of ``u`` and ``v`` (a path metric's geodesic length), unchecked."""
+        out = self.function(u, v, **params)
+        return float(out.length if self.path else out)
+
+
+_REGISTRY: dict[str, MetricInfo] = {}
+
+
+def register_metric(name: str, function: Callable, *, symmetric: bool = True, path: bool = False,
+                    bracket: Callable | None = None, accepts: Callable | None = None,
+                    lower_bound: str | None = None, description: str = "",
+                    replace: bool = False) -> MetricInfo:
+    """Add a metric to the registry: afterwards :func:`distance`, :func:`pair_record`,
+    :func:`shapelib.pairwise_distances` and ``shapelib distances --metric`` accept ``name``.
+
+    Parameters are the fields of :class:`MetricInfo`. For the pairwise engine on Dask the function
+    travels with each task, pickled by reference, so define it at module level in a module the
+    workers can import (the LocalCluster's workers inherit this process's ``sys.path``; for
+    ``dask worker`` processes put the module on their ``PYTHONPATH``). ``replace=True`` replaces
+    a metric of that name; without it a taken name is a ``ValueError``.
+
+    Returns
+    -------
+    MetricInfo
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> def chebyshev(u, v):
+    ...     return float(np.max(np.abs(np.asarray(u) - np.asarray(v))))
+    >>> info = register_metric("chebyshev", chebyshev, description="largest coordinate difference")
+    >>> distance([[0, 0], [1, 0]], [[0, 0], [1, 2]], metric="chebyshev")
+    2.0
+    """
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"metric name must be an identifier-like string; got {name!r}")
+    if name in _REGISTRY and not replace:
+        raise ValueError(f"metric {name!r} is already registered; pass replace=True to replace it")
+    for what, f in (("function", function), ("bracket", bracket), ("accepts", accepts)):
+        if f is not None and not callable(f):
+            raise ValueError(f"metric {name!r}: {what} must be callable; got {f!r}")
+    if function is None:
+        raise ValueError(f"metric {name!r}: function must be callable; got None")
+    if lower_bound is not None and lower_bound not in _REGISTRY and lower_bound != name:
+        raise ValueError(f"metric {name!r}: lower_bound {lower_bound!r} is not a registered metric")
+    info = MetricInfo(name=name, function=function, symmetric=bool(symmetric), path=bool(path), bracket=bracket,
+                      accepts=accepts, lower_bound=lower_bound, description=" ".join(str(description).split()))
+    _REGISTRY[name] = info
+    return info
+
+
+def metric_info(metric) -> MetricInfo:
+    """The :class:`MetricInfo` of ``metric`` (a name, or a record, returned as is); ``ValueError``
+    naming an unknown one."""
+    if isinstance(metric, MetricInfo):
+        return metric
+    try:
+        return _REGISTRY[metric]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown metric {metric!r}; choose one of {sorted(_REGISTRY)}") from None
+
+
+# -- live, read-only views of the registry (the names these tables always had) ------------------
+
+
+class _Names(Sequence):
+    """Names of the registered metrics with a property, in registration order (a live tuple)."""
+
+    def __init__(self, keep):
+        self._keep = keep
+
+    def _names(self) -> tuple:
+        return tuple(n for n, m in _REGISTRY.items() if self._keep(m))
+
+    def __getitem__(self, i):
+        return self._names()[i]
+
+    def __len__(self):
+        return len(self._names())
+
+    def __contains__(self, name):
+        return name in self._names()
+
+    def __eq__(self, other):
+        return self._names() == tuple(other) if isinstance(other, (tuple, list, Sequence)) else NotImplemented
+
+    __hash__ = None
+
+    def __repr__(self):
+        return repr(self._names())
+
+
+class _NameSet(Set):
+    """The same as a live set."""
+
+    def __init__(self, keep):
+        self._names = _Names(keep)
+
+    def __contains__(self, name):
+        return name in self._names
+
+    def __iter__(self):
+        return iter(self._names._names())
+
+    def __len__(self):
+        return len(self._names)
+
+    def __repr__(self):
+        return repr(set(self._names._names()))
+
+
+class _Functions(Mapping):
+    """``name -> (u, v, **params) -> float`` for every registered metric (a live dict)."""
+
+    def __getitem__(self, name):
+        return _REGISTRY[name].compute
+
+    def __iter__(self):
+        return iter(list(_REGISTRY))
+
+    def __len__(self):
+        return len(_REGISTRY)
+
+    def __repr__(self):
+        return f"<shapelib metrics {list(_REGISTRY)}>"
+
+
+#: ``name -> (u, v, **params) -> float`` (every registered metric; unchecked)
+METRICS = _Functions()
+#: metrics with d(u, v) = d(v, u); the others are computed for both orders in pairwise_distances
+SYMMETRIC = _NameSet(lambda m: m.symmetric)
+#: path metrics (:func:`path_result`)
+PATH_METRICS = _Names(lambda m: m.path)
+#: path metrics whose distance can be certified to a relative tolerance (``rtol=``)
+BRACKET_METRICS = _Names(lambda m: m.bracket is not None)
+
+
+def _alpha_bound(u, v, *, sigma2):
+    return alpha_lower_bound(u, v, sigma2=sigma2)  # l2_distance with the geodesic's entry checks
+
+
+for _name, _fn, _kw in (
+        ("alpha", partial(geodesic, metric="alpha"),
+         dict(path=True, bracket=partial(distance_bracket, metric="alpha"),
+              description="α-order geodesic length (eqs. 8, 22); needs sigma2; certifiable to a relative tolerance (rtol)")),
+        ("fisher_rao", partial(geodesic, metric="fisher_rao"),
+         dict(path=True, bracket=partial(distance_bracket, metric="fisher_rao"),
+              description="Fisher–Rao geodesic length (eqs. 6, 8); needs sigma2; certifiable to a relative tolerance (rtol)")),
+        ("diffeomorphism", landmark_diffeomorphism,
+         dict(path=True, description="landmark-diffeomorphism (Camion–Younes) geodesic length (eq. 3)")),
+        ("alpha_bound", _alpha_bound,
+         dict(description="closed-form lower bound ‖p_u − p_v‖ on alpha (eq. 5)")),
+        ("fisher_rao_bound", fisher_rao_lower_bound,
+         dict(description="great-circle lower bound 2 arccos ∫√(p_u p_v) on fisher_rao")),
+        ("procrustes", procrustes_distance, dict(description="Procrustes distance (kind: angle, full, partial)")),
+        ("hausdorff", hausdorff_distance, dict(description="symmetrised Hausdorff distance of the landmark sets")),
+        ("tps", tps_bending_energy,
+         dict(symmetric=False, description="thin-plate spline bending energy of the map u -> v (not symmetric)")),
+        ("wendland", wendland_bending_energy,
+         dict(symmetric=False, description="Wendland ψ3,1 spline bending energy of the map u -> v (not symmetric)")),
+):
+    register_metric(_name, _fn, **_kw)
+for _name in ("alpha", "fisher_rao"):  # their bounds are registered after them
+    _REGISTRY[_name] = dataclasses.replace(_REGISTRY[_name], lower_bound=f"{_name}_bound")
+del _name, _fn, _kw
 
 
 def path_result(u, v, *, metric: str, **params):
     """The full :class:`~shapelib.solver.geodesic.GeodesicResult` of a path metric (``"alpha"``,
     ``"fisher_rao"``: :func:`shapelib.geodesic`; ``"diffeomorphism"``:
     :func:`shapelib.landmark_diffeomorphism`) — what :func:`distance` reduces to its length."""
-    if metric not in PATH_METRICS:
-        raise ValueError(f"{metric!r} is not a path metric; choose one of {PATH_METRICS}")
-    if metric == "diffeomorphism":
-        return _function(metric)(u, v, **params)
-    if "sigma2" not in params:
-        raise ValueError(f"metric {metric!r} needs sigma2=...")
-    return _function(metric)(u, v, metric=metric, **params)
+    info = metric_info(metric)
+    if not info.path:
+        raise ValueError(f"{info.name!r} is not a path metric; choose one of {PATH_METRICS}")
+    check_metric_params(info, params)
+    return info.function(u, v, **params)
 
 
-def _alpha_bound(u, v, *, sigma2):
-    from .geometry.gmm import l2_distance
-
-    return l2_distance(u, v, sigma2)
-
-
-def _function(metric: str):
-    """The library function that computes ``metric`` (imported on first use): the one place that
-    names it; :data:`METRICS`, :func:`path_result` and the parameter check all go through here."""
-    if metric in ("alpha", "fisher_rao"):
-        from .solver.geodesic import geodesic
-
-        return geodesic
-    if metric == "diffeomorphism":
-        from .comparison.diffeomorphism import landmark_diffeomorphism
-
-        return landmark_diffeomorphism
-    if metric == "alpha_bound":
-        return _alpha_bound
-    if metric == "fisher_rao_bound":
-        from .solver.geodesic import fisher_rao_lower_bound
-
-        return fisher_rao_lower_bound
-    from .geometry.procrustes import procrustes_distance
-    from .comparison.hausdorff import hausdorff_distance
-    from .comparison.splines import tps_bending_energy, wendland_bending_energy
-
-    return {"procrustes": procrustes_distance, "hausdorff": hausdorff_distance,
-            "tps": tps_bending_energy, "wendland": wendland_bending_energy}[metric]
-
-
-def _compute(metric: str):
-    """``(u, v, **params) -> float`` for ``metric``: a path metric's geodesic length, else its function."""
-    if metric in PATH_METRICS:
-        return lambda u, v, **kw: path_result(u, v, metric=metric, **kw).length
-    return lambda u, v, **kw: _function(metric)(u, v, **kw)
-
-
-METRICS = {m: _compute(m) for m in ("alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound",
-                                    "procrustes", "hausdorff", "tps", "wendland")}
-#: metrics with d(u, v) = d(v, u); the others are computed for both orders in pairwise_distances
-SYMMETRIC = {"alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound", "procrustes",
-             "hausdorff"}
-
-
-def target_function(metric: str, rtol):
+def target_function(metric, rtol):
     """The library function whose keyword options ``metric`` (with ``rtol``) accepts."""
-    if rtol is not None:
-        from .solver.bracket import distance_bracket
-
-        return distance_bracket
-    return _function(metric)
+    return metric_info(metric).options_of(rtol)
 
 
-def check_metric_params(metric: str, params: dict, *, rtol=None) -> None:
+def check_metric_params(metric, params: dict, *, rtol=None) -> None:
     """Raise ``ValueError`` naming an unknown ``metric``, an option it does not take, a missing
     required option (``sigma2``) or an ``rtol`` it cannot honour.
 
-    The options allowed are the keyword options of the function that computes the metric (see the
-    module docstring), so this check can never drift from the functions themselves.
+    The options allowed are the keyword options of the function that computes the metric
+    (:attr:`MetricInfo.accepts`; see the module docstring), so this check can never drift from the
+    functions themselves.
     """
-    if metric not in METRICS:
-        raise ValueError(f"unknown metric {metric!r}; choose one of {sorted(METRICS)}")
+    info = metric_info(metric)
+    metric = info.name
     if rtol is not None:
-        if metric not in BRACKET_METRICS:
+        if info.bracket is None:
             raise ValueError(f"rtol applies to the certified metrics {BRACKET_METRICS}, not {metric!r}")
         if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not (math.isfinite(rtol) and rtol > 0):
             raise ValueError(f"rtol must be a finite number > 0; got {rtol!r}")
-    sig = inspect.signature(target_function(metric, rtol))
-    fixed = {"u", "v", "metric", "rtol"}
+    sig = inspect.signature(info.options_of(rtol))
     if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
         return
-    allowed = [name for name in sig.parameters if name not in fixed]
+    allowed = [name for name in sig.parameters if name not in _FIXED]
     unknown = sorted(set(params) - set(allowed))
     if unknown:
         raise ValueError(f"metric {metric!r} has no parameter(s) {unknown}; it takes {allowed}")
     missing = [name for name, p in sig.parameters.items()
-               if name not in fixed and p.default is p.empty and name not in params]
+               if name not in _FIXED and p.default is p.empty and p.kind is not p.VAR_POSITIONAL
+               and name not in params]
     if missing:
         raise ValueError(f"metric {metric!r} needs {', '.join(f'{m}=...' for m in missing)}")
 
@@ -162,9 +342,10 @@ def distance(u, v, *, metric: str, rtol: float | None = None, **params) -> float
         Options of that metric (e.g. ``sigma2`` for the information metrics).
     """
     if rtol is None:
-        check_metric_params(metric, params)
+        info = metric_info(metric)
+        check_metric_params(info, params)
         u, v = as_shape_pair(u, v)
-        return float(METRICS[metric](u, v, **params))
+        return info.compute(u, v, **params)
     return pair_record(u, v, metric=metric, rtol=rtol, **params)["value"]
 
 
@@ -174,8 +355,8 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
     Parameters
     ----------
     u, v : array_like, shape (K, d)
-    metric : str
-        One of :data:`METRICS`.
+    metric : str or MetricInfo
+        A registered metric (:data:`METRICS`).
     rtol : float, optional
         As in :func:`distance` (path metrics ``"alpha"``, ``"fisher_rao"`` only).
     **params
@@ -191,21 +372,32 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
         solver's certificate, or ``upper / lower − 1 ≤ rtol``; True for non-path metrics),
         ``n_iter`` (solver iterations, 0 for non-path metrics), ``seconds`` (wall time).
     """
-    check_metric_params(metric, params, rtol=rtol)
+    info = metric_info(metric)
+    check_metric_params(info, params, rtol=rtol)
     u, v = as_shape_pair(u, v)
     t0 = time.perf_counter()
     if rtol is not None:
-        from .solver.bracket import distance_bracket
-
-        b = distance_bracket(u, v, metric=metric, rtol=rtol, **params)
+        b = info.bracket(u, v, rtol=rtol, **params)
         rec = (b.upper, b.lower, b.upper, b.energy, b.converged, b.n_iter)
-    elif metric in PATH_METRICS:
-        r = path_result(u, v, metric=metric, **params)
+    elif info.path:
+        r = info.function(u, v, **params)
         rec = (r.length, r.lower_bound, r.length, r.energy, r.converged, r.n_iter)
     else:
-        d = float(METRICS[metric](u, v, **params))
+        d = float(info.function(u, v, **params))
         rec = (d, d, d, math.nan, True, 0)
     seconds = time.perf_counter() - t0
     value, lower, upper, energy, converged, n_iter = rec
     return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
             "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
+
+
+#: metrics whose value changes when one shape of a pair is rotated or moved (the others — Procrustes,
+#: and the bending energies, whose matrices annihilate the affine part — do not): the pairwise engine
+#: checks the shapes' pose for them (:func:`shapelib.geometry.procrustes.check_pose`), the CLI aligns
+POSE_DEPENDENT = ("alpha", "fisher_rao", "alpha_bound", "fisher_rao_bound", "diffeomorphism", "hausdorff")
+
+
+def pose_dependent(metric: str, params: dict) -> bool:
+    """Whether ``metric`` with ``params`` depends on the pose of the shapes (:data:`POSE_DEPENDENT`;
+    ``"wendland"`` too with ``affine=False``, whose energy then includes the affine part)."""
+    return metric in POSE_DEPENDENT or (metric == "wendland" and params.get("affine", True) is False)

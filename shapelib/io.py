@@ -61,11 +61,17 @@ from ._validate import check_dimension
 
 __all__ = [
     "read_landmarks", "write_landmarks", "read_tps", "write_tps", "read_csv", "write_csv",
-    "read_npy", "write_npy", "from_pkn", "to_pkn", "FORMATS",
+    "read_npy", "write_npy", "from_pkn", "to_pkn", "FORMATS", "NEGATIVE_COORDINATES_COMMENT",
 ]
 
 #: file extension -> format name
 FORMATS = {".tps": "tps", ".csv": "csv", ".npy": "npy", ".npz": "npz"}
+#: What :func:`write_tps` adds, as a ``COMMENT=`` line, to each specimen with negative coordinates
+#: (e.g. aligned shapes), and :func:`read_tps` honours: there a negative value is a coordinate,
+#: not tpsDig's missing-landmark code (missing landmarks are then written ``NA``). A standard tps
+#: field, which other readers skip or keep as a comment (ktch reads such files; tpsDig still takes
+#: the negative values as missing).
+NEGATIVE_COORDINATES_COMMENT = "shapelib: negative values are coordinates, not missing landmarks"
 _MISSING_TOKENS = {"", "na", "nan", "n/a", "null", "none"}
 _AXES = "xyz"
 
@@ -140,6 +146,7 @@ class _TpsSpecimen:
     rows: list = field(default_factory=list)
     curves: list = field(default_factory=list)     # list of lists of rows
     meta: dict = field(default_factory=dict)
+    negative_coordinates: bool = False             # it has the NEGATIVE_COORDINATES_COMMENT line
 
     def label(self):
         ident = self.meta.get("ID")
@@ -248,7 +255,9 @@ def _parse_tps(path):
             if key in cur.meta and key not in ("COMMENT", "COMMENTS"):
                 raise ValueError(f"{path}: line {lineno}: {cur.label()} has a second {key}= line "
                                  "(is an LM= line missing?)")
-            if key in ("COMMENT", "COMMENTS"):
+            if key in ("COMMENT", "COMMENTS") and value.strip() == NEGATIVE_COORDINATES_COMMENT:
+                cur.negative_coordinates = True  # written by write_tps: not the user's comment
+            elif key in ("COMMENT", "COMMENTS"):
                 prev = cur.meta.get("COMMENT")
                 cur.meta["COMMENT"] = value if prev is None else f"{prev}; {value}"
             else:
@@ -263,7 +272,7 @@ def _parse_tps(path):
     return specimens
 
 
-def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str = "missing",
+def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str | None = None,
              return_curves: bool = False):
     """Read a tpsDig ``.tps`` file (the layout is in the module docstring).
 
@@ -277,11 +286,13 @@ def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str
     missing : {"error", "nan"}
         A missing landmark (``NA`` or, with ``negative="missing"``, negative coordinates) raises
         a ``ValueError`` naming the file, specimen and landmark; ``"nan"`` keeps it as NaN.
-    negative : {"missing", "coordinates"}
+    negative : {"missing", "coordinates"}, optional
         tpsDig records a missing landmark as negative coordinates (e.g. ``-1 -1``), so by default
-        a landmark with a negative coordinate is missing. Use ``"coordinates"`` for files whose
-        coordinates are genuinely negative (e.g. Procrustes-aligned shapes written by
-        :func:`write_tps`).
+        a landmark with a negative coordinate is missing — except in the specimens that
+        :func:`write_tps` marked with the :data:`NEGATIVE_COORDINATES_COMMENT` line (e.g.
+        Procrustes-aligned shapes), where negative values are coordinates. ``"coordinates"`` or
+        ``"missing"`` decides for every specimen (e.g. ``"coordinates"`` for aligned shapes written
+        by another program).
     return_curves : bool
         Also return the ``CURVES=``/``POINTS=`` semilandmarks, kept apart from the landmarks: one
         list per specimen of ``(m, d)`` arrays (scaled and checked like the landmarks).
@@ -299,8 +310,8 @@ def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str
         Only with ``return_curves=True``.
     """
     _check_missing_option(missing)
-    if negative not in ("missing", "coordinates"):
-        raise ValueError(f"negative must be 'missing' or 'coordinates'; got {negative!r}")
+    if negative not in (None, "missing", "coordinates"):
+        raise ValueError(f"negative must be None, 'missing' or 'coordinates'; got {negative!r}")
     records = _parse_tps(path)
     dims = {r.dim for r in records}
     if len(dims) > 1:
@@ -340,10 +351,13 @@ def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str
             raise ValueError(f"{path}: scale=True but {lacking[0].label()} has no SCALE= line "
                              f"({len(lacking)} of {len(records)} specimens lack one)")
 
+    def negative_missing(r):
+        return negative == "missing" or (negative is None and not r.negative_coordinates)
+
     def to_array(rows, r, what):
         arr = np.array([[np.nan if v is None else v for v in vals] for _, vals in rows], dtype=np.float64)
         arr = arr.reshape(len(rows), r.dim)
-        if negative == "missing":
+        if negative_missing(r):
             arr[(arr < 0).any(axis=1)] = np.nan
         return arr
 
@@ -367,7 +381,8 @@ def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str
         table[k.lower()] = [r.meta.get(k) for r in records]
     specimens = pd.DataFrame(table)
     specimens.attrs.update(path=str(path), format="tps")
-    hint = " (NA or negative coordinates, tpsDig's code for a missing landmark)" if negative == "missing" else " (NA)"
+    hint = (" (NA or negative coordinates, tpsDig's code for a missing landmark)"
+            if any(negative_missing(r) for r in records) else " (NA)")
     _report_missing(shapes, specimens, path, missing, hint=hint, lines=[[ln for ln, _ in r.rows] for r in records])
     if missing == "error":
         for i, (r, cs) in enumerate(zip(records, curves)):
@@ -429,29 +444,29 @@ def write_tps(path, shapes, specimens=None, *, curves=None, missing_value: float
     curves : list of list of array_like, optional
         Semilandmarks per specimen, written as ``CURVES=``/``POINTS=`` blocks.
     missing_value : float
-        What NaN (missing) landmarks are written as, in each coordinate (tpsDig: negative).
+        What NaN (missing) landmarks are written as, in each coordinate (tpsDig: negative), in a
+        file without negative coordinates.
 
-    Warns
+    Notes
     -----
-    UserWarning
-        If coordinates are negative: tpsDig (and :func:`read_tps` by default) reads negative
-        coordinates as missing landmarks; read such a file with ``negative="coordinates"``.
+    tpsDig reads negative coordinates as missing landmarks. When some coordinates are negative
+    (e.g. aligned shapes), every specimen gets the :data:`NEGATIVE_COORDINATES_COMMENT` line, which
+    :func:`read_tps` (and so ``shapelib`` commands) honours, and missing landmarks are written
+    ``NA``: the file reads back as written, with no options. tpsDig itself would still take the
+    negative values as missing.
     """
     path = Path(path)
     x = _as_writable(shapes, path)
     table = _specimen_table(specimens, len(x), path)
     if curves is not None and len(curves) != len(x):
         raise ValueError(f"{path}: curves has {len(curves)} entries for {len(x)} shapes")
-    if (x < 0).any() or any((np.asarray(c) < 0).any() for cs in (curves or []) for c in cs):
-        warnings.warn(f"{path}: some coordinates are negative; tpsDig reads negative coordinates as missing "
-                      "landmarks, so read this file with negative='coordinates' (CLI: --negative-coordinates)",
-                      UserWarning, stacklevel=2)
+    marked = bool((x < 0).any() or any((np.asarray(c) < 0).any() for cs in (curves or []) for c in cs))
     key = "LM" if x.shape[2] == 2 else "LM3"
     out = []
 
     def rows(a):
         for p in np.asarray(a, dtype=np.float64):
-            out.append(" ".join(_fmt(missing_value if np.isnan(v) else v) for v in p))
+            out.append(" ".join(("NA" if marked else _fmt(missing_value)) if np.isnan(v) else _fmt(v) for v in p))
 
     for i, shape in enumerate(x):
         rec = table.iloc[i]
@@ -475,6 +490,8 @@ def write_tps(path, shapes, specimens=None, *, curves=None, missing_value: float
         comment = rec.get("comment")
         if isinstance(comment, str) and comment:
             out.append(f"COMMENT={comment}")
+        if marked:
+            out.append(f"COMMENT={NEGATIVE_COORDINATES_COMMENT}")
         out.append("")
     write_text_atomic(path, "\n".join(out) + "\n")
     return path

@@ -1,9 +1,12 @@
 """Distance matrices at population scale: blocks of pairs as Dask tasks, finished blocks in a zarr store.
 
-:func:`compute_pairwise` (what :func:`shapelib.distances.pairwise_distances` calls) cuts the N×N
+:func:`compute_pairwise` (what :func:`pairwise_distances` calls) cuts the N×N
 matrix into ``block_size × block_size`` blocks — the upper-triangle blocks for symmetric metrics,
 every block (without the diagonal pairs) for the bending energies ``"tps"`` / ``"wendland"`` — and
-computes each block as one task, every pair through :func:`shapelib.distances.pair_record`.
+computes each block as one task, every pair through :func:`shapelib.distances.pair_record`. The
+closed-form bounds ``"alpha_bound"`` and ``"fisher_rao_bound"`` are the exception: a block of them is
+one batched call (matrix products, :mod:`shapelib.geometry.bound_matrices`), and in this process a
+population of up to :data:`BOUND_BLOCK_MAX` shapes is a single block.
 
 Where the tasks run
     ``client=`` (a :class:`distributed.Client`) or ``scheduler="tcp://host:port"`` runs them on
@@ -41,7 +44,8 @@ The store
     rtol, SHA-256 of the shapes, N, K, d, block size, symmetric, shapelib version. Reopening it with
     other shapes, metric or parameters raises ``ValueError`` saying what differs; rerunning with the
     same ones computes only the blocks not done. A checksum mismatch, unreadable or missing chunk
-    raises ``ValueError`` naming the store, the array and the block.
+    raises ``ValueError`` naming the store, the array and the block. Without a store the same
+    arrays live in memory (NumPy) for the duration of the call.
 """
 
 from __future__ import annotations
@@ -63,16 +67,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import as_shapes, check_positive_int
+from ._validate import as_shapes, check_positive_int, set_checked
 from ._version import __version__
-from .geometry.scale import ScaleWarning, check_scale
-from .solver.geodesic import METRICS as SCALED_METRICS
+from .geometry.procrustes import PoseWarning, check_pose
+from .geometry.scale import ScaleWarning, check_fisher_rao_scale, check_scale
 from .solver.geodesic import GeodesicWarning
 from .solver.linalg import one_blas_thread
-from .distances import BRACKET_METRICS, SYMMETRIC, check_metric_params, pair_record, target_function
+from .distances import SYMMETRIC, check_metric_params, metric_info, pair_record, pose_dependent
+from .geometry.bound_matrices import BOUND_METRICS, bound_block
 
-__all__ = ["PairwiseResult", "PairError", "compute_pairwise", "pairwise_distances", "open_store", "compute_block", "block_pairs",
-           "local_cluster", "engine_executor", "default_block_size", "ARRAYS"]
+__all__ = ["PairwiseResult", "PairError", "BlockProgress", "compute_pairwise", "pairwise_distances", "open_store",
+           "compute_block", "block_pairs", "local_cluster", "engine_executor", "default_block_size", "ARRAYS"]
 
 #: seconds one task should take (sets the default block size)
 TASK_SECONDS = 2.0
@@ -88,6 +93,15 @@ CLUSTER_OVERHEAD_SECONDS = 5.0
 #: with Dask's, 1,620 with these; α bracket 50 vs 45 pairs/s.
 WORKER_ENVIRON = {"distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 64 * 2**20,
                   "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 128 * 2**20}
+#: seconds a nanny of the engine's LocalCluster gives its worker process to close (:func:`_nanny_class`)
+NANNY_CLOSE_SECONDS = 1.0
+#: a run whose estimate (pairs × seconds per pair ÷ workers) reaches this is announced up front:
+#: logged at INFO on the ``shapelib.pairwise`` logger (the CLI prints it) and shown on the progress bar
+LONG_RUN_SECONDS = 10.0
+#: the logger of the engine's run estimates
+logger = logging.getLogger("shapelib.pairwise")
+#: seconds between two looks for a Ctrl-C while the engine waits for Dask (:class:`_Interrupts`)
+POLL_SECONDS = 0.2
 #: side of the stored chunks (a multiple of the block size near this)
 CHUNK_SIDE = 64
 #: the per-pair arrays of the store: name -> (dtype, fill value)
@@ -150,6 +164,7 @@ class PairwiseResult:
     seconds : ndarray, shape (N, N)
         Wall time of each pair.
     converged : ndarray of bool, shape (N, N)
+        In words per pair: :meth:`status` (converged / bracket wider than rtol / solver failed).
     n_iter : ndarray of int, shape (N, N)
         Solver iterations (0 for non-path metrics, −1 where not computed).
     metric : str
@@ -160,7 +175,11 @@ class PairwiseResult:
     computed : ndarray of bool, shape (N, N)
         Pairs whose values are present (all, for a finished run).
     log : dict
-        Blocks in total / computed by this call / found done, block size, where it ran, wall seconds.
+        Blocks in total / computed by this call / found done, block size, where it ran, wall
+        seconds, ``stopped`` (True when a ``callback`` stopped the run), ``estimated_seconds``
+        (pairs × timed seconds per pair ÷ workers, when a pair was timed).
+    symmetric : bool or None
+        Whether the metric is symmetric (pairs ``i < j`` only); None: looked up by name.
     """
 
     matrix: np.ndarray
@@ -175,6 +194,7 @@ class PairwiseResult:
     store: str | None = None
     computed: np.ndarray | None = None
     log: dict = field(default_factory=dict, repr=False)
+    symmetric: bool | None = None
 
     @property
     def complete(self) -> bool:
@@ -183,8 +203,8 @@ class PairwiseResult:
 
     def _pairs(self):
         n = len(self.matrix)
-        i, j = (np.triu_indices(n, 1) if self.metric in SYMMETRIC
-                else np.nonzero(~np.eye(n, dtype=bool)))
+        symmetric = self.metric in SYMMETRIC if self.symmetric is None else self.symmetric
+        i, j = np.triu_indices(n, 1) if symmetric else np.nonzero(~np.eye(n, dtype=bool))
         keep = self.computed[i, j] if self.computed is not None else np.ones(len(i), bool)
         return i[keep], j[keep]
 
@@ -194,15 +214,56 @@ class PairwiseResult:
         bad = ~self.converged[i, j]
         return [(int(a), int(b)) for a, b in zip(i[bad], j[bad])]
 
+    def rel_gap(self, i=None, j=None) -> np.ndarray:
+        """``upper / lower − 1`` of pairs ``(i, j)`` (default: every computed pair, as :meth:`to_frame`
+        orders them): the relative width of each certified bracket (0 for non-path metrics, ``inf``
+        where the bound is 0 but the path is not)."""
+        if i is None:
+            i, j = self._pairs()
+        lo, up = self.lower[i, j], self.upper[i, j]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = np.where(lo > 0, up / lo - 1.0, np.where(up > 0, np.inf, 0.0))
+        return np.maximum(gap, 0.0)
+
+    def status(self, i=None, j=None) -> np.ndarray:
+        """Per pair, in words: ``"converged"``; ``"bracket wider than rtol"`` (with ``rtol``: the
+        distance is certified to lie in its bracket ``[lower, upper]``, whose relative width
+        :meth:`rel_gap` is above ``rtol``, the value being its upper end); ``"solver failed"`` (no
+        ``rtol``: the geodesic solver stopped before its tolerance, so ``value`` is the length of
+        the path it had, still an upper bound on the distance)."""
+        if i is None:
+            i, j = self._pairs()
+        bad = "bracket wider than rtol" if self.params.get("rtol") is not None else "solver failed"
+        return np.where(self.converged[i, j], "converged", bad)
+
+    def convergence_summary(self) -> str:
+        """One line on the pairs that did not converge, in :meth:`status`'s words with how wide the
+        brackets are; ``""`` if every computed pair converged."""
+        i, j = self._pairs()
+        bad = ~self.converged[i, j]
+        if not bad.any():
+            return ""
+        n, total = int(bad.sum()), len(bad)
+        first = [(int(a), int(b)) for a, b in zip(i[bad][:3], j[bad][:3])]
+        rtol = self.params.get("rtol")
+        if rtol is None:
+            return (f"{n} of {total} {self.metric} pairs: solver failed (the geodesic solver stopped before its "
+                    f"tolerance; each value is the length of the path it had, an upper bound), first {first}")
+        gap = self.rel_gap(i[bad], j[bad])
+        return (f"{n} of {total} {self.metric} pairs: the certified bracket is wider than rtol = {rtol:g} (relative "
+                f"gap median {100 * float(np.median(gap)):.3g} %, max {100 * float(np.max(gap)):.3g} %): each distance "
+                f"lies in its bracket [lower, upper] and the value is its upper end; not a solver failure")
+
     def to_frame(self):
-        """One row per computed pair (``i < j`` for symmetric metrics) with all diagnostics."""
+        """One row per computed pair (``i < j`` for symmetric metrics) with all diagnostics,
+        :meth:`status` and :meth:`rel_gap` included."""
         import pandas as pd
 
         i, j = self._pairs()
         return pd.DataFrame({"i": i, "j": j, "value": self.matrix[i, j], "lower": self.lower[i, j],
-                             "upper": self.upper[i, j], "energy": self.energy[i, j],
-                             "converged": self.converged[i, j], "n_iter": self.n_iter[i, j],
-                             "seconds": self.seconds[i, j]})
+                             "upper": self.upper[i, j], "rel_gap": self.rel_gap(i, j), "energy": self.energy[i, j],
+                             "converged": self.converged[i, j], "status": self.status(i, j),
+                             "n_iter": self.n_iter[i, j], "seconds": self.seconds[i, j]})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -220,17 +281,25 @@ def block_pairs(n: int, block_size: int, *, symmetric: bool) -> list[tuple[int, 
     return [(a, b) for a in range(nb) for b in range(nb) if not symmetric or a <= b]
 
 
-def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol, params: dict,
+def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, params: dict,
                   offset=(0, 0)) -> dict:
     """All pairs of one block through :func:`shapelib.distances.pair_record`: ``{array: (bi, bj)}``.
+
+    ``metric`` is a name or a :class:`~shapelib.distances.MetricInfo` record: the engine sends
+    the record with each task, so a metric registered in the client runs on workers that can
+    import its function's module, registered there or not.
 
     ``xi``, ``xj`` are the block's row and column shapes, starting at rows/columns ``offset`` of
     the matrix (used to name a pair in a :class:`PairError`). On a diagonal block only the pairs
     ``i ≠ j`` are computed (``i < j``, then mirrored, for symmetric metrics) and the diagonal is
     zero. Solver warnings are not emitted: convergence is recorded per pair instead; nor are
-    scale warnings, which :func:`compute_pairwise` gives once for all the shapes.
+    scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     bi, bj = len(xi), len(xj)
+    if metric in BOUND_METRICS and rtol is None:
+        out = _bound_block(xi, xj, diagonal=diagonal, metric=metric, params=params)
+        if out is not None:
+            return out
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
     with _pair_work():
         for a in range(bi):
@@ -250,6 +319,51 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric: str, rtol,
             out[name][d] = 0
         out["converged"][d] = True
     return out
+
+
+#: a closed-form bound's matrix in this process is one block of at most this many shapes a side
+#: (one batched call, :mod:`shapelib.geometry.bound_matrices`)
+BOUND_BLOCK_MAX = 2048
+
+
+def _bound_block(xi, xj, *, diagonal, metric, params):
+    """A block of ``"alpha_bound"`` / ``"fisher_rao_bound"`` as one batched call
+    (:func:`shapelib.geometry.bound_matrices.bound_block`), in :func:`compute_block`'s format (each
+    pair's ``seconds`` is the block's wall time over its pairs). ``None`` when the call rejects
+    the block — a Fisher–Rao grid over all its shapes too large, or an input error — so that
+    :func:`compute_block` goes pair by pair, on each pair's own grid, naming a bad pair."""
+    t0 = time.perf_counter()
+    try:
+        with _pair_work():  # one BLAS thread, as every task; all the cores in this process's own run
+            d = bound_block(metric, xi, None if diagonal else xj, n_threads=1 if _in_dask_worker() else None,
+                            **params)
+    except ValueError:
+        return None
+    bi, bj = d.shape
+    n_pairs = bi * (bi - 1) // 2 if diagonal else bi * bj
+    out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
+    for name in ("matrix", "lower", "upper"):
+        out[name][...] = d
+    out["seconds"][...] = (time.perf_counter() - t0) / max(1, n_pairs)
+    out["converged"][...] = True
+    out["n_iter"][...] = 0
+    if diagonal:
+        idx = np.diag_indices(bi)
+        for name in ("energy", "seconds"):
+            out[name][idx] = 0
+    return out
+
+
+def _in_dask_worker() -> bool:
+    import sys
+
+    if "distributed" not in sys.modules:
+        return False
+    try:
+        sys.modules["distributed"].get_worker()
+    except ValueError:
+        return False
+    return True
 
 
 def default_block_size(seconds_per_pair: float, n: int, *, n_workers: int = 1, symmetric: bool = True) -> int:
@@ -283,10 +397,10 @@ def _jsonable(name, value):
                      "(numbers, strings, booleans and None only)")
 
 
-def _full_params(metric: str, rtol, params: dict) -> dict:
+def _full_params(metric, rtol, params: dict) -> dict:
     """``params`` with the computing function's defaults filled in (so n_steps=16 == omitted)."""
     full = {}
-    for name, p in inspect.signature(target_function(metric, rtol)).parameters.items():
+    for name, p in inspect.signature(metric_info(metric).options_of(rtol)).parameters.items():
         if name in ("u", "v", "metric", "rtol") or p.kind in (p.VAR_KEYWORD, p.VAR_POSITIONAL):
             continue
         if name in params:
@@ -311,13 +425,18 @@ def shapes_sha256(x: np.ndarray) -> str:
 
 
 class _Store:
-    """The zarr group of one matrix (directory, or in memory when no path is given)."""
+    """The zarr group of one matrix in a directory; without a path, the same arrays in memory
+    (NumPy: nothing to resume from, so nothing to gain from zarr's chunks and checksums)."""
 
     def __init__(self, group, path, attrs):
         self.group, self.path, self.attrs = group, path, attrs
         self.n, self.b = attrs["N"], attrs["block_size"]
         self.symmetric = attrs["symmetric"]
         self.nb = _n_blocks(self.n, self.b)
+        if group is None:
+            self.arrays = {name: np.full((self.n, self.n), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
+            self.arrays["done"] = np.zeros((self.nb, self.nb), dtype=bool)
+            return
         # every chunk is written, also one equal to the fill value (e.g. the all-NaN ``energy`` of a
         # non-path metric): a done block's chunk files must exist, which is how truncation is detected
         self.arrays = {name: group[name].with_config({"write_empty_chunks": True}) for name in (*ARRAYS, "done")}
@@ -328,10 +447,12 @@ class _Store:
 
     @classmethod
     def create(cls, path, attrs):
+        if path is None:
+            return cls(None, None, attrs)
         import zarr
         from zarr.codecs import BytesCodec, Crc32cCodec, ZstdCodec
 
-        store = zarr.storage.MemoryStore() if path is None else zarr.storage.LocalStore(str(path))
+        store = zarr.storage.LocalStore(str(path))
         group = zarr.open_group(store, mode="w", zarr_format=3)
         b = attrs["block_size"]
         n = attrs["N"]
@@ -343,7 +464,7 @@ class _Store:
         group.create_array("done", shape=(nb, nb), chunks=(min(nb, CHUNK_SIDE),) * 2, dtype="bool",
                            fill_value=False, **kw)
         group.attrs[_ATTR] = attrs  # written last: a store without it is not a store
-        return cls(group, None if path is None else str(path), attrs)
+        return cls(group, str(path), attrs)
 
     @classmethod
     def open(cls, path):
@@ -492,12 +613,103 @@ def _result(store: _Store, data: dict, computed, log) -> PairwiseResult:
     return PairwiseResult(matrix=data["matrix"], lower=data["lower"], upper=data["upper"],
                           energy=data["energy"], seconds=data["seconds"], converged=data["converged"],
                           n_iter=data["n_iter"], metric=store.attrs["metric"], params=params,
-                          store=store.path, computed=computed, log=log)
+                          store=store.path, computed=computed, log=log, symmetric=bool(store.symmetric))
 
 
 # ---------------------------------------------------------------------------------------------
 # Running
 # ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BlockProgress:
+    """What ``compute_pairwise(..., callback=)`` is called with after each block is written.
+
+    Attributes
+    ----------
+    block : tuple of int
+        Block indices ``(I, J)`` of the block just written.
+    rows, cols : range
+        Its rows and columns of the matrix.
+    blocks_done, blocks_total : int
+        Blocks in the store now (this run's and those found done) and in all.
+    blocks_computed : int
+        Blocks computed by this call so far.
+    pairs_done, pairs_total : int
+        The same counted in pairs (one per unordered pair for symmetric metrics).
+    """
+
+    block: tuple
+    rows: range
+    cols: range
+    blocks_done: int
+    blocks_total: int
+    blocks_computed: int
+    pairs_done: int
+    pairs_total: int
+
+
+class _Interrupts:
+    """Ctrl-C during a run stops it, whatever code it lands in.
+
+    Python runs a SIGINT handler in the main thread between two bytecodes, wherever the thread
+    is. Two places went wrong: inside a finalizer or weakref callback (``__del__`` of a Dask
+    future the loop lets go, ``WeakSet._remove``), where the KeyboardInterrupt is printed as
+    "Exception ignored" and lost — the run went on to the end; and inside the Dask client's own
+    calls (e.g. half-way through ``IOLoop.add_callback``), which left a caller's
+    :class:`distributed.Client` cancelling every later future. While the engine runs (main
+    thread only) the handler is wrapped: the exception the previous handler raises is recorded;
+    in process it is also raised at once (the thread is computing pairs), while Dask is in use
+    (:meth:`deferred`) it is only raised by :meth:`check`, which the engine calls after every
+    block, every :data:`POLL_SECONDS` while it waits for Dask, and before returning — so a
+    Ctrl-C stops the run within that time, from a point where the client is consistent. A
+    handler that does not raise (a program that handles Ctrl-C its own way) is left to decide;
+    ``SIG_IGN``/``SIG_DFL`` are kept.
+    """
+
+    def __init__(self):
+        self.exc = None
+        self.defer = False
+        self._previous = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            previous = signal.getsignal(signal.SIGINT)
+            if callable(previous):
+                self._previous = previous
+                signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum, frame):
+        try:
+            self._previous(signum, frame)
+        except BaseException as exc:
+            self.exc = exc
+            if not self.defer:
+                raise
+
+    @contextlib.contextmanager
+    def deferred(self):
+        """Within: a Ctrl-C is recorded, and raised by the next :meth:`check`."""
+        self.defer = True
+        try:
+            yield self
+        finally:
+            self.defer = False
+
+    def check(self):
+        """Raise the interrupt recorded if it has not stopped the run yet."""
+        exc, self.exc = self.exc, None
+        if exc is not None:
+            raise exc
+
+    def __exit__(self, kind, value, tb):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+        if value is not self.exc:  # a Ctrl-C swallowed or deferred after the last check, or one that
+            self.check()           # the code it landed in turned into another error
+        return False
 
 
 def _n_cores() -> int:
@@ -511,11 +723,12 @@ def _n_cores() -> int:
 def _pair_work():
     """Around the engine's per-pair calls (a block's, the timing pair's): BLAS on one thread
     (workers are single-threaded processes, one per core), and no per-pair warnings — solver
-    convergence is recorded per pair, and :func:`compute_pairwise` gives the scale warning once
-    for all the shapes."""
-    with one_blas_thread(), warnings.catch_warnings():
+    convergence is recorded per pair, and :func:`compute_pairwise` gives the scale and pose
+    warnings once for all the shapes."""
+    with one_blas_thread(), set_checked(), warnings.catch_warnings():
         warnings.simplefilter("ignore", GeodesicWarning)
         warnings.simplefilter("ignore", ScaleWarning)
+        warnings.simplefilter("ignore", PoseWarning)
         yield
 
 
@@ -525,6 +738,15 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
     bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice (once if the
     first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
     the calls took under ``budget`` seconds, and the fastest call counts."""
+    if metric in BOUND_METRICS and rtol is None:  # batched: the cost of a pair within a block
+        m = min(len(x), 64)
+        best = math.inf
+        for _ in range(2):  # the first call also pays one-off costs
+            t0 = time.perf_counter()
+            out = _bound_block(x[:m], x[:m], diagonal=True, metric=metric, params=params)
+            best = min(best, time.perf_counter() - t0)
+        if out is not None:
+            return best / max(1, m * (m - 1) // 2)
     times = []
     with _pair_work():
         # a pair far above TASK_SECONDS gets a block of its own either way: no second call
@@ -552,24 +774,40 @@ def _stored_seconds_per_pair(store: _Store) -> float | None:
 
 def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
                      store=None, block_size: int | None = None, progress: bool = True,
-                     rtol: float | None = None, **params) -> PairwiseResult:
+                     rtol: float | None = None, callback=None, **params) -> PairwiseResult:
     """Distances (and diagnostics) of every pair of ``shapes``; see the module docstring and
     :func:`pairwise_distances` for the parameters.
+
+    ``callback(progress)`` is called in this process after each block is written, with a
+    :class:`BlockProgress`; a true return value stops the run: in-flight tasks are cancelled, the
+    local cluster is closed, the store keeps the blocks written (rerun to resume) and the partial
+    result is returned (``complete`` False unless that was the last block, ``log["stopped"]`` True).
+
+    A Ctrl-C (SIGINT) raises KeyboardInterrupt whenever it comes (see :class:`_Interrupts`), with
+    the same clean-up and the finished blocks kept.
 
     Returns
     -------
     PairwiseResult
     """
-    check_metric_params(metric, params, rtol=rtol)
+    info = metric_info(metric)
+    metric = info.name
+    check_metric_params(info, params, rtol=rtol)
+    if callback is not None and not callable(callback):
+        raise ValueError(f"callback must be callable; got {callback!r}")
     x = as_shapes(shapes, name="shapes")
     n, k, d = x.shape
-    if metric in SCALED_METRICS and "sigma2" in params:  # once for all the shapes, not once per pair
-        check_scale(x, params["sigma2"], stacklevel=4)
-    symmetric = metric in SYMMETRIC
+    if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
+        ratio = check_scale(x, params["sigma2"], stacklevel=4)
+        if metric in ("fisher_rao", "fisher_rao_bound"):  # a degenerate quadrature: an error before any work
+            check_fisher_rao_scale(x, params["sigma2"], metric=metric, ratio=ratio)
+    if pose_dependent(metric, params):  # likewise (check_pose: a pair, or a whole set to align)
+        check_pose(x, metric=metric, stacklevel=4)
+    symmetric = info.symmetric
     _check_where(n_jobs, client, scheduler)
     if block_size is not None:
         block_size = check_positive_int(block_size, name="block_size")
-    want = {"format": _FORMAT, "metric": metric, "params": _full_params(metric, rtol, params),
+    want = {"format": _FORMAT, "metric": metric, "params": _full_params(info, rtol, params),
             "rtol": None if rtol is None else float(rtol), "shapes_sha256": shapes_sha256(x),
             "N": int(n), "K": int(k), "d": int(d), "symmetric": symmetric, "shapelib_version": __version__}
 
@@ -587,7 +825,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     seconds_per_pair = None
     if (st is None and block_size is None) or (local and n_jobs in (None, -1)):
         seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
-            _time_one_pair(x, metric, rtol, params) if n > 2 else 0.0)  # one pair: in-process whatever it costs
+            _time_one_pair(x, info, rtol, params) if n > 2 else 0.0)  # one pair: in-process whatever it costs
     if local and n_jobs in (None, -1):
         left = _pairs_left(st, n, symmetric)
         n_workers = 1 if n_workers < 2 or seconds_per_pair * left < (
@@ -596,6 +834,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         b = int(block_size) if block_size is not None else default_block_size(
             seconds_per_pair, n, n_workers=n_workers if local else max(2, _cluster_size(client)),
             symmetric=symmetric)
+        if block_size is None and metric in BOUND_METRICS and rtol is None and local and n_workers == 1:
+            b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
         st = _Store.create(store, {**want, "block_size": b})
     done = st.task_done()
     todo = [t for t in block_pairs(n, st.b, symmetric=symmetric) if t not in done]
@@ -603,40 +843,59 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     mode = "in-process" if local and n_workers == 1 else (
         f"LocalCluster({n_workers} processes)" if local else "cluster")
     log = {"blocks_total": len(done) + len(todo), "blocks_found_done": len(done), "blocks_computed": 0,
-           "block_size": st.b, "mode": mode, "seconds_per_pair_estimate": seconds_per_pair}
+           "block_size": st.b, "mode": mode, "seconds_per_pair_estimate": seconds_per_pair, "stopped": False}
     total_pairs = sum(_block_n_pairs(st, a, b) for a, b in block_pairs(n, st.b, symmetric=symmetric))
-    bar = _progress(progress, total=total_pairs, initial=total_pairs - n_todo, metric=metric)
-    kw = dict(symmetric=symmetric, metric=metric, rtol=rtol, params=params)
+    workers = n_workers if local else (_cluster_size(client) if client is not None else None)
+    eta = _announce(metric, n_todo, seconds_per_pair or _stored_seconds_per_pair(st), workers, log)
+    bar = _progress(progress, total=total_pairs, initial=total_pairs - n_todo, metric=metric, eta=eta)
+    kw = dict(symmetric=symmetric, metric=info, rtol=rtol, params=params)  # the record travels with each task
+    pairs_done = [total_pairs - n_todo]
     t0 = time.perf_counter()
-    try:
-        if todo and mode == "in-process":
-            for a, b in todo:
-                out = compute_block(x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b, offset=(a * st.b, b * st.b),
-                                    **kw)
-                st.write_block(a, b, out)
-                log["blocks_computed"] += 1
-                bar.update(_block_n_pairs(st, a, b))
-        elif todo:
-            _run_dask(x, st, todo, kw, client=client, scheduler=scheduler, n_workers=n_workers, bar=bar,
-                      log=log, token=_token(want, st.b))
-    finally:
-        bar.close()
-    log["seconds"] = time.perf_counter() - t0
-    data, computed = found if found is not None and not todo else st.read()  # a finished store is read once
-    if not computed.all():
+    with _Interrupts() as interrupts:
+
+        def written(a, b) -> bool:
+            """After block (a, b) is in the store: progress, Ctrl-C, the callback; True: stop."""
+            log["blocks_computed"] += 1
+            pairs_done[0] += _block_n_pairs(st, a, b)
+            bar.update(_block_n_pairs(st, a, b))
+            interrupts.check()
+            if callback is not None and callback(BlockProgress(
+                    block=(a, b), rows=range(*_rows(st, a).indices(n)), cols=range(*_rows(st, b).indices(n)),
+                    blocks_done=len(done) + log["blocks_computed"], blocks_total=log["blocks_total"],
+                    blocks_computed=log["blocks_computed"], pairs_done=pairs_done[0], pairs_total=total_pairs)):
+                log["stopped"] = True
+            interrupts.check()
+            return log["stopped"]
+
+        try:
+            if todo and mode == "in-process":
+                for a, b in todo:
+                    out = compute_block(x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b,
+                                        offset=(a * st.b, b * st.b), **kw)
+                    st.write_block(a, b, out)
+                    if written(a, b):
+                        break
+            elif todo:
+                with interrupts.deferred():  # never inside the Dask client's calls (see _Interrupts)
+                    _run_dask(x, st, todo, kw, client=client, scheduler=scheduler, n_workers=n_workers,
+                              written=written, interrupts=interrupts, token=_token(want, st.b))
+        finally:
+            bar.close()
+        log["seconds"] = time.perf_counter() - t0
+        data, computed = found if found is not None and not todo else st.read()  # a finished store is read once
+    log["blocks_done"] = len(done) + log["blocks_computed"]
+    if not computed.all() and not log["stopped"]:
         raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
     result = _result(st, data, computed, log)
-    bad = result.nonconverged_pairs()
-    if bad:
-        warnings.warn(f"{len(bad)} of {total_pairs} {metric} pairs did not converge "
-                      f"(first: {bad[:3]}); see PairwiseResult.nonconverged_pairs()", GeodesicWarning,
-                      stacklevel=3)
+    words = result.convergence_summary()
+    if words:
+        warnings.warn(f"{words}; see PairwiseResult.to_frame() (status, rel_gap)", GeodesicWarning, stacklevel=3)
     return result
 
 
 def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
                        store=None, block_size: int | None = None, progress: bool = True,
-                       rtol: float | None = None, return_result: bool = False, **params):
+                       rtol: float | None = None, return_result: bool = False, callback=None, **params):
     """Matrix of distances between every pair of ``shapes`` (N, K, d), on Dask, with a resumable store.
 
     Symmetric metrics are computed once per unordered pair; for the bending energies (``"tps"``,
@@ -648,7 +907,8 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
     ----------
     shapes : array_like, shape (N, K, d)
     metric : str
-        One of :data:`shapelib.distances.METRICS`.
+        A registered metric (:data:`shapelib.distances.METRICS`,
+        :func:`shapelib.distances.register_metric`).
     n_jobs : int, optional
         ``1``: in this process. ``k > 1``: a local cluster of ``k`` worker processes. ``None`` or
         ``-1``: chosen from a measured pair (in this process when the whole matrix takes a few
@@ -669,6 +929,13 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
     return_result : bool
         Return the :class:`PairwiseResult` (bounds, convergence, iterations,
         seconds per pair) instead of the matrix.
+    callback : callable, optional
+        ``callback(progress)``, called in this process after each block is written, with a
+        :class:`BlockProgress` (the block, blocks and pairs done and in total). A true return
+        value stops the run, as SciPy's halting callbacks do: the blocks written so far stay in
+        ``store`` (rerun to resume), running tasks are cancelled, the local cluster is closed,
+        and the partial result is returned (``complete`` False, ``log["stopped"]`` True; the
+        matrix is NaN where pairs were not computed, with a warning unless ``return_result``).
     **params
         Options of the metric.
 
@@ -676,10 +943,35 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
     -------
     ndarray, shape (N, N), or PairwiseResult
         Zero diagonal.
+
+    Warns
+    -----
+    ScaleWarning
+        Once, when σ² does not fit the landmarks' spacing (every metric that takes ``sigma2``).
+    PoseWarning
+        Once, when the metric depends on pose (:data:`shapelib.distances.POSE_DEPENDENT`) and the
+        shapes are not aligned (:func:`shapelib.geometry.procrustes.check_pose`; align them with
+        :func:`shapelib.pose_align`).
+    GeodesicWarning
+        When pairs did not converge, in :meth:`PairwiseResult.status`'s words.
+
+    Raises
+    ------
+    ValueError
+        Before any work: shapes not ``(N, K, d)`` with d = 2 or 3; a σ that leaves the
+        Fisher–Rao quadrature nothing to resolve (:func:`shapelib.geometry.scale.check_fisher_rao_scale`).
     """
     result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
-                              store=store, block_size=block_size, progress=progress, rtol=rtol, **params)
-    return result if return_result else result.matrix
+                              store=store, block_size=block_size, progress=progress, rtol=rtol, callback=callback,
+                              **params)
+    if return_result:
+        return result
+    if not result.complete:
+        warnings.warn(f"the callback stopped the run after {result.log.get('blocks_done')} of "
+                      f"{result.log.get('blocks_total')} blocks: the matrix is NaN where pairs were not computed"
+                      + (f"; rerun with store={result.store!r} to resume" if result.store else ""),
+                      UserWarning, stacklevel=2)
+    return result.matrix
 
 
 def _pairs_left(st, n, symmetric) -> int:
@@ -716,11 +1008,36 @@ def _block_n_pairs(st: _Store, a: int, b: int) -> int:
     return na * (na - 1) // 2 if st.symmetric else na * (na - 1)
 
 
-def _progress(enabled: bool, *, total: int, initial: int, metric: str):
+def _progress(enabled: bool, *, total: int, initial: int, metric: str, eta: str | None = None):
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, initial=initial, unit="pair", desc=f"{metric} pairs", disable=not enabled,
-                smoothing=0.1, dynamic_ncols=True)
+    return tqdm(total=total, initial=initial, unit="pair", desc=f"{metric} pairs" + (f" (est. {eta})" if eta else ""),
+                disable=not enabled, smoothing=0.1, dynamic_ncols=True)
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.2g} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.2g} min"
+    return f"{seconds / 3600:.2g} h"
+
+
+def _announce(metric, n_pairs, seconds_per_pair, workers, log) -> str | None:
+    """The run's cost up front: ``n_pairs × seconds_per_pair ÷ workers`` into ``log["estimated_seconds"]``,
+    logged at INFO (DEBUG below :data:`LONG_RUN_SECONDS`); returns the duration for the progress bar
+    of a long run. Nothing when no pair was timed (``block_size`` and ``n_jobs`` given, fresh store):
+    the progress bar's ETA follows the first blocks."""
+    if not n_pairs or not seconds_per_pair:
+        return None
+    serial = n_pairs * seconds_per_pair
+    total = serial / workers if workers else serial
+    log["estimated_seconds"] = total
+    per = (f"÷ {workers} worker{'s' if workers != 1 else ''}" if workers else "÷ the cluster's workers")
+    text = (f"{metric}: {n_pairs:,} pairs × {seconds_per_pair:.2g} s per pair (timed) {per} ≈ {_duration(total)}")
+    long = total >= LONG_RUN_SECONDS
+    logger.log(logging.INFO if long else logging.DEBUG, text)
+    return _duration(total) if long else None
 
 
 def local_cluster(n_workers: int):
@@ -751,7 +1068,8 @@ def local_cluster(n_workers: int):
         with warnings.catch_warnings(), dask.config.set(WORKER_ENVIRON):
             warnings.filterwarnings("ignore", message="Port .* is already in use")  # the HTTP port moves
             cluster = LocalCluster(n_workers=int(n_workers), threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.CRITICAL)
+                                   dashboard_address=None, silence_logs=logging.CRITICAL,
+                                   worker_class=_nanny_class())
     finally:
         if block:
             try:  # a pending Ctrl-C is raised by this call (it runs the signal handlers)
@@ -761,6 +1079,23 @@ def local_cluster(n_workers: int):
                     cluster.close()
                 raise
     return cluster
+
+
+def _nanny_class():
+    """Dask's Nanny, closing its worker process within :data:`NANNY_CLOSE_SECONDS`.
+
+    A worker asked to close first waits for the task it is running; Dask's nanny gives it 4 s
+    (``0.8 × 5``) before killing it, so a Ctrl-C or a stopping ``callback`` in the middle of a
+    long pair (a Fisher–Rao geodesic takes half a minute) kept the caller waiting those seconds
+    for a result that is thrown away. The engine's cluster holds nothing but running tasks (every
+    finished block is already in the client), so its nannies wait less."""
+    from distributed import Nanny
+
+    class _Nanny(Nanny):
+        async def close(self, timeout: float = NANNY_CLOSE_SECONDS, reason: str = "nanny-close"):
+            return await super().close(timeout=timeout, reason=reason)
+
+    return _Nanny
 
 
 def _ignore_sigint():
@@ -820,9 +1155,13 @@ def engine_executor(*, n_jobs=None, client=None, scheduler=None, serial_seconds=
         yield own.get_executor(pure=False), n_workers, f"LocalCluster({n_workers} processes)"
 
 
-def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token):
-    """Submit the blocks to Dask and write each one as it finishes (client side)."""
-    from distributed import Client, as_completed
+def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, written, interrupts, token):
+    """Submit the blocks to Dask and write each one as it finishes (client side); ``written(a, b)``
+    after each block (True: stop). While waiting, ``interrupts.check()`` every :data:`POLL_SECONDS`;
+    once the cluster is up, before anything is submitted."""
+    import queue
+
+    from distributed import Client
 
     cluster = own_client = None
     inflight = {}
@@ -838,35 +1177,42 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, bar, log, token)
                 own_client = Client(cluster)
                 own_client.run(_ignore_sigint)  # see local_cluster: Ctrl-C is the caller's
             client = own_client
+        interrupts.check()  # a Ctrl-C while the cluster started
         # keep a bounded number of blocks in flight (the shapes of each travel with its task)
         limit = max(64, 8 * max(1, sum(client.nthreads().values())))
         pending = iter(todo)
+        finished = queue.SimpleQueue()  # futures, put there by Dask's callback thread as they finish
 
         def submit(a, b):
             fut = client.submit(compute_block, x[_rows(st, a)], x[_rows(st, b)], diagonal=a == b,
                                 offset=(a * st.b, b * st.b), **kw, key=f"shapelib-pairwise-{token}-{a}-{b}")
             inflight[fut.key] = (fut, (a, b))
+            fut.add_done_callback(finished.put)
             return fut
 
-        futures = as_completed([submit(*t) for t in itertools.islice(pending, limit)])
-        for fut in futures:
+        for t in itertools.islice(pending, limit):
+            submit(*t)
+        while inflight:
+            try:
+                fut = finished.get(timeout=POLL_SECONDS)
+            except queue.Empty:
+                interrupts.check()  # a Ctrl-C lost while waiting still stops the run
+                continue
             out = fut.result()
             _, (a, b) = inflight.pop(fut.key)
             fut.release()
             st.write_block(a, b, out)
-            log["blocks_computed"] += 1
-            bar.update(_block_n_pairs(st, a, b))
+            if written(a, b):
+                break
             nxt = next(pending, None)
             if nxt is not None:
-                futures.add(submit(*nxt))
-    except BaseException:
-        if client is not None and inflight:
+                submit(*nxt)
+    finally:
+        if client is not None and inflight:  # stopped, interrupted or failed: nothing more to compute
             try:
                 client.cancel([f for f, _ in inflight.values()])
             except Exception:  # the cluster may be gone already; closing below still runs
                 pass
-        raise
-    finally:
         if own_client is not None:
             own_client.close()
         if cluster is not None:

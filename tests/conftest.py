@@ -1,5 +1,6 @@
 import os
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -39,3 +40,33 @@ requires_data = pytest.mark.usefixtures("raw_data")
 @pytest.fixture
 def rng():
     return np.random.default_rng(20261122)
+
+
+def wait_for(cond, what, timeout=120):
+    """Wait for something that must happen (a process up, a file written, a run blocked at a
+    gate); the deadline only turns a hang into a failure, it never decides a result."""
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+def command_line(process) -> str:
+    """A psutil process's command line, or "" if it has gone (or is a zombie) since it was listed."""
+    import psutil
+
+    try:
+        return " ".join(process.cmdline())
+    except psutil.Error:
+        return ""
+
+
+def ellipse(k, a=3.0, b=2.0, d=2):
+    """An outline of ``k`` landmarks on an ellipse with axes ``a``, ``b`` (d = 3: lifted by a
+    saddle ``0.8 sin 2t``): the test shapes of the intrinsic statistics."""
+    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
+    x = np.column_stack([a * np.cos(t), b * np.sin(t)])
+    if d == 3:
+        x = np.column_stack([x, 0.8 * np.sin(2 * t)])
+    return x

@@ -1,7 +1,8 @@
 """The solver comparison in benchmarks/ keeps running and its methods do what they claim.
 
-Quick mode only (n_steps = 4, 3 iterations each); the measurements themselves are in the
-README and come from the full run, which takes minutes.
+Quick mode only (n_steps = 4, 3 iterations each); the measurements themselves come from the full
+run, which takes minutes, and are shown on the documentation's performance page
+(docs/_data/benchmarks/).
 """
 
 import importlib.util

@@ -125,3 +125,75 @@ def test_pairwise_with_rtol_records_it_in_the_store(shapes, tmp_path):
     with pytest.raises(ValueError, match="rtol 0.01, not 0.001"):
         compute_pairwise(x, metric="alpha", sigma2=0.5, rtol=1e-3, n_jobs=1, store=tmp_path / "D.zarr",
                          progress=False)
+
+
+def _chebyshev(u, v, *, power=1.0):
+    """A user's metric: the largest landmark displacement, to a power (for the option check)."""
+    return float(np.max(np.linalg.norm(np.asarray(u) - np.asarray(v), axis=1))) ** power
+
+
+@pytest.fixture
+def registered():
+    from shapelib import distances
+
+    names = set(distances._REGISTRY)
+    yield distances
+    for name in set(distances._REGISTRY) - names:  # leave the registry as the other tests know it
+        del distances._REGISTRY[name]
+
+
+def test_a_registered_metric_works_everywhere_a_builtin_does(shapes, registered):
+    from shapelib.pairwise import compute_pairwise
+
+    d = registered
+    info = d.register_metric("chebyshev", _chebyshev, description="largest landmark displacement")
+    assert d.metric_info("chebyshev") is info and info.symmetric and not info.path and info.bracket is None
+    assert "chebyshev" in d.METRICS and "chebyshev" in d.SYMMETRIC and "chebyshev" not in d.PATH_METRICS
+    u, v = shapes[:2]
+    want = float(np.max(np.linalg.norm(u - v, axis=1)))
+    assert distance(u, v, metric="chebyshev") == want == d.METRICS["chebyshev"](u, v)
+    assert d.pair_record(u, v, metric="chebyshev", power=2.0)["value"] == pytest.approx(want ** 2, rel=1e-15)
+    r = compute_pairwise(shapes, metric="chebyshev", n_jobs=1, block_size=3, progress=False)
+    assert r.matrix[1, 0] == r.matrix[0, 1] == want and r.params == {"power": 1.0}
+    # its options are its function's keywords, checked as a built-in's are
+    with pytest.raises(ValueError, match=r"'chebyshev' has no parameter\(s\) \['sigma2'\]; it takes \['power'\]"):
+        distance(u, v, metric="chebyshev", sigma2=0.5)
+    with pytest.raises(ValueError, match="rtol applies to the certified metrics"):
+        distance(u, v, metric="chebyshev", rtol=1e-3)
+    # a taken name needs replace=True; an asymmetric one is computed in both orders
+    with pytest.raises(ValueError, match="already registered"):
+        d.register_metric("chebyshev", _chebyshev)
+    d.register_metric("chebyshev", _chebyshev, symmetric=False, replace=True)
+    assert "chebyshev" not in d.SYMMETRIC
+    assert len(compute_pairwise(shapes, metric="chebyshev", n_jobs=1, progress=False).to_frame()) == 12
+    for bad, message in ((dict(name="two words"), "identifier"), (dict(function=3), "must be callable"),
+                         (dict(lower_bound="nope"), "lower_bound 'nope' is not a registered metric")):
+        kw = {"name": "other", "function": _chebyshev, **bad}
+        with pytest.raises(ValueError, match=message):
+            d.register_metric(kw.pop("name"), kw.pop("function"), **kw)
+
+
+def test_the_registry_describes_the_builtin_metrics():
+    import pickle
+    from functools import partial
+
+    from shapelib import distances as d
+    from shapelib.solver.bracket import distance_bracket
+
+    builtin = ["alpha", "fisher_rao", "diffeomorphism", "alpha_bound", "fisher_rao_bound", "procrustes",
+               "hausdorff", "tps", "wendland"]
+    assert list(d.METRICS)[:9] == builtin  # (other tests register metrics of their own after them)
+    assert d.PATH_METRICS[:3] == ("alpha", "fisher_rao", "diffeomorphism")
+    assert d.BRACKET_METRICS == ("alpha", "fisher_rao")
+    assert set(builtin) - set(d.SYMMETRIC) == {"tps", "wendland"}
+    for name in builtin:
+        info = d.metric_info(name)
+        assert info.name == name and info.description and "\n" not in info.description
+        assert info.lower_bound is None or info.lower_bound in d.METRICS
+        # what the engine sends to Dask workers: the record, its functions pickled by reference
+        again = pickle.loads(pickle.dumps(info))
+        same = lambda f: (f.func, f.keywords) if isinstance(f, partial) else f  # noqa: E731
+        assert same(again.function) == same(info.function) and same(again.bracket) == same(info.bracket)
+        assert len(pickle.dumps(info)) < 1000
+    assert d.metric_info("alpha").lower_bound == "alpha_bound"
+    assert d.metric_info("fisher_rao").options_of(rtol=1e-3).func is distance_bracket

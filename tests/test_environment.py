@@ -27,7 +27,7 @@ def test_environment_yml_in_sync_with_pyproject():
 
 def test_import_shapelib_is_light_and_its_other_modules_load_on_use():
     """`import shapelib` brings the mathematics only (the math never imports IO or Dask); the
-    README's `shapelib.io.read_landmarks(...)` and `shapelib.pairwise.open_store(...)` work after
+    documentation's `shapelib.io.read_landmarks(...)` and `shapelib.pairwise.open_store(...)` work after
     it, loading those modules on first use."""
     import subprocess
     import sys

@@ -10,14 +10,9 @@ import pytest
 import shapelib
 from shapelib.solver.logexp import tangent_space
 from shapelib.statistics.frechet import frechet_mean, mean_certificate, procrustes_mean
+from tests.conftest import ellipse
 
 
-def ellipse(k, a=3.0, b=2.0, d=2):
-    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
-    x = np.column_stack([a * np.cos(t), b * np.sin(t)])
-    if d == 3:
-        x = np.column_stack([x, 0.8 * np.sin(2 * t)])
-    return x
 
 
 def population(rng, n=8, k=10, d=2, noise=0.3):

@@ -100,7 +100,7 @@ def test_non_convergence_warns(pair):
         r = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=8, max_iter=1)
     assert not r.converged and r.n_iter == 1
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
+        warnings.simplefilter("error", GeodesicWarning)  # (the pair is rotated on purpose: a PoseWarning)
         geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=8, max_iter=1, warn=False)
 
 

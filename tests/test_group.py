@@ -8,14 +8,9 @@ from scipy.stats import binom
 import shapelib
 from shapelib.statistics.frechet import frechet_mean
 from shapelib.statistics.group import mean_difference_test
+from tests.conftest import ellipse
 
 
-def ellipse(k, a=3.0, b=2.0, d=2):
-    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
-    x = np.column_stack([a * np.cos(t), b * np.sin(t)])
-    if d == 3:
-        x = np.column_stack([x, 0.8 * np.sin(2 * t)])
-    return x
 
 
 def sample(rng, n, shift=0.0, k=7, d=2):

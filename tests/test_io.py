@@ -217,17 +217,34 @@ def test_ktch_oracle_both_directions(tmp_path, rng):
     np.testing.assert_array_equal(io.read_tps(tmp_path / "o.tps")[0], precise)
 
 
-def test_writer_warns_about_negative_coordinates_and_writes_missing_as_negative(tmp_path, rng):
-    x = rng.normal(size=(2, 4, 2))
-    with pytest.warns(UserWarning, match="negative='coordinates'"):
-        io.write_landmarks(tmp_path / "neg.tps", x)
-    np.testing.assert_array_equal(io.read_landmarks(tmp_path / "neg.tps", negative="coordinates")[0], x)
+def test_negative_coordinates_are_marked_by_the_writer_and_read_back_as_written(tmp_path, rng):
+    x = rng.normal(size=(3, 4, 2))  # centred, like aligned shapes
+    x[2, 1] = np.nan  # a missing landmark among negative coordinates is written NA
+    spec = pd.DataFrame({"id": ["a", "b", "c"], "comment": ["left side", None, None]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing to warn about: the file says what it holds
+        io.write_landmarks(tmp_path / "neg.tps", x, spec)
+    text = (tmp_path / "neg.tps").read_text()
+    assert text.count(f"COMMENT={io.NEGATIVE_COORDINATES_COMMENT}") == 3 and "NA NA" in text
+    back, table = io.read_landmarks(tmp_path / "neg.tps", missing="nan")
+    np.testing.assert_array_equal(back, x)
+    assert table["comment"].tolist()[0] == "left side"  # the user's comment, not the marker
+    # an independent reader (ktch, which knows no NA) reads a marked file without missing landmarks
+    io.write_tps(tmp_path / "full.tps", x[:2])
+    np.testing.assert_array_equal(np.stack([t.landmarks for t in ktch_io.read_tps(tmp_path / "full.tps")]), x[:2])
+    # an explicit choice still decides: negative values as tpsDig's missing code
+    assert np.isnan(io.read_tps(tmp_path / "neg.tps", negative="missing", missing="nan")[0][0]).any()
+    # without negative coordinates: no marker, missing landmarks in tpsDig's code
     y = np.abs(x)
-    y[1, 2] = np.nan
     io.write_tps(tmp_path / "m.tps", y)
-    assert "-1 -1" in (tmp_path / "m.tps").read_text()
+    assert "-1 -1" in (tmp_path / "m.tps").read_text() and "COMMENT=" not in (tmp_path / "m.tps").read_text()
     back, spec = io.read_tps(tmp_path / "m.tps", missing="nan")
     np.testing.assert_array_equal(np.isnan(back), np.isnan(y))
+    # another program's aligned file (no marker): negatives are missing unless told
+    (tmp_path / "other.tps").write_text(text.replace(f"COMMENT={io.NEGATIVE_COORDINATES_COMMENT}\n", ""))
+    with pytest.raises(ValueError, match="is missing"):
+        io.read_tps(tmp_path / "other.tps")
+    np.testing.assert_array_equal(io.read_tps(tmp_path / "other.tps", negative="coordinates", missing="nan")[0], x)
 
 
 # ------------------------------------------------------------------------------------------ CSV

@@ -10,14 +10,9 @@ import shapelib
 from shapelib.solver.geodesic import shoot
 from shapelib.solver.logexp import GeodesicOptions, exp_map, exp_path, log_map, tangent_space
 from shapelib.solver.path_metric import path_metric
+from tests.conftest import ellipse
 
 
-def ellipse(k, a=3.0, b=2.0, d=2):
-    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
-    x = np.column_stack([a * np.cos(t), b * np.sin(t)])
-    if d == 3:
-        x = np.column_stack([x, 0.8 * np.sin(2 * t)])
-    return x
 
 
 @pytest.fixture

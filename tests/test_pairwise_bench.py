@@ -26,3 +26,8 @@ def test_bench_pairwise_quick_run_reports_rates_and_projection(tmp_path):
     per_pair = report["metrics"]["alpha"][1]["mean_seconds_per_pair"]
     assert proj["hours"][1] == pytest.approx(647 * 646 / 2 * per_pair / 3600)
     assert proj["hours"][8] == pytest.approx(proj["hours"][1] / 8)
+    b = report["bound_matrices"]
+    assert b["n_shapes"] == 40 and b["alpha_bound"]["max_rel_diff_per_pair"] < 1e-12
+    assert b["fisher_rao_bound"]["max_rel_diff_per_pair"] < 1e-7
+    assert b["alpha_bound"]["gaussians"] == 40 * 39 // 2 * 50 * 50 and b["alpha_bound"]["bare_exp_seconds"] > 0
+    assert len(b["sweep"]["sigma2"]) == 3 and b["sweep"]["both_seconds"] > 0

@@ -6,41 +6,56 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 
 import psutil
 import pytest
 
 import run_all
-from tests.conftest import ROOT, requires_data
+from tests.conftest import ROOT, requires_data, wait_for
 
 GOOD = textwrap.dedent('''\
     # %% tags=["parameters"]
     output_dir = "x"
     value = 1.0
-    sleep = 0.0
+    label = "toy"
 
     # %%
-    import time
     from shapelib.study import record_values
-    time.sleep(sleep)
-    record_values(output_dir, {"toy/value": value})
+    record_values(output_dir, {f"{label}/value": value})
 ''')
-#: a notebook with worker processes, as the study's notebooks have (process pools, Dask)
+#: a notebook with worker processes, as the study's notebooks have (process pools, Dask); with
+#: ``block`` it and its workers wait until they are stopped (for a signal / an event nobody sends)
 WORKERS = textwrap.dedent('''\
     # %% tags=["parameters"]
     output_dir = "x"
     value = 1.0
-    sleep = 0.0
     workers = 0
+    block = False
 
     # %%
     import concurrent.futures as cf
-    import time
+    import signal
+    import threading
     from shapelib.study import record_values
     pool = cf.ProcessPoolExecutor(max_workers=workers) if workers else None
-    busy = [pool.submit(time.sleep, sleep) for _ in range(workers)] if workers else []
-    time.sleep(sleep)
+    busy = [pool.submit(signal.pause) for _ in range(workers)] if block else []
+    if block:
+        threading.Event().wait()
+    record_values(output_dir, {"toy/value": value})
+''')
+#: a notebook that writes ``started`` and then waits until it is killed (for a lock nobody releases)
+BLOCKED = textwrap.dedent('''\
+    # %% tags=["parameters"]
+    output_dir = "x"
+    value = 1.0
+    started = "started"
+
+    # %%
+    import threading
+    from pathlib import Path
+    from shapelib.study import record_values
+    Path(started).touch()
+    threading.Event().wait()  # never set: the run can only end by a kill
     record_values(output_dir, {"toy/value": value})
 ''')
 BROKEN = GOOD.replace("record_values(output_dir", "raise RuntimeError('boom')\nrecord_values(output_dir")
@@ -130,34 +145,59 @@ def test_store_outlives_a_failed_run_is_resumed_and_removed_once_done(toy, monke
     assert values(results) == {"toy/resumed": 0.0}
 
 
-TIMED = textwrap.dedent('''\
+#: a notebook that says when it runs: a start and an end marker in ``marks``, and which other
+#: notebooks were running when it started and which started while it ran; ``meet`` names a
+#: notebook it waits for (until that one has started) before it ends
+MARKED = textwrap.dedent('''\
     # %% tags=["parameters"]
     output_dir = "x"
-    sleep = 0.0
     name = "toy"
+    marks = "."
+    meet = ""
 
     # %%
     import time
+    from pathlib import Path
     from shapelib.study import record_values
-    start = time.time()
-    time.sleep(sleep)
-    record_values(output_dir, {f"{name}/start": start, f"{name}/end": time.time()})
+    marks = Path(marks)
+    def running():
+        return {p.stem for p in marks.glob("*.start") if not (marks / f"{p.stem}.end").exists()} - {name}
+    at_start = running()
+    (marks / f"{name}.start").touch()
+    deadline = time.monotonic() + 120  # only to fail instead of hanging: the other must start
+    while meet and not (marks / f"{meet}.start").exists():
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"{meet} did not start while {name} ran")
+        time.sleep(0.02)
+    started = {p.stem for p in marks.glob("*.start")}
+    (marks / f"{name}.end").touch()
+    record_values(output_dir, {f"{name}/{k}": float(v) for k, v in (("others_at_start", len(at_start)),
+                                                                    ("others_at_end", len(running())),
+                                                                    ("seen_started", len(started)))})
 ''')
 
 
 def test_whole_machine_notebooks_run_alone_the_others_side_by_side(toy, monkeypatch):
+    """No clock: the two small notebooks each wait until the other has started (run one after
+    the other, the first would wait forever), and the whole-machine ones record that nothing else
+    ran when they started or ended."""
     nbdir, results = toy
+    marks = results.parent / "marks"
+    marks.mkdir()
+    meet = {"small1": "small2", "small2": "small1"}
     for name, cores in (("whole1", "all"), ("small1", None), ("small2", None), ("whole2", "all")):
-        (nbdir / f"{name}.py").write_text(TIMED)
-        monkeypatch.setitem(run_all.NOTEBOOKS, name, {"params": {"sleep": 3.0, "name": name}, "quick": {}, "data": [], "expects": {},
-                                                      **({"cores": cores} if cores else {})})
+        (nbdir / f"{name}.py").write_text(MARKED)
+        monkeypatch.setitem(run_all.NOTEBOOKS, name, {
+            "params": {"name": name, "marks": str(marks), "meet": meet.get(name, "")}, "quick": {}, "data": [],
+            "expects": {}, **({"cores": cores} if cores else {})})
     names = ["small1", "small2", "whole1", "whole2"]
     assert run_all.run_all(names, quick=False, force=True, jobs=2, results_dir=results) == 0
-    span = {n: (values(results, n)[f"{n}/start"], values(results, n)[f"{n}/end"]) for n in names}
-    overlap = lambda a, b: span[a][0] < span[b][1] and span[b][0] < span[a][1]
     for whole in ("whole1", "whole2"):
-        assert not any(overlap(whole, other) for other in names if other != whole), span
-    assert overlap("small1", "small2"), span  # the others share the machine
+        v = values(results, whole)
+        assert v[f"{whole}/others_at_start"] == v[f"{whole}/others_at_end"] == 0, v
+    # the second whole notebook starts after the first has ended (and after both small ones)
+    order = sorted(names, key=lambda n: values(results, n)[f"{n}/seen_started"])
+    assert order[2:] in (["whole1", "whole2"], ["whole2", "whole1"]), order
 
 
 def test_unknown_parameter_is_an_error(toy, tmp_path):
@@ -199,23 +239,27 @@ def test_killed_run_leaves_previous_results_intact(toy):
     nbdir, results = toy
     run_all.run_one("toy", quick=False, force=False, results_dir=results)
     before = {p.name: p.read_bytes() for p in (results / "toy").iterdir()}
+    started = results.parent / "started"
+    (nbdir / "toy.py").write_text(BLOCKED)  # the same notebook, now one that is killed while it runs
     script = textwrap.dedent(f'''
         import sys; sys.path.insert(0, {str(ROOT)!r})
         from pathlib import Path
         import run_all
         run_all.NOTEBOOK_DIR = Path({str(nbdir)!r})
-        run_all.NOTEBOOKS["toy"] = {{"params": {{"value": 9.0, "sleep": 60.0}}, "quick": {{}}, "data": [], "expects": {{}}}}
+        run_all.NOTEBOOKS["toy"] = {{"params": {{"value": 9.0, "started": {str(started)!r}}}, "quick": {{}},
+                                    "data": [], "expects": {{}}}}
         run_all.run_one("toy", quick=False, force=True, results_dir=Path({str(results)!r}))
     ''')
     proc = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
-    deadline = time.time() + 60
-    while time.time() < deadline and not list(results.glob(".tmp-toy-*/toy.ipynb")):
-        time.sleep(0.2)  # wait until papermill is executing
-    time.sleep(1.0)
-    _kill_tree(proc)
+    try:
+        wait_for(lambda: started.exists() or proc.poll() is not None, "the notebook's first cell")
+        assert proc.poll() is None and list(results.glob(".tmp-toy-*/toy.ipynb"))  # papermill is executing
+    finally:
+        _kill_tree(proc)
     after = {p.name: p.read_bytes() for p in (results / "toy").iterdir()}
     assert after == before
     # the next run clears the leftovers of the killed one
+    (nbdir / "toy.py").write_text(GOOD)
     assert run_all.run_all(["toy"], quick=False, force=False, jobs=1, results_dir=results) == 0
     assert not list(results.glob(".tmp-*"))
 
@@ -245,7 +289,7 @@ def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig)
         import run_all
         run_all.NOTEBOOK_DIR = Path({str(nbdir)!r})
         run_all.NOTEBOOKS.clear()
-        run_all.NOTEBOOKS["toy"] = {{"params": {{"value": 9.0, "sleep": 300.0, "workers": 2}}, "quick": {{}},
+        run_all.NOTEBOOKS["toy"] = {{"params": {{"value": 9.0, "workers": 2, "block": True}}, "quick": {{}},
                                     "data": [], "expects": {{}}}}
         sys.exit(run_all.main(["--force", "-j", "1", "--no-progress", "--results-dir", {str(results)!r}]))
     ''')
@@ -253,15 +297,14 @@ def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig)
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         parent = psutil.Process(proc.pid)
-        deadline = time.time() + 90
         children = []
-        while time.time() < deadline:  # the kernel and its two workers are up
-            children = parent.children(recursive=True)  # one snapshot for the test and the assertion
+
+        def kernel_and_two_workers_up():
+            children[:] = parent.children(recursive=True)  # one snapshot for the test and the assertion
             kernels = [c for c in children if c.ppid() == proc.pid]
-            if kernels and sum(c.ppid() == kernels[0].pid for c in children) >= 2:
-                break
-            time.sleep(0.2)
-        assert len(children) >= 3, children
+            return bool(kernels) and sum(c.ppid() == kernels[0].pid for c in children) >= 2
+
+        wait_for(kernel_and_two_workers_up, "the kernel and its two workers")
         assert list(results.glob(".tmp-toy-*"))
         if sig == signal.SIGINT:
             os.killpg(proc.pid, sig)
@@ -281,7 +324,7 @@ def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig)
 def test_parameters_are_typed_validated_recorded_and_key_the_cache(toy):
     nbdir, results = toy
     declared = run_all.declared_parameters("toy")
-    assert declared == {"output_dir": "x", "value": 1.0, "sleep": 0.0}
+    assert declared == {"output_dir": "x", "value": 1.0, "label": "toy"}
     with pytest.raises(ValueError, match=r"'value' must be a float like its default 1\.0; got 'abc'"):
         run_all.check_parameters("toy", {"value": "abc"}, declared)
     with pytest.raises(ValueError, match="must be a float"):
@@ -289,7 +332,7 @@ def test_parameters_are_typed_validated_recorded_and_key_the_cache(toy):
 
     assert run_all.run_one("toy", quick=False, force=False, results_dir=results, overrides={"value": 5})[1] == "ok"
     assert values(results) == {"toy/value": 5}
-    used = {"value": 5, "sleep": 0.0}
+    used = {"value": 5, "label": "toy"}
     assert json.loads((results / "toy" / "values.json").read_text())["meta"]["parameters"] == used
     inputs = json.loads((results / "toy" / ".inputs.json").read_text())
     assert inputs["params"] == used and inputs["overrides"] == {"value": 5}
@@ -357,30 +400,38 @@ def test_default_output_dir_is_the_top_level_results_wherever_the_notebook_runs(
             "notebooks/ it writes to the top-level results/")
 
 
-def test_readme_timings_come_from_the_run_records(tmp_path):
+def test_recorded_timings_come_from_the_run_records_and_render_as_the_docs_table(tmp_path, monkeypatch, capsys):
+    import importlib.util
+
     results = tmp_path / "results"
     names = list(run_all.NOTEBOOKS)
     for i, name in enumerate(names):
         (results / name).mkdir(parents=True)
         (results / name / ".inputs.json").write_text(json.dumps(
             {"mode": "full", "seconds": 60.0 * (i + 1), "jobs": 2, "finished": f"2026-11-23T12:{i:02d}:00+00:00",
-             "machine": {"cpus": 2, "machine": "x86_64", "python": "3.11.7", "loadavg_1min": 1.0 + i}}))
-    readme = tmp_path / "README.md"
-    original = (ROOT / "README.md").read_text()
-    readme.write_text(original)
-    run_all.update_readme_timings(results, readme)
-    text = readme.read_text()
-    total_min = sum(range(1, len(names) + 1))
-    assert f"{total_min:.1f} min of notebook time in all" in text
-    assert f"the slowest `{names[-1]}` {len(names):.1f} min" in text
-    assert f"| `{names[0]}` | 1.0 |" in text
-    # only the block between the markers changed
-    assert text.split(run_all.TIMINGS_BEGIN)[0] == original.split(run_all.TIMINGS_BEGIN)[0]
-    assert text.split(run_all.TIMINGS_END)[1] == original.split(run_all.TIMINGS_END)[1]
+             "params": {"n": i}, "machine": {"cpus": 2, "machine": "x86_64", "python": "3.11.7",
+                                             "loadavg_1min": 1.0 + i}}))
+    out = tmp_path / "data" / "run_times.json"
+    monkeypatch.setattr(run_all, "TIMINGS_RECORD", out)
+    assert run_all.main(["--results-dir", str(results), "--record-timings"]) == 0
+    assert f"updated {out}" in capsys.readouterr().out
+    record = json.loads(out.read_text())
+    assert record["machine"]["date"] == f"2026-11-23T12:{len(names) - 1:02d}:00+00:00"  # the last to finish
+    assert record["machine"]["loadavg"].startswith(f"1.0–{len(names):.1f}")
+    assert {n: r["seconds"] for n, r in record["results"]["notebooks"].items()} == {
+        n: 60.0 * (i + 1) for i, n in enumerate(names)}
+    # the documentation's renderer turns it into the run-time table, slowest first
+    spec = importlib.util.spec_from_file_location("shapelib_docs", ROOT / "docs" / "_ext" / "shapelib_docs.py")
+    docs = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "shapelib_docs", docs)  # dataclasses look their module up
+    spec.loader.exec_module(docs)
+    (table,) = docs.benchmark_tables("run_times", data_dir=out.parent).tables
+    assert table.rows[0] == [f"``{names[-1]}``", f"{len(names):.1f}"]
+    assert f"{sum(range(1, len(names) + 1)):.1f} min of notebook time in all" in table.note
     # a quick run is no full run
     (results / names[0] / ".inputs.json").write_text(json.dumps({"mode": "quick", "seconds": 1.0}))
     with pytest.raises(ValueError, match=f"{names[0]}: no full run"):
-        run_all.update_readme_timings(results, readme)
+        run_all.record_timings(results, out)
 
 
 @pytest.mark.parametrize("name", list(run_all.NOTEBOOKS))
@@ -400,4 +451,4 @@ def test_list_shows_what_a_full_and_a_quick_run_pass(toy, capsys, monkeypatch):
     monkeypatch.setattr(run_all, "NOTEBOOKS", {"toy": run_all.NOTEBOOKS["toy"]})
     assert run_all.main(["--list"]) == 0
     line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("toy "))
-    assert "value=2.0 [3.0]" in line and "sleep=0.0" in line and "sleep=0.0 [" not in line
+    assert "value=2.0 [3.0]" in line and "label=toy" in line and "label=toy [" not in line

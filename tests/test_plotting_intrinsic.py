@@ -13,11 +13,9 @@ import shapelib  # noqa: E402
 from shapelib import plotting  # noqa: E402
 from shapelib.statistics.group import mean_difference_test  # noqa: E402
 from shapelib.statistics.tangent_pca import tangent_pca  # noqa: E402
+from tests.conftest import ellipse
 
 
-def ellipse(k, a=3.0, b=2.0):
-    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
-    return np.column_stack([a * np.cos(t), b * np.sin(t)])
 
 
 @pytest.fixture(scope="module")

@@ -6,11 +6,9 @@ import pytest
 
 import shapelib
 from shapelib.statistics import frechet
+from tests.conftest import ellipse
 
 
-def ellipse(k, a=3.0, b=2.0):
-    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
-    return np.column_stack([a * np.cos(t), b * np.sin(t)])
 
 
 @pytest.fixture(scope="module")

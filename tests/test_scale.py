@@ -65,7 +65,7 @@ def test_sigma_far_above_the_shape_warns():
 
 
 def test_the_paper_regime_does_not_warn():
-    u = square_lattice(3, 0.5)
+    u = square_lattice(3, 0.5) - 0.5  # centred: u * 1.1 differs in size only, not in pose
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         geodesic(u, u * 1.1, metric="alpha", sigma2=0.5, n_steps=4)
@@ -100,12 +100,14 @@ def test_underflowing_energy_is_not_convergence():
 
 
 def test_fisher_rao_grid_is_refused_before_it_is_built():
-    u = square_lattice(8, 60.0)  # 420 units across, sigma 0.7: millions of nodes
+    # 660 units across, sigma 3.6 (0.06 spacings: just above the degenerate-quadrature error of
+    # check_fisher_rao_scale): hundreds of thousands of nodes x 144 landmarks
+    u = square_lattice(12, 60.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ScaleWarning)
         for f in (geodesic, distance_bracket):
             with pytest.raises(ValueError, match=r"would have [\d,]+ nodes .*GiB.*to_centroid_size"):
-                f(u, u + 1.0, metric="fisher_rao", sigma2=0.5)
+                f(u, u + 1.0, metric="fisher_rao", sigma2=13.0)
     with pytest.raises(ValueError, match="above the limit of 10 nodes x landmarks"):
         quadrature.make_grid(np.zeros((1, 2)), 1.0, max_entries=10)
     with pytest.raises(ValueError, match="non-finite"):

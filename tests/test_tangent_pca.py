@@ -12,14 +12,9 @@ import shapelib
 from shapelib.solver.path_metric import path_metric
 from shapelib.statistics.frechet import frechet_mean
 from shapelib.statistics.tangent_pca import TangentPCA, tangent_pca
+from tests.conftest import ellipse
 
 
-def ellipse(k, a=3.0, b=2.0, d=2):
-    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
-    x = np.column_stack([a * np.cos(t), b * np.sin(t)])
-    if d == 3:
-        x = np.column_stack([x, 0.8 * np.sin(2 * t)])
-    return x
 
 
 def population(rng, n=10, k=10, d=2, noise=0.15):

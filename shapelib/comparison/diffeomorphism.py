@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validate import as_shape, as_shape_pair, check_positive
+from ..geometry.procrustes import check_pose
 from ..solver.minimise import minimise_path
 from ..solver.path_metric import PathMetric
 from ..solver.result import GeodesicResult
@@ -118,6 +119,7 @@ def landmark_diffeomorphism(u, v, *, lam: float = 10.0, kernel_width: float = 1.
         landmark trajectories; ``lower_bound`` = √(λ/(λ + K))‖v − u‖.
     """
     u, v = as_shape_pair(u, v)
+    check_pose(np.stack([u, v]), metric="diffeomorphism")  # the kernel sees where the landmarks are
     width = check_positive(kernel_width, name="kernel_width")
     model = DiffeomorphismPathMetric(check_positive(lam, name="lam"), width)
     return minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,

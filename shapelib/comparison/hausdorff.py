@@ -6,9 +6,11 @@ correspondence is not used.
 
 from __future__ import annotations
 
+import numpy as np
 from scipy.spatial.distance import cdist
 
 from .._validate import as_shape_pair
+from ..geometry.procrustes import check_pose
 
 __all__ = ["hausdorff_distance"]
 
@@ -23,8 +25,10 @@ def hausdorff_distance(u, v) -> float:
     Returns
     -------
     float
-        ``max(max_a min_b |u_a − v_b|, max_b min_a |u_a − v_b|)``.
+        ``max(max_a min_b |u_a − v_b|, max_b min_a |u_a − v_b|)``. It depends on the pose of
+        the shapes: :class:`~shapelib.geometry.procrustes.PoseWarning` if they are not aligned.
     """
     u, v = as_shape_pair(u, v)
+    check_pose(np.stack([u, v]), metric="hausdorff")
     d = cdist(u, v)
     return float(max(d.min(axis=1).max(), d.min(axis=0).max()))

@@ -36,6 +36,7 @@ import numpy as np
 from scipy.spatial.distance import cdist
 
 from .._validate import as_shape, as_shape_pair, check_positive
+from ..geometry.procrustes import check_pose
 
 __all__ = [
     "tps_kernel",
@@ -134,7 +135,7 @@ def tps_bending_matrix(u, *, kernel: str | None = None) -> np.ndarray:
     numpy.ndarray, shape (K, K)
         Symmetric positive semidefinite; annihilates affine functions of ``u``.
     """
-    u = as_shape(u, name="u")
+    u = as_shape(u, name="u", dims=None)  # any d with an explicit kernel
     kernel = _default_kernel(kernel, u.shape[1])
     _check_affine_count(u)
     _check_distinct(u)
@@ -166,7 +167,7 @@ def tps_bending_energy(u, v, *, kernel: str | None = None) -> float:
         The bending energy; ``∫ Σ_ij (∂_i∂_j f)²`` of the interpolant is ``16π`` times it
         for ``"r2logr2"`` (2-D) and ``8π`` times it for ``"r2logr"`` (2-D) and ``"r"`` (3-D).
     """
-    u, v = as_shape_pair(u, v)
+    u, v = as_shape_pair(u, v, dims=None)  # any d with an explicit kernel
     b = tps_bending_matrix(u, kernel=kernel)
     dsp = v - u
     return float(np.einsum("ai,ab,bi->", dsp, b, dsp))
@@ -191,6 +192,8 @@ def wendland_bending_energy(u, v, *, support: float | None = None, affine: bool 
         Leave the affine part free (side conditions), as for the TPS.
     """
     u, v = as_shape_pair(u, v)
+    if not affine:  # the energy then includes the affine part, so it depends on pose
+        check_pose(np.stack([u, v]), metric="wendland (affine=False)")
     if affine:
         _check_affine_count(u)
     _check_distinct(u)

@@ -6,6 +6,8 @@
   the Fisher–Rao integrals' grid: :mod:`shapelib.geometry.quadrature`)
 * pose and size (Procrustes alignment, centroid size): :mod:`shapelib.geometry.procrustes`
 * σ against the landmarks' spacing: :mod:`shapelib.geometry.scale`
+* the closed-form lower bounds of a whole population as matrix products, and σ² sweeps:
+  :mod:`shapelib.geometry.bound_matrices`
 
 Nothing here imports the solver, the engine, IO or plotting.
 """

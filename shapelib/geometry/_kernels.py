@@ -26,6 +26,12 @@ from numba import njit
 __all__ = ["alpha_qform", "alpha_qform_grad", "alpha_path_grad_hessian"]
 
 
+#: ``ψ = 2√p`` below this (``p`` below float64's smallest normal number) only far from every
+#: landmark, where ``coef ∝ √p`` and ``ψ̇`` are as small: the terms divided by ψ are dropped there
+#: (their products with ``coef`` are below 1e-300), instead of dividing by zero or a subnormal.
+PSI_FLOOR = 1e-150
+
+
 @njit(cache=True, fastmath=False)
 def _overlap_norm(s2, k, d):
     """``1 / ((4πσ²)^{d/2} K²)``: the factor of ``c_ab = G(Δ_ab)/K²``."""
@@ -375,7 +381,9 @@ def fr_qform_grad(x, weight, theta, vel, s2, psi, coef):
         for a in range(k):
             pd += coef[m, a] * rv[a]
         q += pd * pd
-        ratio = pd / psi[m]
+        # ψ falls below PSI_FLOOR only far from every landmark, where coef (∝ √p) and ψ̇ vanish with
+        # it: the node adds nothing (never a division by zero, nor by a subnormal number)
+        ratio = pd / psi[m] if psi[m] > PSI_FLOOR else 0.0
         for a in range(k):
             pc[a] = pd * coef[m, a]
         for i in range(d):
@@ -427,8 +435,9 @@ def fr_hessian_parts(x, theta, vel, s2, psi, coef):
         pd = 0.0
         for a in range(k):
             pd += coef[m, a] * rv[a]
-        u = 2.0 * pd / psi[m]
-        bfac = pd * pd / psi[m]
+        inv_psi = 1.0 / psi[m] if psi[m] > PSI_FLOOR else 0.0  # far from every landmark: see fr_qform_grad
+        u = 2.0 * pd * inv_psi
+        bfac = pd * pd * inv_psi
         for a in range(k):
             aa[a] = pd * coef[m, a]
             bb[a] = bfac * coef[m, a]

@@ -342,6 +342,12 @@ def alpha_tensor_batch(theta: np.ndarray, s2: float) -> np.ndarray:
     return _alpha_metric_blocks(*_alpha_overlaps(theta, s2), s2).reshape(m, k * d, k * d)
 
 
+def _over_psi(x: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """``x / ψ``, 0 where ψ is below :data:`shapelib.geometry._kernels.PSI_FLOOR`: only far from every
+    landmark, where what it multiplies (``coef`` ∝ √p) is as small, so such nodes add nothing."""
+    return np.divide(x, psi, out=np.zeros_like(x), where=psi > _kernels.PSI_FLOOR)
+
+
 def _fr_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
     """``Q = ∫ ṗ²/p = ∫ ψ̇²`` (ψ = 2√p) and its gradients, batched over (m, K, d), on ``grid``.
 
@@ -363,7 +369,7 @@ def _fr_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
         d_theta[i] = 2 * grid.weight * (
             _r_weighted(pc * rv, x, th) / s2
             - pc.sum(axis=0)[:, None] * v
-            - _r_weighted(pc * (psidot / psi)[:, None], x, th)
+            - _r_weighted(pc * _over_psi(psidot, psi)[:, None], x, th)
         )
     return q, d_theta, d_vel
 
@@ -401,7 +407,7 @@ def _fr_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
         th, v = theta[n], vel[n]
         psi, coef, rv, psidot = _fr_psidot(th, v, s2, grid)
         r = [x[:, i, None] - th[None, :, i] for i in range(d)]  # r_a (M, K) per coordinate
-        u = 2 * psidot / psi
+        u = 2 * _over_psi(psidot, psi)
         for i in range(d):
             np.multiply(coef, r[i], out=e[:, 1, i])  # √p β
             e[:, 0, i] = coef * (r[i] * rv / s2 - v[None, :, i]) - u[:, None] * e[:, 1, i]  # √p (γ − uβ)
@@ -411,7 +417,7 @@ def _fr_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
         q_tt[n], q_tv[n], q_vv[n] = gram[:q, :q], gram[:q, q:], gram[q:, q:]
         # block-diagonal parts: moments of a = ψ̇ coef and b = (ψ̇²/ψ) coef over the grid
         a = psidot[:, None] * coef
-        b = (psidot**2 / psi)[:, None] * coef
+        b = _over_psi(psidot**2, psi)[:, None] * coef
         arv = a * rv
         ar = [a * ri for ri in r]
         arv_r = [arv * ri for ri in r]

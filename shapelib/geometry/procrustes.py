@@ -12,6 +12,14 @@ optimal orthogonal map would be a reflection (rotations only). With ``S = Σ s``
 
 ``scipy.spatial.procrustes`` returns ``d_F²`` when reflections are allowed.
 Table I's Procrustes column is ρ × 100 (``notebooks/table1_pairwise.py``).
+
+Pose
+----
+The information metrics (eqs. 6, 22), their bounds, the landmark diffeomorphism and the
+Hausdorff distance compare shapes where they lie: rotating or moving one shape changes them.
+:func:`pose_align` aligns shapes by rotations and translations only (sizes kept, so σ² keeps its
+meaning) and says how far each shape moved; :func:`check_pose` warns (:class:`PoseWarning`) when
+that is more than :data:`POSE_TOL` of the shapes' size.
 """
 
 from __future__ import annotations
@@ -20,9 +28,15 @@ import warnings
 
 import numpy as np
 
-from .._validate import as_shape, as_shape_pair, as_shapes
+from .._validate import as_shape, as_shape_pair, as_shapes, set_was_checked
 
 __all__ = [
+    "PoseWarning",
+    "POSE_TOL",
+    "POSE_PAIR_RATIO",
+    "pose_align",
+    "pose_change",
+    "check_pose",
     "center",
     "centroid_size",
     "preshape",
@@ -182,3 +196,119 @@ def generalized_procrustes(shapes, *, scaling: bool = True, tol: float = 1e-12, 
     else:
         warnings.warn(f"generalized_procrustes did not converge in {max_iter} iterations", RuntimeWarning, stacklevel=2)
     return aligned, mean
+
+
+# ---------------------------------------------------------------------------------------------
+# Pose: are the shapes aligned?
+# ---------------------------------------------------------------------------------------------
+
+#: Shapes count as aligned when aligning them moves no shape by more than this fraction of its
+#: centroid size (RMS over landmarks × √K; 1e-3 is a rotation of 0.06°).
+POSE_TOL = 1e-3
+#: Two shapes are not aligned when aligning them moves one by more than this fraction of the shape
+#: difference that remains. Shapes taken from one aligned set stay far below it: at most 0.05 over
+#: the pairs of the corpus callosum, Beijing and ADHD-200 shapes after generalised Procrustes.
+POSE_PAIR_RATIO = 0.25
+
+
+class PoseWarning(UserWarning):
+    """A pose-dependent distance was asked of shapes that are not aligned (see :func:`check_pose`)."""
+
+
+def pose_align(shapes):
+    """Align shapes by rotations and translations only: generalised Procrustes without scaling,
+    each shape keeping its centroid size, the whole set put back in the frame nearest the input.
+
+    Parameters
+    ----------
+    shapes : array_like, shape (N, K, d)
+
+    Returns
+    -------
+    aligned : ndarray, shape (N, K, d)
+        The shapes after GPA rotations (Dryden & Mardia §7.3) at their own centroid sizes, with
+        a common centroid; then one rotation and translation of the whole set (which changes no
+        pose-dependent distance) brings it as close as possible to the input.
+    moved : ndarray, shape (N,)
+        ``‖shapes[i] − aligned[i]‖ / centroid_size(shapes[i])``: 0 for shapes already aligned
+        (0 also for a shape whose landmarks all coincide, which has no pose).
+    """
+    x = as_shapes(shapes, name="shapes", min_landmarks=2)
+    centred = x - x.mean(axis=1, keepdims=True)
+    sizes = np.linalg.norm(centred, axis=(1, 2))
+    ok = sizes > 0
+    aligned = x.copy()
+    moved = np.zeros(len(x))
+    if ok.sum() == 0:
+        return aligned, moved
+    if ok.sum() == 1:
+        gpa = centred[ok] / sizes[ok, None, None]
+    else:
+        gpa, _ = generalized_procrustes(x[ok], scaling=False)
+    back = gpa * sizes[ok, None, None]
+    offset = x[ok].mean(axis=(0, 1))
+    r, _ = optimal_rotation((x[ok] - offset).reshape(-1, x.shape[2]), back.reshape(-1, x.shape[2]))
+    aligned[ok] = back @ r + offset
+    moved[ok] = np.linalg.norm(x[ok] - aligned[ok], axis=(1, 2)) / sizes[ok]
+    return aligned, moved
+
+
+def pose_change(u, v) -> tuple[float, float]:
+    """How much of the difference between ``u`` and ``v`` is pose: ``(moved, remaining)``.
+
+    ``moved`` is ``‖v − v'‖``, ``v'`` being ``v`` rotated and translated onto ``u``
+    (:func:`procrustes_align` without scaling), and ``remaining`` is ``‖u − v'‖``, both in units of
+    the mean centroid size of ``u`` and ``v`` (0, 0 if both have size 0).
+    """
+    u, v = as_shape_pair(u, v, min_landmarks=2)
+    size = 0.5 * (centroid_size(u) + centroid_size(v))
+    if size == 0:
+        return 0.0, 0.0
+    if np.linalg.norm(v - v.mean(axis=0)) == 0:  # a point has no rotation: only its position counts
+        moved_v = v - v.mean(axis=0) + u.mean(axis=0)
+    else:
+        moved_v = procrustes_align(u, v, scaling=False)
+    return float(np.linalg.norm(v - moved_v) / size), float(np.linalg.norm(u - moved_v) / size)
+
+
+def check_pose(shapes, *, metric: str, tol: float = POSE_TOL, stacklevel: int = 3) -> float:
+    """Warn (:class:`PoseWarning`) when ``metric``, which depends on the pose of the shapes, is
+    asked of shapes that are not aligned; returns how far aligning would move them (a fraction
+    of their size).
+
+    Two shapes ``(2, K, d)`` (one pair) are not aligned when rotating and translating ``v`` onto
+    ``u`` moves it by more than ``tol`` and by more than :data:`POSE_PAIR_RATIO` times the shape
+    difference that remains (:func:`pose_change`): a good part of what the distance measures is
+    then their relative pose. Two shapes taken from a larger aligned set are not aligned to each
+    other exactly, but what aligning them changes is of second order in their shape difference,
+    so they pass. More shapes: any shape that :func:`pose_align` moves by more than ``tol``.
+    ``stacklevel`` counts from this function, as :func:`warnings.warn` does. Skipped (returns NaN)
+    inside :func:`shapelib._validate.set_checked`, where the pairwise engine has checked the set.
+    """
+    if set_was_checked():
+        return float("nan")
+    x = as_shapes(shapes, name="shapes")
+    if x.shape[1] < 2:
+        return 0.0
+    if len(x) == 2:
+        moved, remaining = pose_change(x[0], x[1])
+        if moved > tol and moved > POSE_PAIR_RATIO * remaining:
+            warnings.warn(
+                f"{metric} depends on the pose of the shapes, and u and v are not aligned: rotating and "
+                f"translating v onto u moves it by {100 * moved:.3g} % of their size, against a shape "
+                f"difference of {100 * remaining:.3g} % that remains, so the distance measures their relative "
+                f"pose as well as their shapes. Align them first: v = shapelib.procrustes_align(u, v, "
+                f"scaling=False), or shapelib.pose_align(shapes)[0] for a whole set.", PoseWarning,
+                stacklevel=stacklevel)
+        return moved
+    _, moved = pose_align(x)
+    worst = int(np.argmax(moved))
+    if moved[worst] > tol:
+        n_bad = int(np.sum(moved > tol))
+        warnings.warn(
+            f"{metric} depends on the pose of the shapes, and these are not aligned: aligning them "
+            f"(rotations and translations) moves {n_bad} of {len(x)} shapes by more than {100 * tol:.2g} % of "
+            f"their size, shapes[{worst}] by {100 * moved[worst]:.3g} %. Align them first: "
+            f"shapelib.pose_align(shapes)[0] (sizes kept, so sigma2 keeps its meaning); the shapelib "
+            f"command line does this by default.", PoseWarning, stacklevel=stacklevel)
+    return float(moved[worst])

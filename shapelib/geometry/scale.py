@@ -11,7 +11,10 @@ shape's extent the whole shape is one blob.
 * :func:`landmark_spacing` — mean distance from a landmark to its nearest neighbour;
 * :func:`sigma_ratio` — σ in units of that spacing (≈ 1–5 is the paper's regime);
 * :func:`to_centroid_size` — bring shapes to the study's scale;
-* :func:`check_scale` — warn when σ does not fit the landmarks.
+* :func:`check_scale` — warn when σ does not fit the landmarks;
+* :func:`estimate_sigma2` — σ² from the data: the landmarks' own scatter around the mean shape
+  (:mod:`shapelib.geometry.sigma2`), the library's one σ² advice (``shapelib info``, the CLI's
+  ``--sigma2 auto``, the advice of :class:`ScaleWarning`).
 
 :func:`shapelib.solver.geodesic.geodesic` and :func:`shapelib.solver.bracket.distance_bracket` check the
 ratio at entry (:func:`check_scale`) and warn with a :class:`ScaleWarning`.
@@ -20,15 +23,18 @@ ratio at entry (:func:`check_scale`) and warn with a :class:`ScaleWarning`.
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from .._validate import as_shape, as_shapes, check_positive, check_sigma2
 from .procrustes import generalized_procrustes, preshape
+from .sigma2 import predictive_sigma2, scatter_sigma2
 
 __all__ = ["landmark_spacing", "sigma_ratio", "to_centroid_size", "ScaleWarning", "PAPER_CENTROID_SIZE",
-           "SIGMA_RATIO_MIN", "check_scale"]
+           "SIGMA_RATIO_MIN", "check_scale", "FISHER_RAO_RATIO_MIN", "check_fisher_rao_scale", "estimate_sigma2",
+           "Sigma2Estimate", "SIGMA2_METHODS"]
 
 #: Centroid size at which Table I's distances appear to have been computed (see table1_pairwise).
 PAPER_CENTROID_SIZE = 20.0
@@ -115,8 +121,8 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
     (every shape is one blob). Returns ``σ / spacing``. ``stacklevel`` is counted from this
     function, as :func:`warnings.warn` counts it (3: the caller of its caller).
     """
-    x = np.asarray(shapes, dtype=np.float64)
-    x = x.reshape((-1,) + x.shape[-2:])
+    x = _as_collection(shapes)
+    sigma2 = check_sigma2(sigma2)
     sigma = float(np.sqrt(sigma2))
     if x.shape[1] < 2:
         return float("inf")
@@ -125,18 +131,173 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
     extent = float(np.max(np.ptp(x, axis=1)))
     fix = ("Bring the shapes to a scale that fits sigma2, e.g. shapelib.to_centroid_size(shapes) "
            "(the study's centroid size 20, where the paper's sigma2 = 0.1-1.5 give sigma = 1.1-4.5 "
-           "spacings), or choose sigma2 near (2 x spacing)^2")
+           "spacings), or estimate sigma2 from the data")
     if ratio < SIGMA_RATIO_MIN:
         warnings.warn(
             f"sigma = {sigma:.3g} (sigma2 = {sigma2:.3g}) is {ratio:.3g} times the mean nearest-landmark "
             f"spacing {spacing:.3g}: the Gaussians of neighbouring landmarks do not overlap, so the "
-            f"metric sees isolated points, not a shape, and energies and gradients underflow. {fix} "
-            f"= {(2 * spacing) ** 2:.3g}.",
+            f"metric sees isolated points, not a shape, and energies and gradients underflow. {fix}"
+            f"{_advice(x, spacing)}",
             ScaleWarning, stacklevel=stacklevel)
     elif extent > 0 and sigma > extent:
         warnings.warn(
             f"sigma = {sigma:.3g} (sigma2 = {sigma2:.3g}) exceeds the largest extent of the shapes "
             f"({extent:.3g}): each shape is a single blob and distances between shapes nearly vanish. "
-            f"{fix} = {(2 * spacing) ** 2:.3g}.",
+            f"{fix}{_advice(x, spacing)}",
             ScaleWarning, stacklevel=stacklevel)
     return ratio
+
+
+#: Below this σ / spacing the Gaussians of neighbouring landmarks do not overlap even in float64:
+#: midway between landmarks one spacing ``h`` apart each is ``exp(−h²/(8σ²))`` of its peak, below
+#: machine epsilon (2.2e-16) for σ < h / √(8 ln(1/ε)) ≈ 0.059 h. The Fisher–Rao quantities divide
+#: by √p, which then vanishes between the landmarks: their quadrature has nothing to resolve.
+FISHER_RAO_RATIO_MIN = float(1.0 / np.sqrt(8.0 * np.log(1.0 / np.finfo(np.float64).eps)))
+
+
+def check_fisher_rao_scale(shapes, sigma2, *, metric: str = "fisher_rao", ratio: float | None = None) -> None:
+    """Raise ``ValueError`` before any work when σ is below :data:`FISHER_RAO_RATIO_MIN` times the
+    mean nearest-landmark spacing: the Fisher–Rao metric (eq. 6) and its bound would see isolated
+    points whose densities underflow between them (a division by zero, or a meaningless value).
+    ``ratio``: σ / spacing if already known (:func:`check_scale` returns it)."""
+    sigma2 = check_sigma2(sigma2)
+    if ratio is None:
+        x = _as_collection(shapes)
+        if x.shape[1] < 2:
+            return
+        spacing = landmark_spacing(x)
+        ratio = np.sqrt(sigma2) / spacing if spacing > 0 else float("inf")
+    if ratio < FISHER_RAO_RATIO_MIN:
+        spacing = np.sqrt(sigma2) / ratio
+        raise ValueError(
+            f"{metric}: sigma2 = {sigma2:.3g} is too small for these landmarks: sigma = {np.sqrt(sigma2):.3g} is "
+            f"{ratio:.3g} times their mean nearest-landmark spacing {spacing:.3g}, below {FISHER_RAO_RATIO_MIN:.2g}, "
+            f"where the Gaussians of neighbouring landmarks do not overlap even in double precision and the "
+            f"Fisher-Rao quadrature has nothing to resolve (it divides by the density, which vanishes between "
+            f"them). Use sigma2 >= {(FISHER_RAO_RATIO_MIN * spacing) ** 2:.3g} (sigma at one spacing: "
+            f"{spacing ** 2:.3g}), or bring the shapes to a scale that fits sigma2 (shapelib.to_centroid_size)")
+
+
+def _advice(x, spacing) -> str:
+    """The tail of a :class:`ScaleWarning`: what :func:`estimate_sigma2` gives for these shapes."""
+    if len(x) < 2:
+        return "."
+    try:
+        est = estimate_sigma2(x)
+    except ValueError:
+        return "."
+    text = (f": shapelib.estimate_sigma2(shapes) gives sigma2 = {est.sigma2:.3g} here (the landmarks' scatter "
+            f"around their mean, sigma = {est.sigma_over_spacing:.2g} spacings)")
+    if est.sigma_over_spacing < SIGMA_RATIO_MIN:
+        text += (f"; that is below {SIGMA_RATIO_MIN:g} spacings too: the landmarks vary less than they are apart, "
+                 f"geodesics at such sigma are straight lines, and the closed-form bounds are the distances to use "
+                 f"(paths bend from sigma2 = {(SIGMA_RATIO_MIN * spacing) ** 2:.3g})")
+    return text + "."
+
+
+# ---------------------------------------------------------------------------------------------
+# σ² from the data
+# ---------------------------------------------------------------------------------------------
+
+#: the estimators of :func:`estimate_sigma2` (see :mod:`shapelib.geometry.sigma2`)
+SIGMA2_METHODS = ("scatter", "predictive")
+
+
+@dataclass(frozen=True)
+class Sigma2Estimate:
+    """σ² of eq. (5) estimated from a population (:func:`estimate_sigma2`).
+
+    Attributes
+    ----------
+    sigma2 : float
+        The estimate, in squared units of the landmark coordinates.
+    method : {"scatter", "predictive"}
+    standard_error : float or None
+        Its sampling standard error (``"scatter"``: ``σ̂² √(2/df)``; ``None`` for ``"predictive"``).
+    spacing : float
+        Mean nearest-landmark spacing of the shapes (:func:`landmark_spacing`).
+    n_shapes, n_landmarks, dim : int
+    landmark_range : tuple of float or None
+        ``"scatter"``: the smallest and largest σ of a single landmark, over σ — how unequal
+        the landmarks' variability is (eq. 5 gives all of them one σ).
+    pose_share : float
+        Share of the scatter of the shapes as given that is pose (position, orientation): the
+        estimate is computed after superimposing them rigidly, but the distances see the shapes
+        as given, so a large share means: align them first.
+    """
+
+    sigma2: float
+    method: str
+    standard_error: float | None
+    spacing: float
+    n_shapes: int
+    n_landmarks: int
+    dim: int
+    landmark_range: tuple | None
+    pose_share: float
+
+    @property
+    def sigma(self) -> float:
+        return float(np.sqrt(self.sigma2))
+
+    @property
+    def sigma_over_spacing(self) -> float:
+        return self.sigma / self.spacing if self.spacing > 0 else float("inf")
+
+    def summary(self) -> str:
+        what = {"scatter": "landmark scatter: the maximum-likelihood variance of each landmark around the "
+                           "mean shape, per coordinate",
+                "predictive": "held-out prediction: half the variance at which one shape's mixture best "
+                              "predicts another's landmarks"}[self.method]
+        se = f" ± {self.standard_error:.2g}" if self.standard_error is not None else ""
+        lines = [f"sigma2 = {self.sigma2:.4g}{se} ({what}; {self.n_shapes} shapes x {self.n_landmarks} landmarks "
+                 f"in {self.dim}-D)",
+                 f"sigma = {self.sigma:.4g} = {self.sigma_over_spacing:.3g} x the mean nearest-landmark spacing "
+                 f"{self.spacing:.4g}"]
+        if self.landmark_range is not None:
+            lo, hi = self.landmark_range
+            lines.append(f"single landmarks vary from {lo:.2g} to {hi:.2g} times this sigma (eq. 5 gives all one sigma)")
+        if self.sigma_over_spacing < SIGMA_RATIO_MIN:
+            lines.append(f"the Gaussians of neighbouring landmarks barely overlap at this sigma (below "
+                         f"{SIGMA_RATIO_MIN:g} spacings): the closed-form bounds are fine; geodesics are nearly "
+                         f"straight and the solvers warn")
+        if self.pose_share > 0.1:
+            lines.append(f"{self.pose_share:.0%} of this scatter is pose (position, orientation): align the shapes "
+                         f"first (shapelib.to_centroid_size, `shapelib align`) and estimate again")
+        return "\n".join(lines)
+
+
+def estimate_sigma2(shapes, *, method: str = "scatter") -> Sigma2Estimate:
+    """σ² of the GMM shape (eq. 5) from a population of shapes (:mod:`shapelib.geometry.sigma2`).
+
+    ``"scatter"`` (default): the maximum-likelihood σ² of the landmarks around the mean shape, each
+    landmark a noisy observation of its mixture component (shapes superimposed rigidly first). With it, the overlap of two shapes'
+    Gaussians at corresponding landmarks is the density of the difference of two corresponding
+    landmarks under the model: displacements of the size the population shows count as typical.
+    ``"predictive"``: half the σ² at which one shape's mixture best predicts another's landmarks
+    (no correspondence used; low once neighbouring Gaussians overlap).
+
+    Parameters
+    ----------
+    shapes : array_like, shape (N, K, d)
+        The shapes the distances will be computed on — aligned, at that scale (σ² is in squared
+        coordinate units); N ≥ 2.
+    method : {"scatter", "predictive"}
+
+    Returns
+    -------
+    Sigma2Estimate
+        ``.sigma2``, ``.summary()`` says what the number means and warns when the shapes are not
+        aligned or σ is below the landmark spacing's regime.
+    """
+    if method not in SIGMA2_METHODS:
+        raise ValueError(f"method must be one of {SIGMA2_METHODS}; got {method!r}")
+    x = as_shapes(shapes, name="shapes", min_shapes=2)
+    n, k, d = x.shape
+    s2, se, per_landmark = scatter_sigma2(x)
+    share = float(max(0.0, 1.0 - s2 / scatter_sigma2(x, superimpose=False)[0]))
+    spacing = landmark_spacing(x) if k >= 2 else 0.0
+    if method == "predictive":
+        return Sigma2Estimate(predictive_sigma2(x), method, None, spacing, n, k, d, None, share)
+    spread = np.sqrt(per_landmark / s2)
+    return Sigma2Estimate(s2, method, se, spacing, n, k, d, (float(spread.min()), float(spread.max())), share)

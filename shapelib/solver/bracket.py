@@ -230,7 +230,7 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     At σ² = 0.5 on the corpus callosum pairs of Table I (centroid size 20) every pair reaches
     1e-3 with a few iterations; at σ² = 0.1 most pairs stop ``"stalled"`` at a gap of a few
     1e-3, because the α geodesic is measurably longer than the L² chord there
-    (``docs/solver.md``). The 1e-9 Newton-decrement certificate of a local minimum remains
+    (``docs/guide/solver.md``). The 1e-9 Newton-decrement certificate of a local minimum remains
     available through :func:`shapelib.solver.geodesic.geodesic` (``tol=``).
     """
     t0 = time.perf_counter()

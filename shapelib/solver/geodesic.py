@@ -68,15 +68,18 @@ import warnings
 
 import numpy as np
 
-from .._validate import as_shape_pair, check_dimension, check_sigma2
+from .._validate import as_shape_pair, check_dimension, check_positive, check_sigma2, set_was_checked
+from ..geometry.gmm import l2_distance
+from ..geometry.procrustes import check_pose
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
-from ..geometry.scale import SIGMA_RATIO_MIN, check_scale
+from ..geometry.scale import SIGMA_RATIO_MIN, check_fisher_rao_scale, check_scale
 from .energy import metric_length
 from .minimise import minimise_path
 from .path_metric import METRICS, FisherRaoPathMetric, path_metric
 from .result import GeodesicResult, GeodesicWarning, StopReason
 
-__all__ = ["geodesic", "shoot", "geodesic_acceleration", "fisher_rao_lower_bound", "path_length", "check_entry",
+__all__ = ["geodesic", "shoot", "geodesic_acceleration", "fisher_rao_lower_bound", "alpha_lower_bound", "path_length",
+           "check_entry",
            "METRICS", "GeodesicResult", "GeodesicWarning", "StopReason", "minimise_path"]
 
 
@@ -104,10 +107,30 @@ def fisher_rao_lower_bound(u, v, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
 
     ``2√p`` lies on the sphere of radius 2 in L² and the Fisher–Rao metric is the pull-back of
     L² by ``θ ↦ 2√p``, so no path of GMMs is shorter than the great circle. Computed stably as
-    ``4 arcsin(‖√p_u − √p_v‖ / 2)`` by quadrature.
+    ``4 arcsin(‖√p_u − √p_v‖ / 2)`` by quadrature, on a grid covering the two shapes
+    (:mod:`shapelib.geometry.quadrature`): with the default grid within 5e-8 (relative) of a grid
+    of step 0.2 σ and margin 9 σ on ADHD-200 pairs at σ² from 0.007 to 17. A whole population's
+    matrix: :func:`shapelib.geometry.bound_matrices.fisher_rao_bound_matrix`.
+
+    Checked at entry as :func:`geodesic` is: landmark dimension, σ against the landmarks' scale
+    (:class:`~shapelib.geometry.scale.ScaleWarning`) and their pose
+    (:class:`~shapelib.geometry.procrustes.PoseWarning`).
     """
     u, v = as_shape_pair(u, v)
-    return FisherRaoPathMetric(check_sigma2(sigma2), grid_spacing, grid_margin).lower_bound(u, v)
+    s2 = check_sigma2(sigma2)
+    check_entry(u, v, s2, metric="fisher_rao", stacklevel=3, what="fisher_rao_bound")
+    return FisherRaoPathMetric(s2, check_positive(grid_spacing, name="grid_spacing"),
+                               check_positive(grid_margin, name="grid_margin")).lower_bound(u, v)
+
+
+def alpha_lower_bound(u, v, *, sigma2) -> float:
+    """Closed-form lower bound ``‖p_u − p_v‖`` on the α-order geodesic distance (eq. 22): the L²
+    distance of the eq. 5 densities (:func:`shapelib.geometry.gmm.l2_distance`), checked at entry
+    as :func:`geodesic` is (landmark dimension, scale, pose)."""
+    u, v = as_shape_pair(u, v)
+    s2 = check_sigma2(sigma2)
+    check_entry(u, v, s2, metric="alpha", stacklevel=3, what="alpha_bound")
+    return l2_distance(u, v, s2)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -115,14 +138,26 @@ def fisher_rao_lower_bound(u, v, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
 # ---------------------------------------------------------------------------------------------
 
 
-def check_entry(u, v, s2, *, metric, stacklevel):
-    """Checks shared by :func:`geodesic` and :func:`shapelib.solver.bracket.distance_bracket` at entry:
-    landmark dimension 2 or 3 and σ against the landmarks' scale (:mod:`shapelib.geometry.scale`).
-    ``stacklevel`` counts from here (3: the caller of the entry point)."""
+def check_entry(u, v, s2, *, metric, stacklevel, what=None):
+    """Checks shared by :func:`geodesic`, :func:`shapelib.solver.bracket.distance_bracket` and the
+    two bounds at entry: landmark dimension 2 or 3, σ against the landmarks' scale
+    (:mod:`shapelib.geometry.scale`) and their pose (:func:`shapelib.geometry.procrustes.check_pose`:
+    both metrics depend on it). ``stacklevel`` counts from here (3: the caller of the entry point);
+    ``what``: a bound's name in the warnings. Returns σ / spacing (the α bound, which does not use
+    it, skips the scale warning where the pairwise engine has checked the whole set); ``ValueError``
+    for a σ that leaves the Fisher–Rao quadrature nothing to resolve
+    (:func:`~shapelib.geometry.scale.check_fisher_rao_scale`)."""
     if metric not in METRICS:
         raise ValueError(f"metric must be one of {METRICS}; got {metric!r}")
     check_dimension(u, name="u")
-    return check_scale(np.stack([u, v]), s2, stacklevel=stacklevel + 1)
+    pair = np.stack([u, v])
+    check_pose(pair, metric=what or metric, stacklevel=stacklevel + 1)
+    if metric == "alpha" and what is not None and set_was_checked():
+        return None
+    ratio = check_scale(pair, s2, stacklevel=stacklevel + 1)
+    if metric == "fisher_rao":  # degenerate quadrature: an error before any work
+        check_fisher_rao_scale(pair, s2, metric=what or metric, ratio=ratio)
+    return ratio
 
 
 def _underflow(result, ratio):

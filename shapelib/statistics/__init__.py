@@ -11,6 +11,9 @@ Intrinsic (shapes out, under the α-order or Fisher–Rao metric, on the log and
 (:mod:`~shapelib.statistics.group`). Their log
 maps run on any executor (:mod:`~shapelib.statistics.population_logs`); ``shapelib.frechet_mean``
 etc. (:mod:`shapelib.population`) add ``n_jobs`` / ``client`` / ``scheduler``.
+
+Across a sweep of distance matrices (one per σ²), with a family-wise test over the sweep:
+:func:`permanova_sweep`, :func:`knn_sweep` (:mod:`shapelib.statistics.sweep`).
 """
 
 from .distance_based import *  # noqa: F401,F403
@@ -18,8 +21,10 @@ from .distance_based import __all__ as _distance_based_all
 from .frechet import FrechetMeanResult, frechet_mean, procrustes_mean
 from .group import MeanDifferenceResult, mean_difference_test
 from .regression import GeodesicRegressionResult, geodesic_regression
+from .sweep import *  # noqa: F401,F403
+from .sweep import __all__ as _sweep_all
 from .tangent_pca import TangentPCA, TangentPCAResult, tangent_pca
 
 __all__ = [*_distance_based_all, "FrechetMeanResult", "frechet_mean", "procrustes_mean", "TangentPCA",
            "TangentPCAResult", "tangent_pca", "GeodesicRegressionResult", "geodesic_regression", "MeanDifferenceResult",
-           "mean_difference_test"]
+           "mean_difference_test", *_sweep_all]

@@ -239,7 +239,7 @@ class TangentPCA(TransformerMixin, BaseEstimator):
     Attributes
     ----------
     mean_ : ndarray (K·d,)
-    components_ : ndarray (n_components_, K·d)
+    components_ : ndarray (``n_components_``, K·d)
         Orthonormal in ``g(mean)`` (not in Euclidean coordinates).
     explained_variance_, explained_variance_ratio_, singular_values_ : ndarray
     n_components_ : int
@@ -293,7 +293,7 @@ class TangentPCA(TransformerMixin, BaseEstimator):
         return self.fit(X).result_.scores.copy()
 
     def transform(self, X):
-        """Scores (N, n_components_): the metric coordinates of ``log_mean(x)`` along the components."""
+        """Scores (N, ``n_components_``): the metric coordinates of ``log_mean(x)`` along the components."""
         check_is_fitted(self, "result_")
         r = self.result_
         x = self._shapes(X)

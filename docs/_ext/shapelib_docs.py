@@ -1,0 +1,545 @@
+"""Sphinx extension of the shapelib documentation.
+
+Two build steps, both run by ``make docs`` (and by any ``sphinx-build docs ...``):
+
+* ``.. benchmark:: NAME`` renders the measurements in ``docs/_data/benchmarks/NAME.json`` as
+  tables, headed by the machine, the date and the command they come from. The benchmarks
+  (``python benchmarks/bench_*.py --record``) and ``python run_all.py --record-timings`` write
+  those files; the renderers below are plain functions (:func:`benchmark_tables`), tested without
+  Sphinx in ``tests/test_docs.py``.
+* The study notebooks are executed by ``run_all.py`` (papermill) into ``docs/_build/notebook-runs``
+  — the paper's figures (:data:`FULL_IN_DOCS`, seconds each) with their full parameters, the
+  others with their quick ones; notebooks whose inputs are unchanged are not re-run — and the
+  executed ``.ipynb`` files are copied to ``docs/notebooks/`` for myst-nb to render with their
+  figures. ``SHAPELIB_DOCS_NOTEBOOKS=results`` renders the notebooks of a full
+  ``python run_all.py`` from ``results/`` instead (one without a full run there is executed as
+  above).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parents[1]
+ROOT = DOCS.parent
+DATA = DOCS / "_data" / "benchmarks"
+NOTEBOOK_PAGES = DOCS / "notebooks"
+NOTEBOOK_RUNS = DOCS / "_build" / "notebook-runs"
+NOTEBOOKS_ENV = "SHAPELIB_DOCS_NOTEBOOKS"
+
+
+# ---------------------------------------------------------------------------------------------
+# benchmark tables (no Sphinx needed)
+
+@dataclass
+class Table:
+    """One rendered table: a title, column names, rows of strings and an optional note below."""
+
+    title: str
+    header: list[str]
+    rows: list[list[str]]
+    note: str = ""
+    key: str = ""
+
+
+@dataclass
+class Rendered:
+    provenance: str
+    tables: list[Table] = field(default_factory=list)
+
+
+def load_benchmark(name: str, data_dir: Path = DATA) -> dict:
+    path = data_dir / f"{name}.json"
+    if not path.is_file():
+        raise ValueError(f"no benchmark record {path}; run the benchmark with --record")
+    return json.loads(path.read_text())
+
+
+def _num(x, fmt: str = "{:,.3g}") -> str:
+    if x is None:
+        return "—"
+    if isinstance(x, (list, tuple)):
+        return "–".join(_num(v, fmt) for v in x)
+    return fmt.format(x)
+
+
+def _rate(x) -> str:
+    """Three significant digits, thousands separated: ``15,400``, ``146``, ``20.2``; a range as ``118–126``."""
+    if x is None:
+        return "—"
+    if isinstance(x, (list, tuple)):
+        return "–".join(_rate(v) for v in x)
+    if x >= 100:
+        digits = len(str(int(x))) - 3
+        return f"{round(x, -digits):,.0f}"
+    return f"{x:.3g}"
+
+
+def _sci(x, digits: int = 1) -> str:
+    """``1e-9``, ``6.2e-4`` (no zero-padded exponent)."""
+    if x is None:
+        return "—"
+    mant, exp = f"{x:.{digits}e}".split("e")
+    mant = mant.rstrip("0").rstrip(".") if "." in mant else mant
+    return f"{mant}e{int(exp)}"
+
+
+def _date(text) -> str:
+    import datetime
+
+    try:
+        if "T" not in text:  # a date without a time, or a description
+            return text
+        d = datetime.datetime.fromisoformat(text)
+    except (TypeError, ValueError):
+        return text or "(date not recorded)"
+    return d.astimezone(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def _seconds(x) -> str:
+    """``0.30 s``, ``13.0 s``; a pair of values (a range over runs) as ``1.69–1.81 s``."""
+    if x is None:
+        return "—"
+    if isinstance(x, (list, tuple)):
+        return "–".join(_seconds(v)[:-2] for v in x) + " s"
+    return f"{x:.2f} s" if x < 1 else (f"{x:.3g} s" if x < 100 else f"{x:.0f} s")
+
+
+def provenance(data: dict) -> str:
+    """One sentence: where, when and how the numbers were measured."""
+    m = data.get("machine", {})
+    cpu = m.get("processor") or m.get("machine") or "?"
+    load = m.get("loadavg")
+    parts = [f"Measured {_date(m.get('date'))} on {m.get('cpus', '?')} CPUs ({cpu})",
+             f"Python {m.get('python', '?')}"]
+    if m.get("shapelib"):
+        parts.append(f"shapelib {m['shapelib']}")
+    if load:
+        parts.append(f"load average {load}")
+    text = ", ".join(parts) + f", with ``{data.get('command', '?')}``."
+    if data.get("transcribed"):
+        text += " " + data["transcribed"]
+    return text
+
+
+GEODESIC_ROWS = {
+    "alpha-default": "α, default tolerance",
+    "fr-default": "Fisher–Rao, default tolerance",
+    "alpha-1e-9": "α, certified at 1e-9",
+    "fr-1e-9": "Fisher–Rao, certified at 1e-9",
+}
+
+
+def _geodesic(r: dict) -> list[Table]:
+    rows, parts = [], []
+    for key, row in r["rows"].items():
+        label = GEODESIC_ROWS.get(key, key)
+        runs = row.get("runs", 1)
+        wall = _seconds(row.get("seconds"))
+        if runs > 1:
+            median = f"; median {_seconds(row['median_seconds'])}" if row.get("median_seconds") else ""
+            wall += f" (fastest of {runs}{median})"
+        rows.append([label, wall, _seconds(row.get("cpu_seconds")), _num(row.get("iterations"), "{}"),
+                     row.get("stopped_by", "—"), _sci(row.get("length_over_bound_minus_1"))])
+        p = row.get("per_iteration_cpu_ms")
+        if p:
+            chol = _num(p.get("cholesky"), "{:.2g}")
+            per_it = row.get("cholesky_per_iteration")
+            if per_it is None and row.get("calls", {}).get("n_cholesky") and row.get("iterations"):
+                per_it = row["calls"]["n_cholesky"] / row["iterations"]
+            if per_it is not None:
+                chol += f" ({per_it:.1f} per iteration)"
+            total = sum(v for v in p.values() if v is not None)
+            parts.append([label, _num(p.get("energy_grad_hessian"), "{:.3g}"), chol, _num(p.get("solve"), "{:.2g}"),
+                          _num(p.get("trial_energy"), "{:.2g}"), _num(p.get("rest"), "{:.2g}"), f"{total:.3g}"])
+    setup = (f"Corpus callosum shapes 1 and 2 (K = {r.get('K', 63)}), σ² = {r.get('sigma2')}, "
+             f"n_steps = {r.get('n_steps')}; Fisher–Rao quadrature step {r.get('grid_spacing')}σ.")
+    first = r.get("first_call_cpu_seconds")
+    tables = [Table("Single geodesics", ["geodesic", "wall time", "CPU time", "iterations", "stopped by",
+                                         "length / bound − 1"], rows, setup, key="rows")]
+    if parts:
+        note = ("CPU milliseconds per iteration. The first geodesic of a process also loads the compiled "
+                f"kernels: {first:.2f} s CPU." if first is not None else "CPU milliseconds per iteration.")
+        tables.append(Table("Where an iteration's time goes", ["geodesic", "energy + gradient + Hessian",
+                                                                "block Cholesky", "solves", "trial energies",
+                                                                "rest", "total"], parts, note, key="iteration"))
+    return tables
+
+
+BRACKET_CASES = {"alpha_s2_0.5": "α, σ² = 0.5", "fisher_rao_s2_0.5": "Fisher–Rao, σ² = 0.5",
+                 "alpha_s2_0.1": "α, σ² = 0.1"}
+
+
+def _bracket(r: dict) -> list[Table]:
+    rtol = r.get("rtol", 1e-3)
+    rows = []
+    for key, c in r["cases"].items():
+        steps = ", ".join(f"{n} ({k})" for n, k in c.get("n_steps", {}).items())
+        stalled = c.get("stopped_by", {}).get("stalled")
+        reached = f"{c.get('converged')}/{c.get('pairs')}" + (f" ({stalled} stalled)" if stalled else "")
+        rows.append([BRACKET_CASES.get(key, key), _rate(c.get("pairs_per_second")), reached, f"{_sci(c.get('gap_median'))} / {_sci(c.get('gap_max'))}",
+                     f"{_num(c.get('n_iter_median'), '{:g}')} / {_num(c.get('n_iter_max'), '{}')}", steps or "—"])
+    return [Table(f"Certified distance brackets, rtol = {_sci(rtol)}",
+                  ["case", "pairs/s", f"gap ≤ {_sci(rtol)}", "gap median / max",
+                   "iterations median / max", "final n_steps (pairs)"], rows,
+                  "The corpus callosum pairs of Table I at centroid size 20, one process; best of "
+                  f"{r.get('repeat', 'several')} rounds.", key="cases")]
+
+
+PAIRWISE_METRICS = {"procrustes": "Procrustes", "hausdorff": "Hausdorff", "tps": "TPS bending energy",
+                    "alpha_bound": "α lower bound", "fisher_rao_bound": "Fisher–Rao lower bound",
+                    "alpha": "α geodesic (bracket)", "fisher_rao": "Fisher–Rao geodesic (bracket)"}
+
+
+def _pairwise(r: dict) -> list[Table]:
+    metrics = r["metrics"]
+    workers = sorted({int(w) for m in metrics.values() for w in m if str(w).isdigit()})
+    rows = []
+    for name, m in metrics.items():
+        row = [PAIRWISE_METRICS.get(name, name), _num(m.get("n_shapes"), "{:,}"),
+               _num(m.get(str(workers[0]), {}).get("pairs"), "{:,}")]
+        row += [_rate(m.get(str(w), {}).get("pairs_per_second")) for w in workers]
+        row.append(_num(m.get(str(workers[-1]), {}).get("efficiency"), "{:.2f}") if len(workers) > 1 else "—")
+        rows.append(row)
+    header = ["metric", "shapes", "pairs"] + [f"pairs/s, {w} worker{'s' if w > 1 else ''}" for w in workers]
+    header.append(f"efficiency, {workers[-1]} workers")
+    tables = [Table("Pairwise engine throughput", header, rows,
+                    f"ADHD-200 contours (K = 50) at centroid size 20, σ² = {r.get('sigma2')}; geodesics as "
+                    f"{r.get('geodesics', 'certified brackets')}. Efficiency: pairs/s on w workers over w times "
+                    "the one-worker rate.", key="metrics")]
+    proj = r.get("projection", {})
+    if proj:
+        counts = sorted({int(n) for p in proj.values() for n in p["hours"]})
+        prow = [[PAIRWISE_METRICS.get(k, k), f"{p['seconds_per_pair']:.3g}"] +
+                [_num(p["hours"].get(str(n), p["hours"].get(n)), "{:.2g}") for n in counts] for k, p in proj.items()]
+        tables.append(Table("Projected wall-clock hours for all 647 ADHD-200 shapes (208,981 pairs)",
+                            ["metric", "s per pair"] + [f"{n} worker{'s' if n > 1 else ''}" for n in counts], prow,
+                            "From the mean measured seconds per pair and the measured two-worker efficiency.",
+                            key="projection"))
+    return tables
+
+
+SOLVER_METHODS = {
+    "lm": "Levenberg–Marquardt, exact block-tridiagonal Hessian (the library)",
+    "coarse_to_fine": "the library, coarse to fine n = 2 → 4 → 8 → 16",
+    "trust_exact": "SciPy trust-exact, dense exact Hessian",
+    "saddle_free": "saddle-free Newton (|eigenvalues|, line search)",
+    "polynomial": "Levenberg–Marquardt on polynomial paths in time",
+}
+
+
+def _solvers(r: dict) -> list[Table]:
+    rows = [[SOLVER_METHODS.get(k, k), _num(m.get("iterations"), "{}"), _seconds(m.get("seconds")),
+             _sci(m.get("energy_over_bound_squared_minus_1"), 2)] for k, m in r["methods"].items()]
+    return [Table("Second-order methods to the same certificate",
+                  ["method", "iterations", "seconds", "E / bound² − 1"], rows,
+                  f"α geodesic of corpus callosum shapes 1 and 2, σ² = {r.get('sigma2')}, n_steps = {r.get('n_steps')}, "
+                  f"from the straight line until the exact Hessian is positive definite and the Newton decrement is "
+                  f"below {_sci(r.get('tol', 1e-9))}·E.", key="methods")]
+
+
+def _run_times(r: dict) -> list[Table]:
+    runs = r["notebooks"]
+    total = sum(n["seconds"] for n in runs.values())
+    rows = [[f"``{name}``", f"{n['seconds'] / 60:.1f}"]
+            for name, n in sorted(runs.items(), key=lambda kv: -kv[1]["seconds"])]
+    jobs = sorted({n.get("jobs", 1) for n in runs.values()})
+    return [Table("Run time of every study notebook", ["notebook", "minutes"], rows,
+                  f"{total / 60:.1f} min of notebook time in all, {' or '.join(map(str, jobs))} notebook(s) at a time "
+                  "(notebooks that start a worker per core run alone).", key="notebooks")]
+
+
+RENDERERS = {"bench_geodesic": _geodesic, "bench_bracket": _bracket, "bench_pairwise": _pairwise,
+             "bench_solvers": _solvers, "run_times": _run_times}
+
+
+def benchmark_tables(name: str, data_dir: Path = DATA) -> Rendered:
+    """The tables of ``docs/_data/benchmarks/<name>.json``, with their provenance sentence."""
+    if name not in RENDERERS:
+        raise ValueError(f"unknown benchmark {name!r}; choose from {sorted(RENDERERS)}")
+    data = load_benchmark(name, data_dir)
+    return Rendered(provenance(data), RENDERERS[name](data["results"]))
+
+
+def _rst_inline(text: str):
+    """Paragraph children for text with ``literal`` spans (the only markup the tables use)."""
+    from docutils import nodes
+
+    out = []
+    for i, part in enumerate(re.split(r"``(.+?)``", text)):
+        if part:
+            out.append(nodes.literal(part, part) if i % 2 else nodes.Text(part))
+    return out
+
+
+def _table_node(t: Table):
+    from docutils import nodes
+
+    table = nodes.table(classes=["benchmark-table"])
+    table += nodes.title(t.title, t.title)
+    group = nodes.tgroup(cols=len(t.header))
+    table += group
+    for _ in t.header:
+        group += nodes.colspec(colwidth=1)
+    head = nodes.thead()
+    group += head
+    body = nodes.tbody()
+    group += body
+    for parent, rows in ((head, [t.header]), (body, t.rows)):
+        for cells in rows:
+            row = nodes.row()
+            for cell in cells:
+                entry = nodes.entry()
+                entry += nodes.paragraph("", "", *_rst_inline(str(cell)))
+                row += entry
+            parent += row
+    return table
+
+
+def _benchmark_directive():
+    from docutils import nodes
+    from docutils.parsers.rst import directives
+    from sphinx.util.docutils import SphinxDirective
+
+    class BenchmarkDirective(SphinxDirective):
+        """``.. benchmark:: NAME`` (``:tables: key, ...`` to show some tables only)."""
+
+        required_arguments = 1
+        option_spec = {"tables": directives.unchanged}
+
+        def run(self):
+            name = self.arguments[0]
+            self.env.note_dependency(str(DATA / f"{name}.json"))
+            try:
+                rendered = benchmark_tables(name)
+            except (ValueError, KeyError) as exc:
+                raise self.error(f"benchmark {name}: {exc}") from None
+            keep = [k.strip() for k in self.options.get("tables", "").split(",") if k.strip()]
+            out = [nodes.paragraph("", "", *_rst_inline(rendered.provenance), classes=["benchmark-provenance"])]
+            for t in rendered.tables:
+                if keep and t.key not in keep:
+                    continue
+                out.append(_table_node(t))
+                if t.note:
+                    out.append(nodes.paragraph("", "", *_rst_inline(t.note), classes=["benchmark-note"]))
+            return out
+
+    return BenchmarkDirective
+
+
+# ---------------------------------------------------------------------------------------------
+# command-line help
+
+def cli_help(command: str | None = None, *, width: int = 100) -> str:
+    """What ``shapelib --help`` (or ``shapelib COMMAND --help``) prints, at ``width`` columns."""
+    import argparse
+
+    from shapelib.cli import build_parser
+
+    if command == "study":  # `shapelib study ARGS` is `python run_all.py ARGS`
+        env = {**os.environ, "COLUMNS": str(width)}
+        proc = subprocess.run([sys.executable, str(ROOT / "run_all.py"), "--help"], capture_output=True, text=True,
+                              env=env, cwd=ROOT, check=True)
+        return proc.stdout
+    parser = build_parser()
+    if command is not None:
+        (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if command not in sub.choices:
+            raise ValueError(f"no command {command!r}; the commands are {sorted(sub.choices)}")
+        parser = sub.choices[command]
+    previous = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = str(width)  # argparse wraps help to the terminal width
+    try:
+        return parser.format_help()
+    finally:
+        if previous is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = previous
+
+
+def cli_commands() -> list[str]:
+    import argparse
+
+    from shapelib.cli import build_parser
+
+    (sub,) = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    return list(sub.choices)
+
+
+def _cli_help_directive():
+    from docutils import nodes
+    from sphinx.util.docutils import SphinxDirective
+
+    class CliHelpDirective(SphinxDirective):
+        """``.. cli-help::`` (the top-level help) or ``.. cli-help:: COMMAND``."""
+
+        optional_arguments = 1
+
+        def run(self):
+            command = self.arguments[0] if self.arguments else None
+            try:
+                text = cli_help(command)
+            except ValueError as exc:
+                raise self.error(str(exc)) from None
+            block = nodes.literal_block(text, text)
+            block["language"] = "none"
+            return [block]
+
+    return CliHelpDirective
+
+
+# ---------------------------------------------------------------------------------------------
+# study notebooks
+
+def _run_all():
+    sys.path.insert(0, str(ROOT))
+    import run_all
+
+    return run_all
+
+
+#: notebooks the documentation executes with their full parameters: the paper's figures, whose
+#: full runs take seconds each; the others run with their quick parameters
+FULL_IN_DOCS = ("fig01_gmm_representation", "fig02_intrinsic_extrinsic", "fig04_line_bending",
+                "fig06_square_rotation", "fig07_fish_deformations", "fig10_corpus_callosum",
+                "sec3e_extrinsic_warp")
+
+
+def _run_record(folder: Path) -> dict:
+    path = folder / ".inputs.json"
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
+def _executed(name: str, mode: str, run_all) -> tuple[Path, Path, dict]:
+    """The executed notebook to render, the results folder of its run, and its run record."""
+    if mode == "results" and _run_record(run_all.RESULTS_DIR / name).get("mode") == "full":
+        return run_all.RESULTS_DIR / name / f"{name}.ipynb", run_all.RESULTS_DIR, _run_record(run_all.RESULTS_DIR / name)
+    return NOTEBOOK_RUNS / name / f"{name}.ipynb", NOTEBOOK_RUNS, _run_record(NOTEBOOK_RUNS / name)
+
+
+def _clean_paths(text: str, run_dir: Path, name: str) -> str:
+    """Show the folders a run by hand writes to (``results/<name>``), not the build's temporary ones."""
+    text = re.sub(re.escape(str(run_dir)) + r"/\.tmp-" + re.escape(name) + r"-[A-Za-z0-9_]+", f"results/{name}", text)
+    text = text.replace(str(run_dir) + "/.stores", "results/.stores").replace(str(run_dir), "results")
+    return text.replace(str(ROOT) + "/", "")
+
+
+def notebook_page(name: str, source: Path, info: dict, run_dir: Path) -> dict:
+    """The executed notebook as a documentation page: a note on the parameters it ran with after
+    its title cell, the injected parameters without the run's output folder, no absolute paths."""
+    nb = json.loads(source.read_text())
+    output_dir = nb["metadata"].get("papermill", {}).get("parameters", {}).get("output_dir")
+    if output_dir:  # the results folder the notebook ran in (run_dir/.tmp-<name>-*), wherever it is now
+        run_dir = Path(output_dir).parent
+    nb["metadata"].pop("papermill", None)
+    for cell in nb["cells"]:
+        cell.get("metadata", {}).pop("papermill", None)
+        cell.get("metadata", {}).pop("execution", None)
+        if "injected-parameters" in cell.get("metadata", {}).get("tags", []):
+            lines = cell["source"] if isinstance(cell["source"], list) else cell["source"].splitlines(True)
+            cell["source"] = [ln for ln in lines if not ln.startswith(("output_dir", "store_dir"))]
+        for out in cell.get("outputs", []):
+            if "text" in out:
+                out["text"] = [_clean_paths(t, run_dir, name) for t in out["text"]] if isinstance(out["text"], list) \
+                    else _clean_paths(out["text"], run_dir, name)
+            for mime in ("text/plain", "text/html"):
+                if mime in out.get("data", {}):
+                    v = out["data"][mime]
+                    out["data"][mime] = [_clean_paths(t, run_dir, name) for t in v] if isinstance(v, list) \
+                        else _clean_paths(v, run_dir, name)
+    overrides = {k: v for k, v in info.get("overrides", {}).items() if k not in ("output_dir", "store_dir")}
+    if info.get("mode") == "full":
+        how = "This page shows the notebook executed with its full parameters, as `python run_all.py` runs it"
+    else:
+        shown = ", ".join(f"`{k}={v!r}`" for k, v in overrides.items()) or "its defaults"
+        how = (f"This page shows the notebook executed with its quick parameters ({shown}) when the documentation "
+               "was built, so figures and numbers are coarser than a full run's")
+    note = (f":::{{note}}\n{how}. Source: `notebooks/{name}.py`; run it with "
+            f"`python run_all.py --only {name}` (see {{doc}}`/guide/study`).\n:::\n")
+    nb["cells"].insert(1, {"cell_type": "markdown", "id": "shapelib-docs-run-note", "metadata": {}, "source": note})
+    return nb
+
+
+def prepare_notebooks(app, config) -> None:
+    """Execute the study notebooks (cached by their inputs) and copy them into docs/notebooks/."""
+    from sphinx.errors import ExtensionError
+    from sphinx.util import logging
+
+    log = logging.getLogger(__name__)
+    mode = os.environ.get(NOTEBOOKS_ENV, "build")
+    if mode not in ("build", "results"):
+        raise ExtensionError(f"{NOTEBOOKS_ENV} must be 'build' (execute them now) or 'results' (a full run's "
+                             f"from results/); got {mode!r}")
+    run_all = _run_all()
+    names = list(run_all.NOTEBOOKS)
+    if mode == "results":
+        names_to_run = [n for n in names if _run_record(run_all.RESULTS_DIR / n).get("mode") != "full"]
+    else:
+        names_to_run = names
+    full = [n for n in names_to_run if n in FULL_IN_DOCS]
+    quick = [n for n in names_to_run if n not in FULL_IN_DOCS]
+    for selected, options in ((full, []), (quick, ["--quick"])):
+        if not selected:
+            continue
+        log.info(f"[shapelib] executing {len(selected)} study notebook(s) {'with their quick parameters ' * bool(options)}"
+                 "(run_all.py; notebooks whose inputs are unchanged are not re-run)")
+        cmd = [sys.executable, str(ROOT / "run_all.py"), *options, "--no-progress", "--results-dir", str(NOTEBOOK_RUNS)]
+        cmd += [a for n in selected for a in ("--only", n)]
+        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise ExtensionError(f"{' '.join(cmd[1:])} failed (exit {proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
+        log.info(proc.stdout.strip())
+    NOTEBOOK_PAGES.mkdir(exist_ok=True)
+    for name in names:
+        source, run_dir, info = _executed(name, mode, run_all)
+        text = json.dumps(notebook_page(name, source, info, run_dir), indent=1, ensure_ascii=False) + "\n"
+        target = NOTEBOOK_PAGES / f"{name}.ipynb"
+        if not target.is_file() or target.read_text() != text:  # unchanged pages are not re-read
+            target.write_text(text)
+
+
+def api_entries(api_dir: Path = DOCS / "api") -> dict[str, set[str]]:
+    """``{current module: names}`` of the autosummary entries in ``docs/api/*.rst``."""
+    entries: dict[str, set[str]] = {}
+    for path in sorted(api_dir.glob("*.rst")):
+        module, in_summary = None, False
+        for line in path.read_text().splitlines():
+            m = re.match(r"\.\. currentmodule:: (\S+)", line)
+            if m:
+                module = m.group(1)
+                continue
+            if line.startswith(".. autosummary::"):
+                in_summary = True
+                continue
+            if in_summary:
+                if not line.strip() or line.lstrip().startswith(":"):
+                    continue
+                if line.startswith("   "):
+                    entries.setdefault(module, set()).add(line.strip())
+                else:
+                    in_summary = False
+    return entries
+
+
+def prune_api_stubs(app, config) -> None:
+    """Remove autosummary pages of names no longer in the API reference (a renamed module's stubs
+    would otherwise stay in docs/api/generated and be built as orphans)."""
+    wanted = {f"{module}.{name}.rst" for module, names in api_entries().items() for name in names}
+    for stub in (DOCS / "api" / "generated").glob("*.rst"):
+        if stub.name not in wanted:
+            stub.unlink()
+
+
+def setup(app):
+    app.add_directive("benchmark", _benchmark_directive())
+    app.add_directive("cli-help", _cli_help_directive())
+    app.connect("config-inited", prune_api_stubs)
+    app.connect("config-inited", prepare_notebooks)
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

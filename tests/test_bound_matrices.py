@@ -1,0 +1,247 @@
+"""The batched bound matrices (shapelib.geometry.bound_matrices) against the per-pair functions,
+closed forms and an independent high-precision sum; symmetry, blocks, σ² sweeps."""
+
+from decimal import Decimal, getcontext
+
+import numpy as np
+import pytest
+
+from shapelib import fisher_rao_lower_bound, l2_distance
+from shapelib.geometry.bound_matrices import (
+    alpha_bound_block,
+    alpha_bound_matrix,
+    bound_block,
+    bound_matrix_sweep,
+    fisher_rao_bound_block,
+    fisher_rao_bound_matrix,
+)
+from shapelib.geometry.gmm import _l2_sq_near
+
+
+def _population(rng, n, k, d, *, spread=0.15, size=3.0):
+    """``n`` noisy copies of one random shape (a population: close shapes, the hard case)."""
+    base = rng.normal(size=(k, d)) * size
+    return base + spread * rng.normal(size=(n, k, d))
+
+
+def _with_near_pairs(x, rng, eps=(1e-4, 1e-7, 1e-10)):
+    """Append shapes within ``eps`` of shape 0 and an exact copy of shape 1."""
+    extra = [x[0] + e * rng.normal(size=x[0].shape) for e in eps] + [x[1].copy()]
+    return np.concatenate([x, np.stack(extra)])
+
+
+def _decimal_l2_sq(u, v, s2):
+    """‖p_u − p_v‖² summed in 60-digit decimal arithmetic: an independent reference."""
+    getcontext().prec = 60
+    k, d = u.shape
+    c = 1 / (4 * Decimal(s2))
+
+    def overlap(a, b):
+        return sum((-(sum((Decimal(float(p[t])) - Decimal(float(q[t]))) ** 2 for t in range(d))) * c).exp()
+                   for p in a for q in b)
+
+    pi = Decimal("3.14159265358979323846264338327950288419716939937510582097494")
+    norm = (4 * pi * Decimal(s2)) ** (Decimal(-d) / 2) / k ** 2
+    return float((overlap(u, u) + overlap(v, v) - 2 * overlap(u, v)) * norm)
+
+
+# ---------------------------------------------------------------------------------------------
+# α bound
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("s2", [0.01, 0.3, 5.0])
+def test_alpha_matrix_equals_l2_distance_pair_by_pair(rng, d, s2):
+    x = _with_near_pairs(_population(rng, 14, 9, d), rng)
+    a = alpha_bound_matrix(x, sigma2=s2)
+    n = len(x)
+    for i in range(n):
+        for j in range(i + 1, n):
+            ref = l2_distance(x[i], x[j], s2)
+            assert a[i, j] == pytest.approx(ref, rel=1e-12, abs=0), (i, j)
+    assert a[1, n - 1] == 0.0  # an exact copy: the cancellation-free form gives exactly 0
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_alpha_near_pairs_match_a_60_digit_sum(rng, d):
+    """Shapes 1e-6 and 1e-9 apart: the plain difference of overlaps has lost 12 and 18 digits;
+    the batched matrix and l2_distance both keep them."""
+    u = rng.normal(size=(5, d)) * 2
+    x = np.stack([u, u + 1e-6 * rng.normal(size=u.shape), u + 1e-9 * rng.normal(size=u.shape),
+                  u + 0.3 * rng.normal(size=u.shape)])
+    s2 = 0.7
+    a = alpha_bound_matrix(x, sigma2=s2)
+    for j in (1, 2, 3):
+        exact = np.sqrt(_decimal_l2_sq(x[0], x[j], s2))
+        assert a[0, j] == pytest.approx(exact, rel=1e-12)
+        assert l2_distance(x[0], x[j], s2) == pytest.approx(exact, rel=1e-12)
+    assert _l2_sq_near(x[:1], x[2:3], s2)[0] == pytest.approx(_decimal_l2_sq(x[0], x[2], s2), rel=1e-12)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_alpha_matrix_single_landmark_closed_form(rng, d):
+    """K = 1: ‖p_u − p_v‖² = 2 (4πσ²)^{-d/2} (1 − exp(−|u − v|²/4σ²))."""
+    x = rng.normal(size=(6, 1, d))
+    s2 = 0.4
+    a = alpha_bound_matrix(x, sigma2=s2)
+    r2 = np.sum((x[:, None, 0] - x[None, :, 0]) ** 2, axis=-1)
+    want = np.sqrt(2 * (4 * np.pi * s2) ** (-d / 2) * -np.expm1(-r2 / (4 * s2)))
+    np.testing.assert_allclose(a, want, rtol=1e-12, atol=0)
+
+
+def test_alpha_matrix_far_from_the_reference_uses_plain_overlaps(rng):
+    """Shapes spread far beyond √2 σ of their mean (unaligned, small σ): the plain overlaps, still
+    equal to l2_distance pair by pair; mixed populations (some shapes near the mean) too."""
+    base = rng.normal(size=(8, 2)) * 3
+    x = np.stack([base + rng.normal(size=2) * 5 for _ in range(6)] + [base + 0.01 * rng.normal(size=base.shape)
+                                                                      for _ in range(6)])
+    for s2 in (0.05, 2.0):
+        a = alpha_bound_matrix(x, sigma2=s2)
+        for i in range(len(x)):
+            for j in range(i + 1, len(x)):
+                assert a[i, j] == pytest.approx(l2_distance(x[i], x[j], s2), rel=1e-12)
+
+
+def test_alpha_matrix_is_a_symmetric_distance_matrix_and_threads_agree(rng):
+    x = _population(rng, 20, 7, 2)
+    a1 = alpha_bound_matrix(x, sigma2=0.5, n_threads=1)
+    a2 = alpha_bound_matrix(x, sigma2=0.5, n_threads=2)
+    np.testing.assert_array_equal(a1, a2)
+    np.testing.assert_array_equal(a1, a1.T)
+    assert np.all(np.diag(a1) == 0) and np.all(a1[~np.eye(20, dtype=bool)] > 0)
+    # triangle inequality (it is the L² distance of densities)
+    assert np.all(a1[:, None, :] <= a1[:, :, None] + a1[None, :, :] + 1e-12)  # d(i,k) <= d(i,j) + d(j,k)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_alpha_blocks_assemble_to_the_full_matrix(rng, d):
+    x = _with_near_pairs(_population(rng, 11, 6, d), rng)
+    full = alpha_bound_matrix(x, sigma2=0.3)
+    cut = [0, 5, 9, len(x)]
+    for a0, a1 in zip(cut[:-1], cut[1:]):
+        for b0, b1 in zip(cut[:-1], cut[1:]):
+            blk = alpha_bound_block(x[a0:a1], x[b0:b1], sigma2=0.3)
+            mask = full[a0:a1, b0:b1] > 0
+            np.testing.assert_allclose(blk[mask], full[a0:a1, b0:b1][mask], rtol=1e-12)
+            assert np.all(blk[~mask] == 0)  # the same shape, or an exact copy
+
+
+# ---------------------------------------------------------------------------------------------
+# Fisher–Rao bound
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("d, s2, n", [(2, 0.05, 7), (2, 0.5, 7), (3, 0.5, 4)])
+def test_fisher_rao_matrix_equals_the_per_pair_bound_within_quadrature_accuracy(rng, d, s2, n):
+    x = _with_near_pairs(_population(rng, n, 6, d, size=1.5), rng, eps=(1e-4, 1e-7))
+    f = fisher_rao_bound_matrix(x, sigma2=s2)
+    n = len(x)
+    for i in range(n):
+        for j in range(i + 1, n):
+            ref = fisher_rao_lower_bound(x[i], x[j], sigma2=s2)
+            assert f[i, j] == pytest.approx(ref, rel=1e-7, abs=0), (i, j)
+    assert f[1, n - 1] == 0.0
+
+
+def test_fisher_rao_near_pairs_keep_their_digits(rng):
+    """A pair 1e-8 apart: 1 − ∫√(p_u p_v) is 1e-16-small, so 2 arccos of the Bhattacharyya
+    coefficient would be noise; the batched bound is first order in the displacement, like the
+    per-pair one, and both scale linearly with it."""
+    u = rng.normal(size=(6, 2))
+    step = rng.normal(size=u.shape)
+    x = np.stack([u, u + 1e-8 * step, u + 2e-8 * step])
+    f = fisher_rao_bound_matrix(x, sigma2=0.5)
+    assert f[0, 1] == pytest.approx(fisher_rao_lower_bound(u, x[1], sigma2=0.5), rel=1e-7)
+    assert f[0, 2] == pytest.approx(2 * f[0, 1], rel=1e-6)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_fisher_rao_matrix_single_landmark_closed_form(rng, d):
+    """K = 1: ∫√(p_u p_v) = exp(−|u − v|²/8σ²), so the bound is 2 arccos of it."""
+    x = rng.normal(size=(5, 1, d))
+    s2 = 0.6
+    f = fisher_rao_bound_matrix(x, sigma2=s2)
+    r2 = np.sum((x[:, None, 0] - x[None, :, 0]) ** 2, axis=-1)
+    want = 2 * np.arccos(np.exp(-r2 / (8 * s2)))
+    np.testing.assert_allclose(f, want, rtol=1e-8, atol=1e-12)
+
+
+def test_fisher_rao_matrix_agrees_with_a_finer_grid(rng):
+    x = _population(rng, 6, 8, 2, size=1.5)
+    default = fisher_rao_bound_matrix(x, sigma2=0.3)
+    fine = fisher_rao_bound_matrix(x, sigma2=0.3, grid_spacing=0.2, grid_margin=9.0)
+    off = ~np.eye(6, dtype=bool)
+    np.testing.assert_allclose(default[off], fine[off], rtol=1e-6)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_fisher_rao_blocks_assemble_to_the_full_matrix(rng, d):
+    x = _population(rng, 9, 5, d, size=1.5)
+    full = fisher_rao_bound_matrix(x, sigma2=0.4)
+    for a0, a1, b0, b1 in ((0, 4, 4, 9), (4, 9, 0, 4), (0, 9, 0, 9)):
+        blk = fisher_rao_bound_block(x[a0:a1], x[b0:b1], sigma2=0.4)
+        np.testing.assert_allclose(blk, full[a0:a1, b0:b1], rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(full, full.T)
+    assert np.all(np.diag(full) == 0) and np.all(full <= 2 * np.pi)
+
+
+def test_fisher_rao_matrix_refuses_a_grid_it_cannot_hold(rng):
+    """Shapes in pixel coordinates far apart ask one grid for every shape: refused with
+    make_grid's message before anything is allocated (the engine then goes pair by pair)."""
+    x = _population(rng, 3, 5, 2)
+    x[1] += 5000.0
+    with pytest.raises(ValueError, match="quadrature grid would have"):
+        fisher_rao_bound_matrix(x, sigma2=0.5)
+
+
+# ---------------------------------------------------------------------------------------------
+# Sweeps and dispatch
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_sweep_equals_separate_calls(rng, d):
+    x = _with_near_pairs(_population(rng, 8, 6, d, size=1.5), rng, eps=(1e-6,))
+    s2s = [0.02, 0.3, 4.0]
+    sweep = bound_matrix_sweep(x, metric="alpha_bound", sigma2s=s2s)
+    assert sweep.shape == (3, len(x), len(x))
+    for s, s2 in enumerate(s2s):
+        np.testing.assert_allclose(sweep[s], alpha_bound_matrix(x, sigma2=s2), rtol=1e-12, atol=0)
+    fr = bound_matrix_sweep(x, metric="fisher_rao_bound", sigma2s=s2s[1:], grid_spacing=0.5)
+    for s, s2 in enumerate(s2s[1:]):
+        np.testing.assert_array_equal(fr[s], fisher_rao_bound_matrix(x, sigma2=s2, grid_spacing=0.5))
+
+
+def test_small_sigma_limit_is_the_separated_gaussians(rng):
+    """σ far below the landmark spacing: the K Gaussians of a shape no longer overlap each other
+    nor those of another shape's displaced landmarks, so ‖p_u‖² → (4πσ²)^{-d/2}/K and the α bound
+    of two shapes whose landmarks all moved tends to √(2 (4πσ²)^{-d/2} / K)."""
+    x = _population(rng, 4, 5, 2, spread=0.5, size=4.0)
+    s2 = 1e-4
+    a = alpha_bound_matrix(x, sigma2=s2)
+    limit = np.sqrt(2 * (4 * np.pi * s2) ** -1 / 5)
+    np.testing.assert_allclose(a[~np.eye(4, dtype=bool)], limit, rtol=1e-6)
+
+
+def test_bad_input_is_named(rng):
+    x = _population(rng, 4, 5, 2)
+    with pytest.raises(ValueError, match="rows and cols must have the same"):
+        alpha_bound_block(x, x[:, :4], sigma2=0.5)
+    with pytest.raises(ValueError, match="sigma2"):
+        alpha_bound_matrix(x, sigma2=0.0)
+    with pytest.raises(ValueError, match="sigma2s must be a non-empty"):
+        bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[])
+    with pytest.raises(ValueError, match="sigma2"):
+        bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[0.5, -1.0])
+    with pytest.raises(ValueError, match="metric must be one of"):
+        bound_matrix_sweep(x, metric="alpha", sigma2s=[0.5])
+    with pytest.raises(ValueError, match="grid_spacing"):
+        fisher_rao_bound_matrix(x, sigma2=0.5, grid_spacing=0)
+    with pytest.raises(ValueError, match="n_threads"):
+        alpha_bound_matrix(x, sigma2=0.5, n_threads=0)
+    bad = x.copy()
+    bad[2, 1, 0] = np.nan
+    with pytest.raises(ValueError, match=r"shapes\[2\]"):
+        fisher_rao_bound_matrix(bad, sigma2=0.5)
+    np.testing.assert_array_equal(bound_block("alpha_bound", x, sigma2=0.5), alpha_bound_matrix(x, sigma2=0.5))

@@ -1,0 +1,163 @@
+"""The documentation's sources, without running Sphinx: every public name has an API entry, every
+command a help page, the README is a short landing page whose example runs, the benchmark records
+render as the performance page's tables, and the study notebooks become pages."""
+import importlib
+import importlib.util
+import json
+import re
+import sys
+
+import numpy as np
+import pytest
+
+import run_all
+import shapelib
+from tests.conftest import ROOT, requires_data
+
+DOCS = ROOT / "docs"
+#: modules documented under their own name (``shapelib.io.read_landmarks``); they load on first use
+DOCUMENTED_MODULES = ("io", "pairwise", "statistics", "datasets", "plotting")
+
+
+@pytest.fixture(scope="module")
+def docs_ext():
+    """docs/_ext/shapelib_docs.py, the Sphinx extension's plain functions."""
+    spec = importlib.util.spec_from_file_location("shapelib_docs", DOCS / "_ext" / "shapelib_docs.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["shapelib_docs"] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    yield module
+    sys.modules.pop("shapelib_docs", None)
+
+
+def test_every_public_name_has_an_api_reference_entry(docs_ext):
+    entries = docs_ext.api_entries()
+    missing = sorted(set(shapelib.__all__) - entries.get("shapelib", set()))
+    assert not missing, f"add these names of shapelib.__all__ to an autosummary list in docs/api/index.rst: {missing}"
+    for name in DOCUMENTED_MODULES:
+        module = getattr(shapelib, name)
+        top = entries.get("shapelib", set())
+        # a name also served from the top level (the same object) is documented there
+        missing = sorted(n for n in set(module.__all__) - entries.get(f"shapelib.{name}", set())
+                         if not (n in top and getattr(shapelib, n, None) is getattr(module, n)))
+        assert not missing, f"add these names of shapelib.{name}.__all__ to docs/api/index.rst: {missing}"
+
+
+def test_every_api_entry_is_a_public_name(docs_ext):
+    for module_name, names in docs_ext.api_entries().items():
+        module = importlib.import_module(module_name)
+        public = set(module.__all__)
+        stale = sorted(n for n in names if n not in public or not hasattr(module, n))
+        assert not stale, f"docs/api: {module_name} does not export {stale}"
+
+
+def test_the_command_line_reference_shows_every_command(docs_ext):
+    text = (DOCS / "api" / "cli.rst").read_text()
+    shown = set(re.findall(r"^\.\. cli-help:: (\S+)$", text, flags=re.M))
+    assert "\n.. cli-help::\n" in text  # the top-level help
+    assert shown == set(docs_ext.cli_commands())
+    help_text = docs_ext.cli_help("distances")
+    assert help_text.startswith("usage: shapelib distances") and "--metric M" in help_text
+    assert "--record-timings" in docs_ext.cli_help("study")  # run_all.py's own help
+    with pytest.raises(ValueError, match="no command 'nope'"):
+        docs_ext.cli_help("nope")
+
+
+def test_readme_is_a_short_landing_page():
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 120
+    for section in ("## Install", "## The two commands", "## Example", "## What the study found", "## Documentation"):
+        assert section in text
+    assert "make results" in text and "make test" in text
+    figure = re.search(r"!\[[^\]]*\]\(([^)]+\.png)\)", text).group(1)
+    assert (ROOT / figure).is_file()
+    for link in re.findall(r"\]\(((?:docs/|CHANGELOG|CITATION)[^)#]+)\)", text):
+        assert (ROOT / link).is_file(), link
+
+
+USER_DOCS = [ROOT / "README.md", ROOT / "docs" / "index.md", *sorted((ROOT / "docs").glob("*.md")),
+             *sorted((ROOT / "docs" / "guide").glob("*.md")), ROOT / "docs" / "notebooks" / "index.md"]
+
+
+@pytest.mark.parametrize("path", USER_DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_user_facing_text_has_no_issue_numbers_dates_or_load_averages(path):
+    """Measurements with their date and load live in the generated performance tables."""
+    text = path.read_text()
+    for pattern in (r"\bissue[s]? \d", r"#\d{2,}\b", r"\b20\d\d-\d\d-\d\d\b", r"load average", r"\bsession \d"):
+        found = re.findall(pattern, text, flags=re.I)
+        assert not found, f"{path.name}: {found}"
+
+
+@requires_data
+def test_readme_example_runs():
+    text = (ROOT / "README.md").read_text()
+    code = re.search(r"## Example\s+```python\n(.*?)```", text, flags=re.S).group(1)
+    assert 10 <= len(code.strip().splitlines()) <= 20
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)
+    r, b, D = ns["r"], ns["b"], ns["D"]
+    assert r.path.shape == (17, 63, 2)
+    np.testing.assert_allclose(r.path[0], ns["u"])
+    np.testing.assert_allclose(r.path[-1], ns["v"])
+    assert r.lower_bound <= r.length
+    assert b.lower <= b.upper <= b.lower * (1 + 1e-3)
+    assert D.shape == (7, 7)
+    np.testing.assert_array_equal(D, D.T)
+    np.testing.assert_array_equal(np.diag(D), 0)
+    # the matrix holds the same α distance as the single geodesic, within the bracket's tolerance
+    assert D[0, 3] == pytest.approx(r.length, rel=2e-3)
+
+
+def test_every_benchmark_record_renders_with_its_machine_and_date(docs_ext):
+    records = sorted((DOCS / "_data" / "benchmarks").glob("*.json"))
+    assert {p.stem for p in records} == set(docs_ext.RENDERERS)
+    for path in records:
+        data = json.loads(path.read_text())
+        assert data["machine"]["date"] and data["machine"]["cpus"] and data["command"]
+        rendered = docs_ext.benchmark_tables(path.stem)
+        assert rendered.provenance.startswith("Measured ") and data["command"] in rendered.provenance
+        assert rendered.tables
+        for table in rendered.tables:
+            assert table.rows and all(len(row) == len(table.header) for row in table.rows), (path.stem, table.title)
+    # every record is shown on the performance page
+    page = (DOCS / "performance.md").read_text()
+    assert set(re.findall(r"```\{benchmark\} (\S+)", page)) == set(docs_ext.RENDERERS)
+
+
+@requires_data
+def test_a_recorded_benchmark_run_renders_as_its_table(docs_ext, tmp_path):
+    spec = importlib.util.spec_from_file_location("bench_bracket", ROOT / "benchmarks" / "bench_bracket.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    machine = importlib.import_module("benchmarks._machine")
+    with pytest.raises(SystemExit):  # a smoke test is not a measurement
+        bench.main(["--quick", "--record"])
+    report = bench.main(["--quick"])
+    path = machine.record("bench_bracket", report, argv=["--quick"], path=tmp_path / "bench_bracket.json")
+    data = json.loads(path.read_text())
+    assert data["command"] == "python benchmarks/bench_bracket.py --quick"
+    assert data["machine"]["cpus"] and data["machine"]["shapelib"] == shapelib.__version__
+    (table,) = docs_ext.benchmark_tables("bench_bracket", data_dir=tmp_path).tables
+    assert [row[0] for row in table.rows] == [docs_ext.BRACKET_CASES[c] for c in report["cases"]]
+    for row, case in zip(table.rows, report["cases"].values()):
+        assert row[2].startswith(f"{case['converged']}/{case['pairs']}")
+
+
+@requires_data
+def test_an_executed_notebook_becomes_a_page_with_its_parameters_and_no_build_paths(docs_ext, tmp_path):
+    name = "fig04_line_bending"
+    _, status, _, msg = run_all.run_one(name, quick=True, force=True, results_dir=tmp_path)
+    assert status == "ok", msg
+    info = json.loads((tmp_path / name / ".inputs.json").read_text())
+    raw = (tmp_path / name / f"{name}.ipynb").read_text()
+    assert str(tmp_path) in raw  # papermill recorded the run's folders
+    nb = docs_ext.notebook_page(name, tmp_path / name / f"{name}.ipynb", info, tmp_path)
+    text = json.dumps(nb)
+    assert str(tmp_path) not in text
+    assert nb["cells"][0]["source"][0].startswith("# Figures 4 and 5")  # the title stays first
+    note = nb["cells"][1]["source"]
+    assert "quick parameters" in note and "`n_steps=6`" in note and f"--only {name}" in note
+    (injected,) = [c for c in nb["cells"] if "injected-parameters" in c["metadata"].get("tags", [])]
+    assert not any(line.startswith("output_dir") for line in injected["source"])
+    shown = [o for c in nb["cells"] for o in c.get("outputs", []) if "image/png" in o.get("data", {})]
+    assert shown  # the figures stay
