@@ -107,7 +107,7 @@ NOTEBOOKS: dict[str, dict] = {
         "quick": {"n_shapes": 16, "n_subset": 6, "permutations": 19, "fisher_rao_n_steps": 2,
                   "fisher_rao_grid_spacing": 1.0, "geodesic_steps": 4, "wings_min_genus": 25, "n_jobs": 1},
         "data": ["adhd200/ADHD-200.Rdata", "adhd200/clinical_info.csv"],
-        "expects": {"intrinsic/adhd/alpha/": 10, "intrinsic/adhd/procrustes/": 6, "intrinsic/adhd/subset/": 3,
+        "expects": {"intrinsic/adhd/alpha/": 11, "intrinsic/adhd/procrustes/": 6, "intrinsic/adhd/subset/": 3,
                     "intrinsic/adhd/fisher_rao/": 7, "intrinsic/adhd/pca/": 25, "intrinsic/adhd/regression/": 8,
                     "intrinsic/wings/": 10},
     },

@@ -15,16 +15,13 @@ The 647 contours (50 landmarks), generalised-Procrustes aligned and scaled to ce
 Targets (2-core machine): α mean ≤ 2 min, Fisher–Rao mean ≤ 15 min, tangent PCA ≤ 5 s,
 regression ≤ 5 min. Not a test: the numbers depend on the machine and its load (recorded).
 
-    python benchmarks/bench_intrinsic.py [--json out.json] [--quick] [--skip-serial]
+    python benchmarks/bench_intrinsic.py [--json out.json] [--record] [--quick] [--skip-serial]
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import sys
 import time
 import warnings
@@ -33,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._machine import loadavg  # noqa: E402
+from benchmarks._machine import loadavg, machine, record  # noqa: E402
 
 import shapelib as sl  # noqa: E402
 from shapelib.datasets import load_adhd200  # noqa: E402
@@ -65,18 +62,20 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="a few shapes: a smoke test of the benchmark, not a measurement")
     ap.add_argument("--skip-serial", action="store_true", help="no 1-worker run of the α mean")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--record", action="store_true",
+                    help="write the results, machine and date to docs/_data/benchmarks/bench_intrinsic.json (docs: Performance)")
     args = ap.parse_args(argv)
+    if args.quick and args.record:
+        ap.error("--record: a --quick run is a smoke test, not a measurement")
     n_all, n_sub = (12, 6) if args.quick else (647, 180)
     raw, labels = load_adhd200()
     pick = np.arange(len(raw)) if not args.quick else balanced_subset(labels, n_all, seed=0)
     x = sl.to_centroid_size(raw[pick])
     age = labels["age"].to_numpy()[pick]
     sub = sl.to_centroid_size(raw[balanced_subset(labels, n_sub)])
-    report = {"machine": {"platform": platform.platform(), "cpus": len(os.sched_getaffinity(0)),
-                          "python": platform.python_version(), "date": datetime.datetime.now().isoformat(timespec="seconds"),
-                          "loadavg_start": loadavg()},
-              "sigma2": SIGMA2, "n_shapes": len(x), "n_subset": len(sub), "quick": args.quick, "results": {}}
-    out = report["results"]
+    report = {"machine": machine(), "loadavg_start": loadavg(), "sigma2": SIGMA2, "n_shapes": len(x),
+              "n_subset": len(sub), "workers": args.workers, "quick": args.quick, "measurements": {}}
+    out = report["measurements"]
     warnings.simplefilter("ignore", sl.ScaleWarning)
     # one-off costs (compiled kernels loaded from numba's cache) outside the timings
     frechet_mean(x[:3], sigma2=SIGMA2, max_iter=0, warn=False)
@@ -127,17 +126,21 @@ def main(argv=None):
         res_fr = sl.frechet_mean(sub, metric="fisher_rao", sigma2=SIGMA2, grid_spacing=0.5, client=client)
         out["fisher_rao_mean_2"] = mean_record(res_fr, time.perf_counter() - t0, args.workers)
         print(f"Fisher–Rao mean, {args.workers} workers: {out['fisher_rao_mean_2']}", flush=True)
-    report["machine"]["loadavg_end"] = loadavg()
+    report["loadavg_end"] = loadavg()
     print("\n| measurement | seconds | target | iterations | log maps/s |\n|---|---|---|---|---|")
     for key, rec in out.items():
         if not isinstance(rec, dict):
             continue
         target = TARGETS.get(key)
+        rate = rec.get("log_maps_per_s")
         print(f"| {key} | {rec['seconds']:.1f} | {'≤ %g' % target if target else ''} | {rec.get('iterations', '')} | "
-              f"{rec.get('log_maps_per_s', float('nan')):.1f} |")
-    print(f"machine: {report['machine']}")
+              f"{'' if rate is None else f'{rate:.1f}'} |")
+    print(f"machine: {report['machine']}; load average at the start {report['loadavg_start']}, at the end "
+          f"{report['loadavg_end']}")
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))
+    if args.record:
+        print(f"recorded {record('bench_intrinsic', report, argv=argv)}")
     return report
 
 

@@ -174,9 +174,19 @@ fig = plotting.plot_mean_difference(alpha_test, mag=magnification, every=4)
 save_figure(fig, output_dir, "alpha_td_adhd_means")
 plt.show()
 
-# where the two differences move the contour: displacement per landmark, α against Procrustes
+# where the two differences move the contour: displacement per landmark, α against Procrustes. The α
+# difference of the landmark representatives also holds slides along the contour that change no
+# density (the weak directions of the metric); drawn is its part in the directions of g(pooled mean)
+# above 1e-3 of the largest eigenvalue, which carries all but the recorded share of its metric norm.
+keep = ts.eigenvalues > 1e-3 * ts.eigenvalues[0]
+basis = ts.eigenvectors[:, keep]
+d_alpha_seen = (basis @ (basis.T @ d_alpha.ravel())).reshape(d_alpha.shape)
+values["intrinsic/adhd/alpha/difference_weak_share"] = float(1 - ts.inner(d_alpha_seen, d_alpha_seen)
+                                                             / ts.inner(d_alpha, d_alpha))
+print(f"share of the α difference's squared metric norm in the weak directions: "
+      f"{values['intrinsic/adhd/alpha/difference_weak_share']:.1e}")
 fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), layout="constrained")
-for ax, (name, base, diff) in zip(axes, [("α Fréchet means", alpha_test.means[0].mean, d_alpha),
+for ax, (name, base, diff) in zip(axes, [("α Fréchet means", alpha_test.means[0].mean, d_alpha_seen),
                                          ("GPA means", gpa_td, d_proc)]):
     ax.plot(*plotting.outline(base).T, "-", color="0.6", lw=0.8)
     ax.plot(*plotting.outline(base + magnification * 10 * diff).T, "-", color="k", lw=1.2)
@@ -427,21 +437,21 @@ print(w_test.summary())
 fig, axes = plt.subplots(1, 2, figsize=(10, 4), layout="constrained")
 for g in keep_genera:
     m = genus == g
-    axes[0].plot(*genus_means[g].mean.T, "o-", ms=3, lw=1, label=f"{g} (n = {m.sum()})")
+    axes[0].plot(*genus_means[g].mean.T, "o", ms=4, label=f"{g} (n = {m.sum()})")
     axes[1].scatter(w_pca.scores[m, 0], w_pca.scores[m, 1], s=10, label=g)
 axes[0].set_aspect("equal")
 axes[0].legend(fontsize=8)
-axes[0].set_title("α Fréchet mean of each genus (landmarks in order)", fontsize=9)
+axes[0].set_title("α Fréchet mean of each genus", fontsize=9)
 axes[1].set_xlabel(f"PC1 ({100 * w_pca.explained_variance_ratio[0]:.1f} %)")
 axes[1].set_ylabel(f"PC2 ({100 * w_pca.explained_variance_ratio[1]:.1f} %)")
 axes[1].legend(fontsize=8)
 axes[1].set_title("genera in α mode space", fontsize=9)
 save_figure(fig, output_dir, "wings_genus_means")
 plt.show()
-fig = plotting.plot_modes(w_pca, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed=False)
+fig = plotting.plot_modes(w_pca, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed=None)
 save_figure(fig, output_dir, "wings_modes")
 plt.show()
-fig = plotting.plot_mean_difference(w_test, mag=magnification, closed=False, every=2)
+fig = plotting.plot_mean_difference(w_test, mag=magnification, closed=None, every=2)
 save_figure(fig, output_dir, "wings_genus_difference")
 plt.show()
 

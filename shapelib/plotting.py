@@ -161,14 +161,18 @@ def outline(shape, closed: bool = True) -> np.ndarray:
 
 
 def _draw_shape(ax, shape, *, closed, **kw):
+    """One shape: an outline through the landmarks in order (closed or not), or, with
+    ``closed=None`` (anatomical landmarks with no order), the landmarks alone."""
     shape = np.asarray(shape)
-    pts = outline(shape, closed)
+    if closed is None:
+        kw.update(ls="none", marker=kw.get("marker") or "o", ms=kw.get("ms", 3))
+    pts = outline(shape, bool(closed))
     if shape.shape[1] == 3:
         return ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], **kw)
     return ax.plot(pts[:, 0], pts[:, 1], **kw)
 
 
-def plot_shapes_along(ax, path, *, closed: bool = True, cmap: str = "viridis", every: int = 1, lw: float = 1.0,
+def plot_shapes_along(ax, path, *, closed: bool | None = True, cmap: str = "viridis", every: int = 1, lw: float = 1.0,
                       landmarks: bool = True):
     """The shapes along a path (n+1, K, d) — a geodesic, a mode of variation — as outlines coloured
     from start to end (``cmap``), every ``every``-th one and always the ends; 3-D shapes need an
@@ -220,7 +224,7 @@ def deformation_grid(result, *, mag: float = 1.0, n_lines: int = 15, margin: flo
     return grid, moved.reshape(grid.shape), geo.path[-1]
 
 
-def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed: bool = True, lw: float = 0.6,
+def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed: bool | None = True, lw: float = 0.6,
                      **grid_kw):
     """The deformed grid of :func:`deformation_grid` with the start shape (grey, dashed) and the
     magnified end shape (black) of the geodesic ``result``; ``mag`` as geomorph's
@@ -236,10 +240,11 @@ def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed:
     return grid, warped, end
 
 
-def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool = True, figscale: float = 2.6):
+def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | None = True, figscale: float = 2.6):
     """Shapes along the tangent-PCA modes (:class:`~shapelib.statistics.tangent_pca.TangentPCAResult`):
     one row per component, one column per standard deviation, each over the mean (grey, dashed);
-    the mode's explained variance in the row title. Returns the figure."""
+    the mode's explained variance in the row title; ``closed=None`` draws landmarks without an
+    outline. Returns the figure."""
     import matplotlib.pyplot as plt
 
     d = pca.mean.shape[1]
@@ -261,7 +266,7 @@ def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool = Tr
     return fig
 
 
-def plot_mean_difference(test, *, mag: float = 3.0, closed: bool = True, every: int = 2, n_lines: int = 15,
+def plot_mean_difference(test, *, mag: float = 3.0, closed: bool | None = True, every: int = 2, n_lines: int = 15,
                          figsize=(9, 4), **grid_kw):
     """Two panels for a :class:`~shapelib.statistics.group.MeanDifferenceResult`: the shapes along
     the geodesic between the two groups' Fréchet means, and the extrinsic-warp grid of that

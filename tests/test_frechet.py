@@ -19,7 +19,8 @@ def population(rng, n=8, k=10, d=2, noise=0.3):
     base = ellipse(k, d=d)
     # a common deformation mode plus noise: a population with structure
     mode = np.column_stack([base[:, 0] * 0.15, -base[:, 1] * 0.1] + ([0.1 * base[:, 2]] if d == 3 else []))
-    return np.stack([base + rng.normal() * mode + noise * rng.normal(size=base.shape) for _ in range(n)])
+    x = np.stack([base + rng.normal() * mode + noise * rng.normal(size=base.shape) for _ in range(n)])
+    return shapelib.pose_align(x)[0]  # the statistics take aligned populations
 
 
 @pytest.fixture(scope="module")
@@ -125,3 +126,16 @@ def test_bad_input(shapes):
         frechet_mean(shapes[0], sigma2=1.0)
     with pytest.raises(ValueError, match="tol"):
         frechet_mean(shapes, sigma2=1.0, tol=0)
+
+
+def test_a_population_out_of_pose_is_warned_once(shapes):
+    aligned = shapelib.pose_align(shapes)[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", shapelib.PoseWarning)
+        frechet_mean(aligned, sigma2=1.0)
+    turned = aligned.copy()
+    c, s = np.cos(0.3), np.sin(0.3)
+    turned[0] = aligned[0] @ np.array([[c, -s], [s, c]])
+    with pytest.warns(shapelib.PoseWarning, match="not aligned") as record:
+        frechet_mean(turned, sigma2=1.0)
+    assert sum(issubclass(w.category, shapelib.PoseWarning) for w in record) == 1

@@ -19,6 +19,7 @@ from tests.conftest import ellipse
 def pair(rng):
     u = ellipse(10)
     v = u + 0.35 * rng.normal(size=u.shape)
+    v = shapelib.procrustes_align(u, v, scaling=False)  # a pair in pose
     return u, v
 
 
@@ -33,6 +34,7 @@ def test_small_sigma_limit_log_and_exp_are_differences(metric, rng):
     # landmarks 10 apart, sigma = 0.3: the metric is constant (Euclidean up to a factor), geodesics straight
     u = 10.0 * np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 1.7]])
     v = u + 0.2 * rng.normal(size=u.shape)
+    v = shapelib.procrustes_align(u, v, scaling=False)  # a pair in pose
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", shapelib.ScaleWarning)
         vec = log_map(u, v, metric=metric, sigma2=0.09)

@@ -23,7 +23,8 @@ def test_result():
     rng = np.random.default_rng(5)
     base = ellipse(12)
     stretch = np.column_stack([0.2 * base[:, 0], np.zeros(12)])
-    x = np.stack([base + (i >= 8) * stretch + 0.1 * rng.normal(size=base.shape) for i in range(16)])
+    x = shapelib.pose_align(np.stack([base + (i >= 8) * stretch + 0.1 * rng.normal(size=base.shape)
+                                      for i in range(16)]))[0]
     return mean_difference_test(x, [0] * 8 + [1] * 8, sigma2=1.0, n_permutations=99, geodesic_steps=8), x
 
 
@@ -49,6 +50,8 @@ def test_figures_are_drawn(test_result, tmp_path):
     fig = plotting.plot_modes(pca, components=(0, 1), sd=(-2, 0, 2))
     fig.savefig(tmp_path / "modes.png")
     assert len(fig.axes) == 6
+    fig = plotting.plot_modes(pca, components=(0,), sd=(-2, 2), closed=None)  # landmarks without an outline
+    assert all(line.get_linestyle() == "None" for line in fig.axes[0].lines)
     plt.close("all")
     assert (tmp_path / "difference.png").stat().st_size > 1000
 
@@ -57,13 +60,14 @@ def test_three_dimensional_shapes_are_drawn_but_have_no_plane_grid():
     rng = np.random.default_rng(1)
     t = np.linspace(0, 2 * np.pi, 8, endpoint=False)
     u = np.column_stack([3 * np.cos(t), 2 * np.sin(t), np.sin(2 * t)])
-    geo = shapelib.geodesic(u, u + 0.3 * rng.normal(size=u.shape), sigma2=1.0, n_steps=4)
+    geo = shapelib.geodesic(u, shapelib.procrustes_align(u, u + 0.3 * rng.normal(size=u.shape), scaling=False),
+                            sigma2=1.0, n_steps=4)
     fig = plt.figure()
     plotting.plot_shapes_along(fig.add_subplot(projection="3d"), geo.path)
     plt.close(fig)
     with pytest.raises(ValueError, match="3-D"):
         plotting.deformation_grid(geo)
-    no_geo = mean_difference_test(np.stack([u, u + 0.1, u - 0.1, u + 0.2]), [0, 0, 1, 1], sigma2=1.0,
+    no_geo = mean_difference_test(np.stack([u, 1.01 * u, 0.99 * u, 1.02 * u]), [0, 0, 1, 1], sigma2=1.0,
                                   n_permutations=19, group_means=False)
     with pytest.raises(ValueError, match="group_means=False"):
         plotting.plot_mean_difference(no_geo)

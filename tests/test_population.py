@@ -14,7 +14,7 @@ from tests.conftest import ellipse
 @pytest.fixture(scope="module")
 def shapes():
     rng = np.random.default_rng(2)
-    return np.stack([ellipse(10) + 0.3 * rng.normal(size=(10, 2)) for _ in range(10)])
+    return shapelib.pose_align(np.stack([ellipse(10) + 0.3 * rng.normal(size=(10, 2)) for _ in range(10)]))[0]
 
 
 @pytest.fixture(scope="module")

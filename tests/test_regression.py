@@ -8,6 +8,10 @@ import pytest
 
 import shapelib
 from shapelib.statistics.regression import geodesic_regression
+
+# the data lie on a geodesic between two aligned shapes (or near it): a set the pose check finds
+# "not aligned" at its 0.1 % tolerance, as are the perturbed ends the tests solve geodesics for
+pytestmark = pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
 from tests.conftest import ellipse
 
 
@@ -18,6 +22,7 @@ def geodesic_data():
     rng = np.random.default_rng(0)
     u = ellipse(10)
     v = u + 0.6 * rng.normal(size=u.shape)
+    v = shapelib.procrustes_align(u, v, scaling=False)  # a pair in pose
     geo = shapelib.geodesic(u, v, sigma2=1.0, n_steps=16, tol=1e-12)
     idx = np.array([0, 1, 3, 4, 6, 8, 9, 11, 13, 16])
     return geo, geo.path[idx], 2.0 + idx / 16 * 10
@@ -28,6 +33,7 @@ def test_noiseless_data_on_a_geodesic_are_recovered(metric):
     rng = np.random.default_rng(1)
     u = ellipse(8)
     v = u + 0.5 * rng.normal(size=u.shape)
+    v = shapelib.procrustes_align(u, v, scaling=False)  # a pair in pose
     geo = shapelib.geodesic(u, v, metric=metric, sigma2=1.0, n_steps=8, tol=1e-12)
     idx = np.array([0, 2, 3, 5, 8])
     y, t = geo.path[idx], 10.0 + idx / 8 * 4
@@ -48,7 +54,7 @@ def test_half_way_points_and_velocity(geodesic_data):
     assert np.abs(mid - geo.path[8]).max() < 1e-6
     # outside the range: the exponential map continues the geodesic
     ext = res.predict([12.0, 13.0])
-    assert np.allclose(ext[0], geo.path[-1], atol=1e-9)
+    assert np.allclose(ext[0], res.path[-1], atol=1e-12) and np.allclose(ext[0], geo.path[-1], atol=1e-6)
     assert shapelib.path_length(np.stack([geo.path[-1], ext[1]]), sigma2=1.0) > 0
 
 
@@ -97,6 +103,7 @@ def test_three_dimensional_landmarks():
     rng = np.random.default_rng(4)
     u = ellipse(8, d=3)
     v = u + 0.4 * rng.normal(size=u.shape)
+    v = shapelib.procrustes_align(u, v, scaling=False)  # a pair in pose
     geo = shapelib.geodesic(u, v, sigma2=1.0, n_steps=8, tol=1e-12)
     idx = np.array([0, 3, 5, 8])
     res = geodesic_regression(geo.path[idx], idx / 8.0, sigma2=1.0, path_steps=8, tol=1e-6)

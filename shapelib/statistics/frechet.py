@@ -47,8 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import as_shape, as_shapes, check_dimension, check_nonnegative_int, check_positive
-from ..geometry.procrustes import centroid_size, generalized_procrustes, procrustes_align
+from .._validate import (as_shape, as_shapes, check_dimension, check_nonnegative_int, check_positive, set_checked,
+                         set_was_checked)
+from ..geometry.procrustes import centroid_size, check_pose, generalized_procrustes, procrustes_align
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import check_scale
 from ..solver.logexp import (DEFAULT_LOG_STEPS, DEFAULT_RCOND, GeodesicOptions, TangentSpace, exp_path,
@@ -56,7 +57,20 @@ from ..solver.logexp import (DEFAULT_LOG_STEPS, DEFAULT_RCOND, GeodesicOptions, 
 from ..solver.result import GeodesicWarning
 from .population_logs import population_logs, shifted_paths
 
-__all__ = ["FrechetMeanResult", "frechet_mean", "procrustes_mean", "geodesic_options", "mean_certificate"]
+__all__ = ["FrechetMeanResult", "frechet_mean", "procrustes_mean", "geodesic_options", "mean_certificate",
+           "check_population"]
+
+
+def check_population(x, *, metric, sigma2, stacklevel):
+    """The warnings a population gets once, at the entry of a statistic: σ against the landmarks'
+    scale (:class:`~shapelib.ScaleWarning`) and their pose (:class:`~shapelib.PoseWarning`: both
+    metrics depend on it, so the shapes must be aligned). Skipped inside
+    :func:`shapelib._validate.set_checked` (a statistic calling another has checked already).
+    ``stacklevel`` counts from the caller of this function."""
+    if set_was_checked():
+        return
+    check_scale(x, sigma2, stacklevel=stacklevel + 1)
+    check_pose(x, metric=metric, stacklevel=stacklevel + 1)
 
 
 def geodesic_options(metric, sigma2, *, n_steps=DEFAULT_LOG_STEPS, log_tol=1e-6, log_max_iter=200,
@@ -176,7 +190,8 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, init=None, tol: float
     ----------
     shapes : array_like (N, K, d)
         Landmark configurations in correspondence and in a common frame (align them first, e.g.
-        :func:`shapelib.to_centroid_size`), d = 2 or 3.
+        :func:`shapelib.to_centroid_size` or :func:`shapelib.pose_align`; a
+        :class:`~shapelib.PoseWarning` says when they are not), d = 2 or 3.
     metric : {"alpha", "fisher_rao"}
     sigma2 : float
         σ² of the GMM representation (eq. 5).
@@ -212,10 +227,10 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, init=None, tol: float
                             grid_spacing=grid_spacing, grid_margin=grid_margin)
     tol = check_positive(tol, name="tol")
     max_iter = check_nonnegative_int(max_iter, name="max_iter")
-    check_scale(x, opts.sigma2, stacklevel=3)
     m0 = procrustes_mean(x) if init is None else as_shape(init, name="init")
     if m0.shape != x.shape[1:]:
         raise ValueError(f"init must have shape {x.shape[1:]}; got {m0.shape}")
+    check_population(x, metric=metric, sigma2=opts.sigma2, stacklevel=3)
     return karcher_iteration(x, m0, options=opts, tol=tol, max_iter=max_iter, executor=executor,
                              chunk_size=chunk_size, warn=warn)
 

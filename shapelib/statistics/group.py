@@ -28,12 +28,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validate import as_shapes, check_dimension, check_positive_int
+from .._validate import as_shapes, check_dimension, check_positive_int, set_checked
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..solver.geodesic import geodesic
 from ..solver.logexp import DEFAULT_LOG_STEPS, DEFAULT_RCOND
 from ..solver.result import GeodesicResult
-from .frechet import FrechetMeanResult, frechet_mean, karcher_iteration
+from .frechet import FrechetMeanResult, check_population, frechet_mean, karcher_iteration
 
 __all__ = ["MeanDifferenceResult", "mean_difference_test", "permutation_statistics", "MIN_PERMUTATIONS"]
 
@@ -159,6 +159,14 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
         raise ValueError(f"n_permutations must be at least {MIN_PERMUTATIONS}; got {n_permutations}")
     opts_kw = dict(metric=metric, sigma2=sigma2, n_steps=n_steps, rcond=rcond, grid_spacing=grid_spacing,
                    grid_margin=grid_margin, executor=executor, chunk_size=chunk_size)
+    check_population(x, metric=metric, sigma2=sigma2, stacklevel=3)
+    with set_checked():  # warned once for the whole population
+        return _test(x, is_b, labels, sizes, n_permutations, seed, pooled, group_means, geodesic_steps, tol, opts_kw,
+                     executor, chunk_size, mean_options)
+
+
+def _test(x, is_b, labels, sizes, n_permutations, seed, pooled, group_means, geodesic_steps, tol, opts_kw, executor,
+          chunk_size, mean_options):
     if pooled is None:
         pooled = frechet_mean(x, tol=tol, **opts_kw, **mean_options)
     elif not isinstance(pooled, FrechetMeanResult) or pooled.logs.shape != x.shape:

@@ -49,16 +49,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import as_shapes, check_dimension, check_nonnegative_int, check_positive, check_positive_int
+from .._validate import as_shapes, check_dimension, check_nonnegative_int, check_positive, check_positive_int, set_checked
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
-from ..geometry.scale import check_scale
 from ..solver.energy import path_energy
 from ..solver.linalg import block_cholesky, block_solve, one_blas_thread
 from ..solver.logexp import (DEFAULT_LOG_STEPS, DEFAULT_RCOND, GeodesicOptions, TangentSpace, segment_derivatives,
                              exp_path, tangent_space)
 from ..solver.minimise import minimise_path
 from ..solver.result import GeodesicWarning
-from .frechet import FrechetMeanResult, frechet_mean, geodesic_options
+from .frechet import FrechetMeanResult, check_population, frechet_mean, geodesic_options
 from .population_logs import population_logs, shifted_paths
 
 __all__ = ["GeodesicRegressionResult", "geodesic_regression", "DEFAULT_PATH_STEPS"]
@@ -251,7 +250,16 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
     max_iter = check_nonnegative_int(max_iter, name="max_iter")
     m_steps = check_positive_int(path_steps, name="path_steps")
     t_ref = float(tt.mean()) if t_ref is None else float(t_ref)
-    check_scale(y, opts.sigma2, stacklevel=3)
+    check_population(y, metric=metric, sigma2=opts.sigma2, stacklevel=3)
+    with set_checked():
+        return _fit(y, tt, lo, hi, t_ref, mean, opts, tol=tol, max_iter=max_iter, m_steps=m_steps, step_rcond=step_rcond,
+                    executor=executor, chunk_size=chunk_size, warn=warn)
+
+
+def _fit(y, tt, lo, hi, t_ref, mean, opts, *, tol, max_iter, m_steps, step_rcond, executor, chunk_size, warn):
+    metric, sigma2, n_steps = opts.metric, opts.sigma2, opts.n_steps
+    log_tol, log_max_iter, rcond = opts.tol, opts.max_iter, opts.rcond
+    grid_spacing, grid_margin = opts.grid_spacing, opts.grid_margin
     if mean is None:
         mean = frechet_mean(y, metric=metric, sigma2=sigma2, n_steps=n_steps, log_tol=log_tol, log_max_iter=log_max_iter,
                             rcond=rcond, grid_spacing=grid_spacing, grid_margin=grid_margin, executor=executor,
@@ -317,7 +325,7 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
         state = trial
     if not converged and warn:
         warnings.warn(f"geodesic regression: certificate {cert:.2e} > tol {tol:.0e} after {it} iterations",
-                      GeodesicWarning, stacklevel=2)
+                      GeodesicWarning, stacklevel=3)
     intercept, j, _ = _interp(state.path, (lo, hi), t_ref) if lo <= t_ref <= hi else (
         _point_on(state.path, (lo, hi), t_ref, opts), None, None)
     if j is None:

@@ -35,7 +35,7 @@ from sklearn.utils.validation import check_is_fitted
 from .._validate import as_shape, as_shapes, check_positive_int
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..solver.logexp import DEFAULT_LOG_STEPS, DEFAULT_RCOND, TangentSpace, exp_path, tangent_space
-from .frechet import FrechetMeanResult, frechet_mean, geodesic_options
+from .frechet import FrechetMeanResult, check_population, frechet_mean, geodesic_options
 from .population_logs import population_logs
 
 __all__ = ["TangentPCAResult", "TangentPCA", "tangent_pca", "DEFAULT_SD"]
@@ -208,6 +208,7 @@ def tangent_pca(shapes, *, metric: str = "alpha", sigma2=None, mean=None, n_comp
             m = as_shape(mean, name="mean")
             if m.shape != x.shape[1:]:
                 raise ValueError(f"mean must have shape {x.shape[1:]}; got {m.shape}")
+            check_population(x, metric=metric, sigma2=opts.sigma2, stacklevel=3)
             logs = np.stack([r.vector for r in population_logs(m, x, options=opts, executor=executor,
                                                                chunk_size=chunk_size)])
             ts = tangent_space(m, options=opts)
