@@ -19,6 +19,7 @@ Where each equation lives:
   :mod:`shapelib.population`
 """
 
+from ._validate import InputError
 from .solver.bracket import DistanceBracket, distance_bracket
 from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
 from .distances import MetricInfo, distance, metric_info, pair_record, register_metric
@@ -115,6 +116,7 @@ __all__ = [
     "pair_record",
     "pairwise_distances",
     "path_length",
+    "InputError",
     "PoseWarning",
     "pose_align",
     "preshape",

@@ -12,11 +12,55 @@ import numbers
 
 import numpy as np
 
-__all__ = ["as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_positive_int",
+__all__ = ["InputError", "literal", "as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_positive_int",
            "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked"]
 
 #: landmark dimensions every shape-taking entry point accepts (``dims=`` of :func:`as_shape`)
 LANDMARK_DIMS = (2, 3)
+
+#: how the Python library words each remedy an :class:`InputError` can name (the command line has its own)
+LIBRARY_WORDS = {
+    "keep_missing": "pass missing='nan' to keep them as NaN (shapelib's distances do not accept NaN: "
+                    "estimate or drop them first)",
+    "scale": "scale=True",
+    "pkn": "convert it with shapelib.io.from_pkn",
+    "sigma2": "sigma2=...",
+}
+
+
+def literal(value) -> str:
+    """``str(value)`` with braces doubled, for the text of an :class:`InputError` template."""
+    return str(value).replace("{", "{{").replace("}", "}}")
+
+
+class InputError(ValueError):
+    """Bad input, with the fix named in the words of whoever called: the library or the command line.
+
+    A :class:`ValueError` (catch it as one). The message is a template whose ``{fields}`` name a
+    remedy (``{keep_missing}``, ``{scale}``, ``{pkn}``, ``{sigma2}``); ``str(exc)`` fills them with
+    the library's keywords (:data:`LIBRARY_WORDS`), :meth:`phrase` with another vocabulary (the
+    command line passes its options), so no caller rewrites another's message.
+
+    Parameters
+    ----------
+    template : str
+        The message; literal text interpolated into it goes through :func:`literal`.
+    facts : dict, optional
+        What a caller may act on: ``landmarks`` (indices named in the message, counted from 0),
+        ``negative_as_missing`` (a tps reader read negative coordinates as missing), ``metric``
+        and ``parameters`` (a metric's missing required options).
+    """
+
+    def __init__(self, template: str, facts: dict | None = None):
+        super().__init__(template, dict(facts or {}))  # args: what pickling (Dask) rebuilds it from
+        self.template, self.facts = template, dict(facts or {})
+
+    def phrase(self, words: dict | None = None) -> str:
+        """The message with ``words`` (field -> text) in place of the library's."""
+        return self.template.format_map({**LIBRARY_WORDS, **(words or {})})
+
+    def __str__(self) -> str:
+        return self.phrase()
 
 
 def as_shape(x, *, name: str = "shape", min_landmarks: int = 1, dims=LANDMARK_DIMS) -> np.ndarray:
@@ -51,8 +95,9 @@ def as_shape(x, *, name: str = "shape", min_landmarks: int = 1, dims=LANDMARK_DI
         )
     if not np.all(np.isfinite(arr)):
         bad = np.argwhere(~np.isfinite(arr))[0]
-        raise ValueError(
-            f"{name} contains non-finite values (first at landmark {bad[0]}, coordinate {bad[1]})"
+        raise InputError(
+            f"{literal(name)} contains non-finite values (first at landmark {bad[0]}, coordinate {bad[1]})",
+            {"landmarks": (int(bad[0]),)},
         )
     if dims is not None:
         check_dimension(arr, name=name, allowed=dims)
@@ -145,12 +190,12 @@ def check_dimension(x: np.ndarray, *, name: str = "u", allowed=(2, 3)) -> np.nda
     if d not in allowed:
         dims = " or ".join(map(str, allowed))
         if x.ndim == 3 and x.shape[1] in allowed:
-            hint = (f"; the array looks like geomorph's p x k x n layout {x.shape}: convert it with shapelib.io.from_pkn "
+            hint = (f"; the array looks like geomorph's p x k x n layout {x.shape}: {{pkn}} "
                     "(or, if it is (N, d, K), with numpy.swapaxes(array, 1, 2))")
         else:
-            hint = "; a geomorph-style p x k x n array converts with shapelib.io.from_pkn(array)"
-        raise ValueError(
-            f"{name}: landmarks must have d = {dims} coordinates; got {d} dimensions (shape {x.shape}). shapelib "
+            hint = "; a geomorph-style p x k x n array: {pkn}"
+        raise InputError(
+            f"{literal(name)}: landmarks must have d = {dims} coordinates; got {d} dimensions (shape {x.shape}). shapelib "
             f"expects one shape as a (K, d) array (one row per landmark) and a collection as (N, K, d) "
             f"(specimens, landmarks, coordinates); a shape stored as (d, K) must be transposed{hint}"
         )

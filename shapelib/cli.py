@@ -28,12 +28,13 @@ import ast
 import contextlib
 import logging
 import os
-import re
 import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
+
+from ._validate import InputError
 
 PROG = "shapelib"
 #: exit status of ``distances --max-blocks`` stopping before the matrix is complete (sysexits' EX_TEMPFAIL)
@@ -72,20 +73,28 @@ def _read(args, *, missing="error"):
         raise CLIError(f"--pkn applies to .npy/.npz files only; {args.file} is {fmt}")
     try:
         return io.read_landmarks(args.file, **kw)
+    except InputError as exc:
+        raise CLIError(_in_cli_words(exc)) from None
     except ValueError as exc:
-        raise CLIError(_cli_advice(str(exc), negative_read_as_missing=fmt == "tps" and not args.negative_coordinates)
-                       ) from None
+        raise CLIError(str(exc)) from None
 
 
-def _cli_advice(message: str, *, negative_read_as_missing: bool) -> str:
-    """The readers' advice names Python keywords; say it with the command line's options."""
-    missing = re.search(r"; pass missing='nan' to keep (them as NaN|it).*$", message)
-    if missing:
-        message = message[:missing.start()] + "; estimate or drop the missing landmarks first"
-        if negative_read_as_missing and "negative" in message:
-            message += " (or, if negative values are coordinates, e.g. aligned shapes, add --negative-coordinates)"
-    return (message.replace("scale=True", "--scale")
-            .replace("convert it with shapelib.io.from_pkn", "read it with --pkn"))
+#: the remedies an :class:`~shapelib._validate.InputError` names, in the command line's options
+CLI_WORDS = {
+    "keep_missing": "estimate or drop the missing landmarks first",
+    "scale": "--scale",
+    "pkn": "read it with --pkn",
+    "sigma2": "--sigma2",
+}
+
+
+def _in_cli_words(exc) -> str:
+    """An input error's message with its remedies in the command line's options."""
+    words = dict(CLI_WORDS)
+    if exc.facts.get("negative_as_missing"):
+        words["keep_missing"] += (" (or, if negative values are coordinates, e.g. aligned shapes, add "
+                                  "--negative-coordinates)")
+    return exc.phrase(words)
 
 
 def _output_path(path, *, suffixes, option):
@@ -137,9 +146,12 @@ def _metric_params(args):
             params[name] = 1.0 if value == "auto" else value  # auto: estimated once the shapes are read
     try:
         check_metric_params(args.metric, params, rtol=getattr(args, "rtol", None))
-    except ValueError as exc:
-        if re.search(r"needs (.*, )?sigma2=\.\.\.", str(exc)):  # the library names its keyword, we the option
+    except InputError as exc:
+        missing = exc.facts.get("parameters", ())
+        if missing == ("sigma2",):
             raise CLIError(f"--metric {args.metric} needs --sigma2 (σ² of the Gaussian mixture, eq. 5)") from None
+        raise CLIError(f"--metric {args.metric}: {_in_cli_words(exc)}") from None
+    except ValueError as exc:
         raise CLIError(f"--metric {args.metric}: {exc}") from None
     return params
 
@@ -368,7 +380,7 @@ def cmd_distances(args) -> int:
                                         store=args.store, block_size=args.block_size, progress=not args.no_progress,
                                         rtol=args.rtol, return_result=True, callback=stop, **params)
     except PairError as exc:  # name the specimens, as every other input error does
-        note = " (the metric counts landmarks from 0)" if re.search(r"landmarks? \d", exc.reason) else ""
+        note = " (the metric counts landmarks from 0)" if exc.landmarks else ""
         raise CLIError(f"{args.file}: specimens {ids[exc.i]!r} (#{exc.i + 1}) and {ids[exc.j]!r} (#{exc.j + 1}), "
                        f"as u and v: {exc.reason}{note}") from None
     log = result.log or {}

@@ -47,7 +47,7 @@ from collections.abc import Callable, Mapping, Sequence, Set
 from dataclasses import dataclass
 from functools import partial
 
-from ._validate import as_shape_pair
+from ._validate import LIBRARY_WORDS, InputError, as_shape_pair, literal
 from .comparison.diffeomorphism import landmark_diffeomorphism
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
@@ -322,7 +322,8 @@ def check_metric_params(metric, params: dict, *, rtol=None) -> None:
                if name not in _FIXED and p.default is p.empty and p.kind is not p.VAR_POSITIONAL
                and name not in params]
     if missing:
-        raise ValueError(f"metric {metric!r} needs {', '.join(f'{m}=...' for m in missing)}")
+        words = ", ".join("{" + m + "}" if m in LIBRARY_WORDS else f"{literal(m)}=..." for m in missing)
+        raise InputError(f"metric {literal(repr(metric))} needs {words}", {"metric": metric, "parameters": tuple(missing)})
 
 
 def distance(u, v, *, metric: str, rtol: float | None = None, **params) -> float:

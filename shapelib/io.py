@@ -57,7 +57,7 @@ import numpy as np
 import pandas as pd
 
 from ._files import write_text_atomic
-from ._validate import check_dimension
+from ._validate import InputError, check_dimension, literal
 
 __all__ = [
     "read_landmarks", "write_landmarks", "read_tps", "write_tps", "read_csv", "write_csv",
@@ -92,7 +92,7 @@ def _check_missing_option(missing):
         raise ValueError(f"missing must be 'error' or 'nan'; got {missing!r}")
 
 
-def _report_missing(shapes, specimens, path, missing, hint="", lines=None):
+def _report_missing(shapes, specimens, path, missing, hint="", lines=None, negative_as_missing=False):
     """Raise on NaN landmarks (naming file, line, specimen and landmark) unless ``missing == "nan"``.
 
     ``lines`` (N, K): the file line of each landmark, else the specimen's ``line`` column is used."""
@@ -106,10 +106,10 @@ def _report_missing(shapes, specimens, path, missing, hint="", lines=None):
         elif "line" in specimens and not pd.isna(specimens["line"].iloc[i]):
             where += f"line {int(specimens['line'].iloc[i])}, "
         where += f"specimen {specimens['id'].iloc[i]!r} (#{i + 1})"
-        raise ValueError(
-            f"{where}: landmark {k + 1} is missing{hint} ({int(bad.sum())} missing landmark(s) in "
-            f"{int(bad.any(axis=1).sum())} specimen(s) in all); pass missing='nan' to keep them as NaN "
-            "(shapelib's distances do not accept NaN: estimate or drop them first)")
+        raise InputError(
+            f"{literal(where)}: landmark {k + 1} is missing{literal(hint)} ({int(bad.sum())} missing landmark(s) in "
+            f"{int(bad.any(axis=1).sum())} specimen(s) in all); {{keep_missing}}",
+            {"negative_as_missing": negative_as_missing})
 
 
 class _NotFinite(ValueError):
@@ -348,7 +348,7 @@ def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str
     if scale:
         lacking = [r for r, sc in zip(records, scales) if np.isnan(sc)]
         if lacking:
-            raise ValueError(f"{path}: scale=True but {lacking[0].label()} has no SCALE= line "
+            raise InputError(f"{literal(path)}: {{scale}} but {literal(lacking[0].label())} has no SCALE= line "
                              f"({len(lacking)} of {len(records)} specimens lack one)")
 
     def negative_missing(r):
@@ -381,16 +381,18 @@ def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str
         table[k.lower()] = [r.meta.get(k) for r in records]
     specimens = pd.DataFrame(table)
     specimens.attrs.update(path=str(path), format="tps")
-    hint = (" (NA or negative coordinates, tpsDig's code for a missing landmark)"
-            if any(negative_missing(r) for r in records) else " (NA)")
-    _report_missing(shapes, specimens, path, missing, hint=hint, lines=[[ln for ln, _ in r.rows] for r in records])
+    negative_as_missing = any(negative_missing(r) for r in records)
+    hint = " (NA or negative coordinates, tpsDig's code for a missing landmark)" if negative_as_missing else " (NA)"
+    _report_missing(shapes, specimens, path, missing, hint=hint, lines=[[ln for ln, _ in r.rows] for r in records],
+                    negative_as_missing=negative_as_missing)
     if missing == "error":
         for i, (r, cs) in enumerate(zip(records, curves)):
             for c_idx, c in enumerate(cs):
                 bad = np.isnan(c).any(axis=1)
                 if bad.any():
-                    raise ValueError(f"{path}: specimen {ids[i]!r} (#{i + 1}): curve {c_idx + 1} point "
-                                     f"{int(np.argmax(bad)) + 1} is missing{hint}; pass missing='nan' to keep it")
+                    raise InputError(f"{literal(path)}: specimen {literal(repr(ids[i]))} (#{i + 1}): curve {c_idx + 1} "
+                                     f"point {int(np.argmax(bad)) + 1} is missing{literal(hint)}; {{keep_missing}}",
+                                     {"negative_as_missing": negative_as_missing})
     _warn_duplicate_ids(specimens, path)
     return (shapes, specimens, curves) if return_curves else (shapes, specimens)
 

@@ -67,7 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import as_shapes, check_positive_int, set_checked
+from ._validate import InputError, as_shapes, check_positive_int, set_checked
 from ._version import __version__
 from .geometry.procrustes import PoseWarning, check_pose
 from .geometry.scale import ScaleWarning, check_fisher_rao_scale, check_scale
@@ -124,12 +124,16 @@ class PairError(ValueError):
 
     ``i``, ``j`` are the row and column of the matrix, i.e. ``shapes[i]`` is the metric's ``u``
     and ``shapes[j]`` its ``v``; ``reason`` is the metric's own message (which speaks of ``u``
-    and ``v`` and counts landmarks from 0). Raised in-process and, unchanged, through Dask.
+    and ``v`` and counts landmarks from 0); ``landmarks``: the landmark indices it names (from 0),
+    empty if none. Raised in-process and, unchanged, through Dask.
     """
 
-    def __init__(self, i, j, reason):
-        super().__init__(int(i), int(j), str(reason))  # args: what pickling (Dask) rebuilds it from
-        self.i, self.j, self.reason = int(i), int(j), str(reason)
+    def __init__(self, i, j, reason, landmarks=()):
+        if not landmarks and isinstance(reason, InputError):
+            landmarks = reason.facts.get("landmarks", ())
+        landmarks = tuple(int(k) for k in landmarks)
+        super().__init__(int(i), int(j), str(reason), landmarks)  # args: what pickling (Dask) rebuilds it from
+        self.i, self.j, self.reason, self.landmarks = int(i), int(j), str(reason), landmarks
 
     def __str__(self):
         return f"pair (shapes[{self.i}], shapes[{self.j}]) as (u, v): {self.reason}"

@@ -60,6 +60,32 @@ def test_a_geomorph_pkn_array_is_refused_with_the_conversion(nkd, entry):
         LAYOUT_ENTRY_POINTS[entry](nkd)  # the right layout passes
 
 
+def test_an_input_error_names_its_fix_in_the_callers_words_and_survives_pickling(nkd):
+    """One message, two vocabularies: the library's keyword or another caller's option, never
+    a rewrite of the text; the facts and the message cross process boundaries (Dask) intact."""
+    import pickle
+
+    with pytest.raises(sl.InputError) as info:
+        sl.pose_align(sl.io.to_pkn(nkd))
+    exc = info.value
+    assert isinstance(exc, ValueError) and "{pkn}" in exc.template
+    assert "convert it with shapelib.io.from_pkn" in str(exc)
+    other = exc.phrase({"pkn": "read it with --pkn"})
+    assert "read it with --pkn" in other and "from_pkn" not in other
+    assert other.replace("read it with --pkn", "convert it with shapelib.io.from_pkn") == str(exc)
+    back = pickle.loads(pickle.dumps(exc))
+    assert type(back) is sl.InputError and str(back) == str(exc) and back.facts == exc.facts
+    with pytest.raises(sl.InputError) as info:
+        sl.distance(nkd[0], nkd[1], metric="fisher_rao_bound")
+    assert info.value.facts == {"metric": "fisher_rao_bound", "parameters": ("sigma2",)}
+    assert str(info.value).endswith("needs sigma2=...")
+    bad = nkd[0].copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(sl.InputError, match="first at landmark 3, coordinate 1") as info:
+        sl.procrustes_distance(bad, nkd[1])
+    assert info.value.facts == {"landmarks": (3,)}
+
+
 @pytest.mark.parametrize("entry", sorted(LAYOUT_ENTRY_POINTS))
 def test_an_n_d_k_array_is_refused_with_the_conversion(nkd, entry):
     ndk = nkd.transpose(0, 2, 1)  # (12, 2, 8): read as 12 shapes of 2 landmarks in 8 dimensions

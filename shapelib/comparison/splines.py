@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from .._validate import as_shape, as_shape_pair, check_positive
+from .._validate import InputError, as_shape, as_shape_pair, check_positive, literal
 from ..geometry.procrustes import check_pose
 
 __all__ = [
@@ -115,7 +115,8 @@ def _check_distinct(u, name="u"):
     np.fill_diagonal(d, np.inf)
     if d.min() == 0:
         i, j = np.argwhere(d == 0)[0]
-        raise ValueError(f"{name} has coincident landmarks {i} and {j}: a spline cannot interpolate them")
+        raise InputError(f"{literal(name)} has coincident landmarks {i} and {j}: a spline cannot interpolate them",
+                         {"landmarks": (int(i), int(j))})
 
 
 def tps_bending_matrix(u, *, kernel: str | None = None) -> np.ndarray:
