@@ -51,7 +51,7 @@ from shapelib.datasets import load_adhd200
 from shapelib.geometry.scale import landmark_spacing
 from shapelib.statistics.distance_based import classical_mds, gower_centered, knn_loo_accuracy, mantel_test, permanova
 from shapelib import to_centroid_size
-from shapelib.study import PAPER_CENTROID_SIZE, record_values, save_figure
+from shapelib.study import PAPER_CENTROID_SIZE, record_values, save_figure, stratified_sample
 
 raw, clinical = load_adhd200()
 labels = pd.DataFrame({
@@ -140,7 +140,7 @@ else:
                  + ", ".join(f"a {kind} for {np.mean(runner_up == kind):.0%}" for kind in
                              ("shift by one point", "larger shift", "reversal") if (runner_up == kind).any())
                  + " of the subjects. "
-                 f"The landmarks are used as given.")
+                 "The landmarks are used as given.")
 print(corr_text)
 
 # %% [markdown]
@@ -153,14 +153,13 @@ print(corr_text)
 # setting (σ² = 0.5 on its 63-landmark corpus callosum shapes at the same size).
 
 # %%
+#: the diagnosis × sex cells every subsample is balanced over
+cells = [(labels.diagnosis.to_numpy() == d) & (labels.sex.to_numpy() == s) for d in ("TD", "ADHD") for s in ("0", "1")]
+
+
 def stratified(idx, n, rng):
     """``n`` of ``idx`` balanced over the diagnosis × sex cells (all of them if n >= len(idx))."""
-    if n >= len(idx):
-        return np.sort(idx)
-    cells = [idx[(labels.diagnosis.to_numpy()[idx] == d) & (labels.sex.to_numpy()[idx] == s)]
-             for d in ("TD", "ADHD") for s in ("0", "1")]
-    take = [n // 4 + (k < n % 4) for k in range(4)]
-    return np.sort(np.concatenate([rng.choice(c, size=min(t, len(c)), replace=False) for c, t in zip(cells, take)]))
+    return stratified_sample(idx, n, cells, rng)
 
 
 rng = np.random.default_rng(seed)
@@ -537,7 +536,7 @@ save_figure(fig, output_dir, "sigma_sweep")
 
 # %%
 def fmt_p(p):
-    return f"{p:.3f}" if p >= 0.001 else f"< 0.001"
+    return f"{p:.3f}" if p >= 0.001 else "< 0.001"
 
 
 dx = perm[(perm.term == "diagnosis")].set_index(["scope", "metric"])

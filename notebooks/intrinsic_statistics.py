@@ -44,7 +44,7 @@ import shapelib as sl
 from shapelib import plotting
 from shapelib.datasets import load_adhd200
 from shapelib.geometry.procrustes import procrustes_distance
-from shapelib.study import PAPER_CENTROID_SIZE, record_values, save_figure
+from shapelib.study import PAPER_CENTROID_SIZE, record_values, save_figure, stratified_sample
 
 values, notes, timings = {}, {}, {}
 raw, clinical = load_adhd200()
@@ -55,14 +55,13 @@ labels = pd.DataFrame({
 })
 
 
+#: the diagnosis × sex cells every subsample is balanced over
+cells = [(labels.diagnosis.to_numpy() == d) & (labels.sex.to_numpy() == s) for d in ("TD", "ADHD") for s in ("0", "1")]
+
+
 def stratified(idx, n, rng):
     """``n`` of ``idx`` balanced over the diagnosis × sex cells (all of them if n >= len(idx))."""
-    if n >= len(idx):
-        return np.sort(idx)
-    cells = [idx[(labels.diagnosis.to_numpy()[idx] == d) & (labels.sex.to_numpy()[idx] == s)]
-             for d in ("TD", "ADHD") for s in ("0", "1")]
-    take = [n // 4 + (k < n % 4) for k in range(4)]
-    return np.sort(np.concatenate([rng.choice(c, size=min(t, len(c)), replace=False) for c, t in zip(cells, take)]))
+    return stratified_sample(idx, n, cells, rng)
 
 
 rng = np.random.default_rng(seed)

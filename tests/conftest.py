@@ -70,3 +70,22 @@ def ellipse(k, a=3.0, b=2.0, d=2):
     if d == 3:
         x = np.column_stack([x, 0.8 * np.sin(2 * t)])
     return x
+
+
+def ellipse_population(rng, n, k=10, d=2, *, noise, second_mode=0.0):
+    """``n`` shapes with structure, rigidly aligned (the statistics take aligned populations): the
+    :func:`ellipse` stretched along one mode by a standard normal amount, with ``second_mode > 0``
+    also slid along the outline (landmarks towards their neighbours) by ``second_mode`` times
+    another, plus isotropic ``noise``."""
+    import shapelib
+
+    base = ellipse(k, d=d)
+    mode1 = np.column_stack([base[:, 0] * 0.15, -base[:, 1] * 0.1] + ([0.1 * base[:, 2]] if d == 3 else []))
+    mode2 = np.roll(base, 1, axis=0) - base
+    out = []
+    for _ in range(n):
+        x = base + rng.normal() * mode1
+        if second_mode:
+            x = x + second_mode * rng.normal() * mode2
+        out.append(x + noise * rng.normal(size=base.shape))
+    return shapelib.pose_align(np.stack(out))[0]

@@ -10,17 +10,12 @@ import pytest
 import shapelib
 from shapelib.solver.logexp import tangent_space
 from shapelib.statistics.frechet import frechet_mean, mean_certificate, procrustes_mean
-from tests.conftest import ellipse
-
-
+from tests.conftest import ellipse_population
 
 
 def population(rng, n=8, k=10, d=2, noise=0.3):
-    base = ellipse(k, d=d)
-    # a common deformation mode plus noise: a population with structure
-    mode = np.column_stack([base[:, 0] * 0.15, -base[:, 1] * 0.1] + ([0.1 * base[:, 2]] if d == 3 else []))
-    x = np.stack([base + rng.normal() * mode + noise * rng.normal(size=base.shape) for _ in range(n)])
-    return shapelib.pose_align(x)[0]  # the statistics take aligned populations
+    """A common deformation mode plus noise: a population with structure."""
+    return ellipse_population(rng, n, k, d, noise=noise)
 
 
 @pytest.fixture(scope="module")

@@ -36,3 +36,18 @@ def test_save_figure_is_byte_deterministic(tmp_path):
         return path.read_bytes()
 
     assert draw("a") == draw("b")
+
+
+def test_stratified_sample_is_balanced_reproducible_and_within_the_indices():
+    from shapelib.study import stratified_sample
+
+    group = np.repeat([0, 1, 2], [50, 30, 5])  # a small third cell: it gives all it has
+    cells = [group == g for g in range(3)]
+    idx = np.arange(10, 85)  # a subset of the whole range: the masks index the whole range
+    picked = stratified_sample(idx, 31, cells, np.random.default_rng(4))
+    assert np.all(np.diff(picked) > 0) and np.isin(picked, idx).all()
+    counts = np.bincount(group[picked], minlength=3)
+    assert counts.tolist() == [11, 10, 5]  # 31 // 3 + (k < 31 % 3), the last capped at the 5 it has
+    again = stratified_sample(idx, 31, cells, np.random.default_rng(4))
+    np.testing.assert_array_equal(picked, again)
+    np.testing.assert_array_equal(stratified_sample(idx[::-1], 200, cells, None), idx)

@@ -12,18 +12,12 @@ import shapelib
 from shapelib.solver.path_metric import path_metric
 from shapelib.statistics.frechet import frechet_mean
 from shapelib.statistics.tangent_pca import TangentPCA, tangent_pca
-from tests.conftest import ellipse
-
-
+from tests.conftest import ellipse_population
 
 
 def population(rng, n=10, k=10, d=2, noise=0.15):
-    base = ellipse(k, d=d)
-    mode1 = np.column_stack([base[:, 0] * 0.15, -base[:, 1] * 0.1] + ([0.1 * base[:, 2]] if d == 3 else []))
-    mode2 = np.roll(base, 1, axis=0) - base
-    x = np.stack([base + rng.normal() * mode1 + 0.3 * rng.normal() * mode2 + noise * rng.normal(size=base.shape)
-                     for _ in range(n)])
-    return shapelib.pose_align(x)[0]  # the statistics take aligned populations
+    """Two modes (a stretch and a slide along the outline) plus noise."""
+    return ellipse_population(rng, n, k, d, noise=noise, second_mode=0.3)
 
 
 @pytest.fixture(scope="module")

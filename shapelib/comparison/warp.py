@@ -47,7 +47,6 @@ def _laplacian(nx, ny, hx, hy):
 def likelihood_flow(theta, velocity, sigma2, axes, *, lam: float):
     """The flow (u, v) of eq. (26) on the grid ``axes`` (x-axis, y-axis) for shape ``theta`` (K, 2)
     moving with landmark velocities ``velocity``; returns an array (nx, ny, 2)."""
-    k = len(theta)
     xx, yy = np.meshgrid(axes[0], axes[1], indexing="ij")
     nodes = np.column_stack([xx.ravel(), yy.ravel()])
     r = nodes[:, None, :] - theta[None]  # (N, K, 2)

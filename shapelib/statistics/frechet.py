@@ -47,8 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import (as_shape, as_shapes, check_dimension, check_nonnegative_int, check_positive, set_checked,
-                         set_was_checked)
+from .._validate import (as_shape, as_shapes, check_dimension, check_nonnegative_int, check_positive, set_was_checked)
 from ..geometry.procrustes import centroid_size, check_pose, generalized_procrustes, procrustes_align
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import check_scale

@@ -17,9 +17,24 @@ import numpy as np
 from .._files import write_text_atomic
 from ..geometry.scale import PAPER_CENTROID_SIZE  # noqa: F401  (the study's scale, for the notebooks)
 
-__all__ = ["record_values", "record_verdict", "load_values", "save_figure", "pair_key", "default_output_dir", "VALUES_FILE", "VERDICTS"]
+__all__ = ["stratified_sample", "record_values", "record_verdict", "load_values", "save_figure", "pair_key", "default_output_dir", "VALUES_FILE", "VERDICTS"]
 
 VALUES_FILE = "values.json"
+
+
+def stratified_sample(idx, n: int, cells, rng) -> np.ndarray:
+    """``n`` of the indices ``idx``, balanced over ``cells`` (sorted; all of ``idx`` if ``n >= len(idx)``).
+
+    ``cells`` are boolean masks over the whole index range (e.g. diagnosis × sex); cell ``c`` gives
+    ``n // C`` indices, the first ``n % C`` cells one more, each drawn by ``rng`` without replacement
+    (a cell with fewer gives all it has), in the order of ``cells``, so a seed fixes the sample.
+    """
+    idx = np.asarray(idx)
+    if n >= len(idx):
+        return np.sort(idx)
+    members = [idx[np.asarray(mask, dtype=bool)[idx]] for mask in cells]
+    take = [n // len(members) + (k < n % len(members)) for k in range(len(members))]
+    return np.sort(np.concatenate([rng.choice(m, size=min(t, len(m)), replace=False) for m, t in zip(members, take)]))
 
 
 def project_root(start=None) -> Path | None:
