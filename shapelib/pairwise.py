@@ -1138,10 +1138,7 @@ def engine_executor(*, n_jobs=None, client=None, scheduler=None, serial_seconds=
         yield client.get_executor(pure=False), _cluster_size(client), "cluster"
         return
     if scheduler is not None:
-        try:
-            own = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as exc:
-            raise ValueError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from exc
+        own = _connect(scheduler)
         try:
             yield own.get_executor(pure=False), _cluster_size(own), "cluster"
         finally:
@@ -1159,6 +1156,16 @@ def engine_executor(*, n_jobs=None, client=None, scheduler=None, serial_seconds=
         yield own.get_executor(pure=False), n_workers, f"LocalCluster({n_workers} processes)"
 
 
+def _connect(scheduler):
+    """A Dask client of the running scheduler at ``scheduler``; ValueError naming it if it cannot be reached."""
+    from distributed import Client
+
+    try:
+        return Client(scheduler, timeout="20s")
+    except (OSError, TimeoutError) as exc:
+        raise ValueError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from exc
+
+
 def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, written, interrupts, token):
     """Submit the blocks to Dask and write each one as it finishes (client side); ``written(a, b)``
     after each block (True: stop). While waiting, ``interrupts.check()`` every :data:`POLL_SECONDS`;
@@ -1172,10 +1179,7 @@ def _run_dask(x, st, todo, kw, *, client, scheduler, n_workers, written, interru
     try:
         if client is None:
             if scheduler is not None:
-                try:
-                    own_client = Client(scheduler, timeout="20s")
-                except (OSError, TimeoutError) as exc:
-                    raise ValueError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from exc
+                own_client = _connect(scheduler)
             else:
                 cluster = local_cluster(n_workers)
                 own_client = Client(cluster)
