@@ -568,8 +568,6 @@ def cmd_mean(args) -> int:
     out = _output_path(args.output, suffixes=(".tps", ".csv", ".npy", ".npz"), option="-o")
     plot = _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot") if args.plot else None
     shapes, spec, options = _intrinsic_input(args)
-    if plot and shapes.shape[2] != 2:
-        raise CLIError("--plot draws 2-D landmarks; this file is 3-D")
     sigma2 = _auto_sigma2(args, {"sigma2": args.sigma2}, shapes)["sigma2"]
     res = frechet_mean(shapes, metric=args.metric, sigma2=sigma2, **options)
     io.write_landmarks(out, res.mean[None], pd.DataFrame({"id": ["frechet_mean"]}))  # reads back as written
@@ -587,16 +585,9 @@ def _plot_mean(shapes, res, path, *, title):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .plotting import outline
+    from .plotting import plot_mean
 
-    fig, ax = plt.subplots(figsize=(5, 5))
-    for x in shapes:
-        ax.plot(*outline(x).T, "-", color="0.8", lw=0.5)
-    ax.plot(*outline(res.init).T, "--", color="tab:blue", lw=1.0, label="Procrustes mean (start)")
-    ax.plot(*outline(res.mean).T, "-o", color="k", lw=1.4, ms=2.5, label="Fréchet mean")
-    ax.set_aspect("equal")
-    ax.legend(loc="lower center", fontsize=8, frameon=False)
-    ax.set_title(title, fontsize=9)
+    fig = plot_mean(shapes, res, title=title)
     fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
     plt.close(fig)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["plot_trajectories", "plot_metric_panels", "plot_geodesic", "animate_geodesic", "outline", "parse_links",
-           "plot_shapes_along", "deformation_grid", "plot_deformation", "plot_modes", "plot_mean_difference"]
+           "plot_shapes_along", "deformation_grid", "plot_deformation", "plot_mean", "plot_modes", "plot_mean_difference"]
 
 
 def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
@@ -238,6 +238,26 @@ def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed:
     ax.set_xticks([])
     ax.set_yticks([])
     return grid, warped, end
+
+
+def plot_mean(shapes, result, *, closed: bool | None = True, title: str = "", figsize=(5, 5)):
+    """The Fréchet mean (:class:`~shapelib.statistics.frechet.FrechetMeanResult`) over the shapes
+    it summarises (light grey), with the Procrustes mean it started from (dashed); 2-D or 3-D
+    landmarks. Returns the figure."""
+    import matplotlib.pyplot as plt
+
+    d = np.asarray(result.mean).shape[1]
+    fig = plt.figure(figsize=figsize)
+    ax = fig.add_subplot(1, 1, 1, **({"projection": "3d"} if d == 3 else {}))
+    for x in shapes:
+        _draw_shape(ax, x, closed=closed, color="0.8", lw=0.5)
+    _draw_shape(ax, result.init, closed=closed, color="tab:blue", ls="--", lw=1.0, label="Procrustes mean (start)")
+    _draw_shape(ax, result.mean, closed=closed, color="k", lw=1.4, marker="o", ms=2.5, label="Fréchet mean")
+    if d == 2:
+        ax.set_aspect("equal")
+    ax.legend(loc="lower center", fontsize=8, frameon=False)
+    ax.set_title(title, fontsize=9)
+    return fig
 
 
 def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | None = True, figscale: float = 2.6):

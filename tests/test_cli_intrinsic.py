@@ -49,3 +49,29 @@ def test_bad_input_is_one_line(files):  # noqa: F811
     one_line_error(run("mean", broken, "--metric", "alpha", "--sigma2", 9, "-o", out), "broken.tps", "LM=10")
     assert not out.exists()
     assert run("mean", files["tps"]).returncode == 2  # usage: --metric, --sigma2, -o missing
+
+
+def test_mean_and_pca_of_three_dimensional_landmarks(tmp_path):
+    """A 3-D landmark CSV (x, y, z columns): the commands give the library's mean and scores, and
+    draw the 3-D shapes."""
+    from shapelib.geometry.procrustes import pose_align
+    from tests.conftest import ellipse_population
+
+    x = ellipse_population(np.random.default_rng(5), 6, 8, 3, noise=0.1) * 2.5
+    src = tmp_path / "saddles.csv"
+    io.write_landmarks(src, x, pd.DataFrame({"id": [f"s{i}" for i in range(len(x))]}))
+    mean_out, scores_out, fig = tmp_path / "mean.csv", tmp_path / "scores.csv", tmp_path / "mean.png"
+    run("mean", src, "--size", 20, "--metric", "alpha", "--sigma2", 4, "--jobs", 1, "-o", mean_out, "--plot", fig,
+        check=0)
+    mean, _ = io.read_landmarks(mean_out)
+    shapes = pose_align(to_centroid_size(x, 20))[0]
+    ref = frechet_mean(shapes, sigma2=4.0)
+    assert mean.shape == (1, 8, 3) and np.allclose(mean[0], ref.mean, atol=1e-4)
+    assert fig.stat().st_size > 1000
+    modes_fig = tmp_path / "modes.png"
+    run("pca", src, "--size", 20, "--metric", "alpha", "--sigma2", 4, "--n-components", 2, "-o", scores_out,
+        "--plot", modes_fig, check=0)
+    assert modes_fig.stat().st_size > 1000
+    scores = pd.read_csv(scores_out, index_col="id")
+    ref = tangent_pca(shapes, sigma2=4.0, n_components=2, modes=())
+    assert np.allclose(np.abs(scores.to_numpy()), np.abs(ref.scores), atol=1e-6)
