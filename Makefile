@@ -29,8 +29,9 @@ results: setup
 quick: setup
 	$(PY) run_all.py --quick $(ARGS)
 
+# the suite on every core (pytest-xdist); `$(PY) -m pytest tests/test_x.py` runs part of it in one process
 test: setup
-	$(PY) -m pytest
+	$(PY) -m pytest -n logical
 
 # the study notebooks are executed (run_all.py: the paper's figures with their full parameters,
 # the others with their quick ones; unchanged ones are not re-run) and rendered with their figures;
