@@ -300,8 +300,8 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     bi, bj = len(xi), len(xj)
-    if metric in BOUND_METRICS and rtol is None:
-        out = _bound_block(xi, xj, diagonal=diagonal, metric=metric, params=params)
+    if _batched(metric, rtol):
+        out = _bound_block(xi, xj, diagonal=diagonal, metric=_name(metric), params=params)
         if out is not None:
             return out
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
@@ -323,6 +323,16 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
             out[name][d] = 0
         out["converged"][d] = True
     return out
+
+
+def _name(metric) -> str:
+    """The name of ``metric``: a name, or a :class:`~shapelib.distances.MetricInfo` record (what tasks carry)."""
+    return metric if isinstance(metric, str) else metric.name
+
+
+def _batched(metric, rtol) -> bool:
+    """Whether a block of ``metric`` is one batched call (the closed-form bounds; not a bracket)."""
+    return _name(metric) in BOUND_METRICS and rtol is None
 
 
 #: a closed-form bound's matrix in this process is one block of at most this many shapes a side
@@ -742,12 +752,12 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
     bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice (once if the
     first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
     the calls took under ``budget`` seconds, and the fastest call counts."""
-    if metric in BOUND_METRICS and rtol is None:  # batched: the cost of a pair within a block
+    if _batched(metric, rtol):  # the cost of a pair within a block
         m = min(len(x), 64)
         best = math.inf
         for _ in range(2):  # the first call also pays one-off costs
             t0 = time.perf_counter()
-            out = _bound_block(x[:m], x[:m], diagonal=True, metric=metric, params=params)
+            out = _bound_block(x[:m], x[:m], diagonal=True, metric=_name(metric), params=params)
             best = min(best, time.perf_counter() - t0)
         if out is not None:
             return best / max(1, m * (m - 1) // 2)
@@ -838,7 +848,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         b = int(block_size) if block_size is not None else default_block_size(
             seconds_per_pair, n, n_workers=n_workers if local else max(2, _cluster_size(client)),
             symmetric=symmetric)
-        if block_size is None and metric in BOUND_METRICS and rtol is None and local and n_workers == 1:
+        if block_size is None and _batched(metric, rtol) and local and n_workers == 1:
             b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
         st = _Store.create(store, {**want, "block_size": b})
     done = st.task_done()

@@ -44,6 +44,9 @@ def test_engine_bound_matrix_equals_pair_by_pair(rng, metric, rtol, d):
     off = ~np.eye(len(x), dtype=bool)
     assert np.isnan(r.energy[off]).all() and np.all(np.diag(r.energy) == 0)
     assert r.converged.all() and np.all(r.n_iter == 0) and np.all(r.seconds[off] > 0)
+    # one batched call: every pair is given the call's wall time over its pairs (a pair-by-pair
+    # block times each pair on its own)
+    assert np.unique(r.seconds[off]).size == 1
 
 
 def test_batched_block_has_the_per_pair_block_format(rng):
@@ -94,6 +97,9 @@ def test_bound_blocks_through_dask_equal_in_process(rng):
         r = compute_pairwise(x, metric="alpha_bound", sigma2=0.5, client=client, block_size=3, progress=False)
     assert r.log["blocks_total"] == 6
     np.testing.assert_allclose(r.matrix, serial, rtol=1e-12, atol=0)
+    for a in range(0, 8, 3):  # each block one batched call: its pairs share the call's time per pair
+        for b in range(a + 3, 8, 3):
+            assert np.unique(r.seconds[a:a + 3, b:b + 3]).size == 1
 
 
 def test_a_block_the_batched_call_rejects_goes_pair_by_pair_and_names_the_pair(rng):

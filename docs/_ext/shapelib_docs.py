@@ -222,6 +222,28 @@ def _pairwise(r: dict) -> list[Table]:
                             ["metric", "s per pair"] + [f"{n} worker{'s' if n > 1 else ''}" for n in counts], prow,
                             "From the mean measured seconds per pair and the measured two-worker efficiency.",
                             key="projection"))
+    bounds = r.get("bound_matrices")
+    if bounds:
+        brow = [[PAIRWISE_METRICS.get(k, k), _seconds(b.get("matrix_seconds")), _seconds(b.get("engine_seconds")),
+                 _seconds(b.get("per_pair_projected_seconds")), _sci(b.get("max_rel_diff_per_pair"))]
+                for k, b in bounds.items() if k in PAIRWISE_METRICS]
+        a, sw = bounds.get("alpha_bound", {}), bounds.get("sweep", {})
+        note = (f"All {bounds.get('n_shapes')} ADHD-200 shapes at σ² = {bounds.get('sigma2')}, one process, fastest of "
+                "the runs: the closed-form bounds of a whole population as matrix products "
+                "(``fisher_rao_bound_matrix``, ``alpha_bound_matrix``), and the same through ``pairwise_distances``.")
+        if a.get("ns_per_gaussian"):
+            note += (f" The α bound evaluates {a['gaussians']:,} Gaussians at {a['ns_per_gaussian']:.2f} ns each, "
+                     f"{a['times_bare_exp']:.1f}× a bare ``numpy.exp`` of as many numbers.")
+        if sw:
+            note += (f" A {len(sw['sigma2'])}-value σ² sweep (σ from {sw['sigma_over_spacing'][0]:g} to "
+                     f"{sw['sigma_over_spacing'][-1]:g} landmark spacings, ``bound_matrix_sweep``): α "
+                     f"{_seconds(sw['alpha_bound']['seconds'])}, Fisher–Rao {_seconds(sw['fisher_rao_bound']['seconds'])}.")
+        when = bounds.get("measured")
+        if when:
+            note += f" Measured {_date(when.get('date'))} with ``{when.get('command')}``."
+        tables.append(Table("Whole bound matrices", ["bound", "matrix", "through pairwise_distances",
+                                                     "pair by pair (projected)", "max rel. difference to per pair"],
+                            brow, note, key="bound_matrices"))
     return tables
 
 
