@@ -163,6 +163,17 @@ def _read_text(path) -> str:
     return text.replace("\r\n", "\n").replace("\r", "\n")
 
 
+def _tps_count(value: str, *, key: str, noun: str, where: str, where_negative: str) -> int:
+    """The count that opens a ``LM=`` / ``CURVES=`` / ``POINTS=`` block; ValueError naming the line."""
+    try:
+        n = int(value.split()[0])
+    except (ValueError, IndexError):
+        raise ValueError(f"{where}: {key}= needs a {noun}; got {value!r}") from None
+    if n < 0:
+        raise ValueError(f"{where_negative}: {key}= needs a non-negative {noun}; got {n}")
+    return n
+
+
 def _parse_tps(path):
     """Parse a .tps file into _TpsSpecimen records (no missing-value or scale policy yet)."""
     text = _read_text(path)
@@ -213,12 +224,8 @@ def _parse_tps(path):
             if curves_left:
                 raise ValueError(f"{path}: line {lineno}: {cur.label()}: CURVES= declares "
                                  f"{curves_left} more POINTS= block(s) than the file has")
-            try:
-                n = int(value.split()[0])
-            except (ValueError, IndexError):
-                raise ValueError(f"{path}: line {lineno}: {key}= needs a landmark count; got {value!r}") from None
-            if n < 0:
-                raise ValueError(f"{path}: line {lineno}: {key}= needs a non-negative landmark count; got {n}")
+            at = f"{path}: line {lineno}"
+            n = _tps_count(value, key=key, noun="landmark count", where=at, where_negative=at)
             cur = _TpsSpecimen(number=len(specimens) + 1, line=lineno, dim=3 if key == "LM3" else 2, declared=n)
             specimens.append(cur)
             pending, target, block = n, cur.rows, f"{key}={n}"
@@ -226,25 +233,15 @@ def _parse_tps(path):
         if cur is None:
             raise ValueError(f"{path}: line {lineno}: {key}= appears before the first LM= line")
         if key in ("CURVES", "OUTLINES"):
-            try:
-                curves_left = int(value.split()[0])
-            except (ValueError, IndexError):
-                raise ValueError(f"{path}: line {lineno}: {key}= needs a count; got {value!r}") from None
-            if curves_left < 0:
-                raise ValueError(f"{path}: line {lineno}: {cur.label()}: {key}= needs a non-negative count; "
-                                 f"got {curves_left}")
+            curves_left = _tps_count(value, key=key, noun="count", where=f"{path}: line {lineno}",
+                                     where_negative=f"{path}: line {lineno}: {cur.label()}")
             cur.meta.setdefault("CURVE_KIND", key)
         elif key == "POINTS":
             if curves_left <= 0:
                 raise ValueError(f"{path}: line {lineno}: {cur.label()}: POINTS= outside a CURVES= block "
                                  "(or more POINTS= blocks than CURVES= declares)")
-            try:
-                n = int(value.split()[0])
-            except (ValueError, IndexError):
-                raise ValueError(f"{path}: line {lineno}: POINTS= needs a point count; got {value!r}") from None
-            if n < 0:
-                raise ValueError(f"{path}: line {lineno}: {cur.label()}: POINTS= needs a non-negative point count; "
-                                 f"got {n}")
+            n = _tps_count(value, key=key, noun="point count", where=f"{path}: line {lineno}",
+                           where_negative=f"{path}: line {lineno}: {cur.label()}")
             curves_left -= 1
             cur.curves.append([])
             pending, target, block = n, cur.curves[-1], f"curve {len(cur.curves)} (POINTS={n})"
