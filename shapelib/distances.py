@@ -47,7 +47,7 @@ from collections.abc import Callable, Mapping, Sequence, Set
 from dataclasses import dataclass
 from functools import partial
 
-from ._validate import LIBRARY_WORDS, InputError, as_shape_pair, literal
+from ._validate import InputError, as_shape_pair, literal
 from .comparison.diffeomorphism import landmark_diffeomorphism
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
@@ -250,6 +250,16 @@ PATH_METRICS = _Names(lambda m: m.path)
 BRACKET_METRICS = _Names(lambda m: m.bracket is not None)
 
 
+#: name -> function of the metrics shapelib registers itself (see :func:`is_builtin`)
+_BUILTIN = {}
+
+
+def is_builtin(info) -> bool:
+    """Whether the record ``info`` is shapelib's own metric of that name, not a replacement
+    registered with ``register_metric(..., replace=True)`` (the engine batches only its own bounds)."""
+    return _BUILTIN.get(info.name) is info.function
+
+
 def _alpha_bound(u, v, *, sigma2):
     return alpha_lower_bound(u, v, sigma2=sigma2)  # l2_distance with the geodesic's entry checks
 
@@ -275,6 +285,7 @@ for _name, _fn, _kw in (
          dict(symmetric=False, description="Wendland ψ3,1 spline bending energy of the map u -> v (not symmetric)")),
 ):
     register_metric(_name, _fn, **_kw)
+    _BUILTIN[_name] = _fn
 for _name in ("alpha", "fisher_rao"):  # their bounds are registered after them
     _REGISTRY[_name] = dataclasses.replace(_REGISTRY[_name], lower_bound=f"{_name}_bound")
 del _name, _fn, _kw
@@ -322,7 +333,7 @@ def check_metric_params(metric, params: dict, *, rtol=None) -> None:
                if name not in _FIXED and p.default is p.empty and p.kind is not p.VAR_POSITIONAL
                and name not in params]
     if missing:
-        words = ", ".join("{" + m + "}" if m in LIBRARY_WORDS else f"{literal(m)}=..." for m in missing)
+        words = ", ".join("{sigma2}" if m == "sigma2" else f"{literal(m)}=..." for m in missing)
         raise InputError(f"metric {literal(repr(metric))} needs {words}", {"metric": metric, "parameters": tuple(missing)})
 
 

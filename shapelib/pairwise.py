@@ -73,7 +73,7 @@ from .geometry.procrustes import PoseWarning, check_pose
 from .geometry.scale import ScaleWarning, check_fisher_rao_scale, check_scale
 from .solver.geodesic import GeodesicWarning
 from .solver.linalg import one_blas_thread
-from .distances import SYMMETRIC, check_metric_params, metric_info, pair_record, pose_dependent
+from .distances import SYMMETRIC, check_metric_params, is_builtin, metric_info, pair_record, pose_dependent
 from .geometry.bound_matrices import BOUND_METRICS, bound_block
 
 __all__ = ["PairwiseResult", "PairError", "BlockProgress", "compute_pairwise", "pairwise_distances", "open_store",
@@ -331,8 +331,10 @@ def _name(metric) -> str:
 
 
 def _batched(metric, rtol) -> bool:
-    """Whether a block of ``metric`` is one batched call (the closed-form bounds; not a bracket)."""
-    return _name(metric) in BOUND_METRICS and rtol is None
+    """Whether a block of ``metric`` is one batched call: shapelib's own closed-form bounds (not a
+    function registered in their place), without a bracket's ``rtol``."""
+    info = metric_info(metric) if isinstance(metric, str) else metric
+    return rtol is None and info.name in BOUND_METRICS and is_builtin(info)
 
 
 #: a closed-form bound's matrix in this process is one block of at most this many shapes a side

@@ -79,11 +79,34 @@ def test_an_input_error_names_its_fix_in_the_callers_words_and_survives_pickling
         sl.distance(nkd[0], nkd[1], metric="fisher_rao_bound")
     assert info.value.facts == {"metric": "fisher_rao_bound", "parameters": ("sigma2",)}
     assert str(info.value).endswith("needs sigma2=...")
+    errors = [info.value]
     bad = nkd[0].copy()
     bad[3, 1] = np.nan
     with pytest.raises(sl.InputError, match="first at landmark 3, coordinate 1") as info:
         sl.procrustes_distance(bad, nkd[1])
     assert info.value.facts == {"landmarks": (3,)}
+    errors.append(info.value)
+    for exc in errors:  # facts survive the round trip too
+        back = pickle.loads(pickle.dumps(exc))
+        assert str(back) == str(exc) and back.facts == exc.facts and back.facts
+
+
+def test_a_metric_option_named_like_a_remedy_is_named_as_an_option():
+    """Only sigma2 has a wording of its own: a registered metric's required ``scale`` is asked
+    for as ``scale=...``, not as the tps reader's ``scale=True``."""
+    from shapelib.distances import _REGISTRY, check_metric_params, register_metric
+
+    def scaled(u, v, *, scale):
+        return scale * float(np.abs(np.asarray(u) - np.asarray(v)).max())
+
+    register_metric("scaled_test_metric", scaled)
+    try:
+        with pytest.raises(sl.InputError) as info:
+            check_metric_params("scaled_test_metric", {})
+        assert str(info.value).endswith("needs scale=...") and "scale=True" not in str(info.value)
+        assert info.value.phrase({"scale": "--scale"}).endswith("needs scale=...")
+    finally:
+        del _REGISTRY["scaled_test_metric"]
 
 
 @pytest.mark.parametrize("entry", sorted(LAYOUT_ENTRY_POINTS))

@@ -351,7 +351,7 @@ def test_distances_resume_after_interrupt_through_the_store(files, jobs):
     from tests.conftest import command_line, wait_for
 
     src, x = _aligned_file(files, 5)
-    n, off = len(x), ~np.eye(len(x), dtype=bool)
+    off = ~np.eye(len(x), dtype=bool)
     out, store = files["dir"] / "alpha.csv", files["dir"] / "alpha.zarr"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     env.pop("SHAPELIB_DEBUG", None)

@@ -2,7 +2,6 @@
 geomorph and R write them (by hand, below), checked against ktch as an independent reader/writer,
 and every malformed input rejected with a message naming file, line/specimen and landmark."""
 
-import re
 import warnings
 
 import numpy as np

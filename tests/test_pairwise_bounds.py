@@ -110,3 +110,28 @@ def test_a_block_the_batched_call_rejects_goes_pair_by_pair_and_names_the_pair(r
     with pytest.raises(PairError) as err:
         compute_pairwise(x, metric="fisher_rao_bound", sigma2=0.5, n_jobs=1, progress=False)
     assert err.value.j == 3 and "quadrature grid would have" in err.value.reason
+
+
+def _half_alpha_bound(u, v, *, sigma2):
+    """A user's replacement of "alpha_bound" (module level: it travels to Dask workers by name)."""
+    from shapelib.geometry.gmm import l2_distance
+
+    return 0.5 * l2_distance(u, v, sigma2=sigma2)
+
+
+def test_a_bound_replaced_by_the_user_is_computed_by_the_users_function(rng):
+    """The engine batches shapelib's own bounds only: a function registered in their place is
+    what every pair of the matrix gets."""
+    from shapelib.distances import _REGISTRY, register_metric
+
+    x = _shapes(rng, n=6)
+    own = compute_pairwise(x, metric="alpha_bound", sigma2=0.5, n_jobs=1, progress=False).matrix
+    original = _REGISTRY["alpha_bound"]
+    register_metric("alpha_bound", _half_alpha_bound, replace=True)
+    try:
+        r = compute_pairwise(x, metric="alpha_bound", sigma2=0.5, n_jobs=1, progress=False)
+    finally:
+        _REGISTRY["alpha_bound"] = original
+    np.testing.assert_allclose(r.matrix, 0.5 * own, rtol=1e-12, atol=0)
+    again = compute_pairwise(x, metric="alpha_bound", sigma2=0.5, n_jobs=1, progress=False).matrix
+    np.testing.assert_array_equal(again, own)

@@ -11,7 +11,7 @@ import psutil
 import pytest
 
 import run_all
-from tests.conftest import ROOT, requires_data, wait_for
+from tests.conftest import ROOT, wait_for
 
 GOOD = textwrap.dedent('''\
     # %% tags=["parameters"]

@@ -1,7 +1,5 @@
-import json
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from shapelib.study.report import compare, fit_constant, load_reference, load_regression, write_report

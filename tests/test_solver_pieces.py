@@ -108,7 +108,7 @@ def test_a_users_path_metric_gives_the_straight_line_and_a_certificate(rng):
     """Flat metric g = c I: the geodesic is the straight line, energy = length² = c |v − u|²."""
     u, v = rng.normal(size=(6, 2)), rng.normal(size=(6, 2))
     model = FlatMetric(3.0)
-    init = np.linspace(u, v, 9) + np.r_[0, *[1] * 7, 0][:, None, None] * 0.2 * rng.normal(size=(9, 6, 2))
+    init = np.linspace(u, v, 9) + np.r_[0, [1] * 7, 0][:, None, None] * 0.2 * rng.normal(size=(9, 6, 2))
     r = minimise_path(model, u, v, n_steps=8, tol=1e-10, max_iter=50, window=3, init=init, warn=True,
                       length_scale=1.0)
     assert r.converged and r.stop_reason is sl.StopReason.NEWTON_DECREMENT and r.stop_reason.converged
