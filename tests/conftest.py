@@ -15,6 +15,22 @@ if not os.environ.get("SHAPELIB_DATA_DIR") and (SHARED / "data").is_dir():
 
 sys.path.insert(0, str(ROOT))
 
+
+def pytest_configure(config):
+    """Ctrl-C behaves as at a terminal, however the suite was started.
+
+    A shell without job control starts a background command (``make test &`` in a script, a CI
+    runner's ``nohup``) with SIGINT ignored, and Python keeps an ignored SIGINT ignored: the tests
+    that press Ctrl-C (on this process, or on a subprocess, which inherits the disposition) then
+    test nothing and wait for a run that cannot be interrupted. Python's own handler is put back
+    (in every xdist worker too); a handler installed in this process is reset to the default at
+    ``exec``, so subprocesses start with Python's handler as well."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
 #: Fetched once per session before the first test that needs the raw data: a probe, so that
 #: when the data can be had neither from SHAPELIB_DATA_DIR nor by download every such test
 #: fails with the same one-line reason instead of a traceback each.

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import threading
 from pathlib import Path
 
 from shapelib.distances import register_metric
@@ -71,6 +72,7 @@ class Gate:
     def __init__(self, path):
         self.path = Path(path)
         self.path.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.Lock()
         self._fd = os.open(self.path / "lock", os.O_RDWR | os.O_CREAT, 0o644)
         fcntl.flock(self._fd, fcntl.LOCK_EX)
 
@@ -83,10 +85,12 @@ class Gate:
         return sum(1 for p in self.path.iterdir() if p.name.startswith("ticket-"))
 
     def release(self) -> None:
-        if self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
-            os.close(self._fd)
-            self._fd = None
+        """Open the gate (idempotent; any thread: a test's watcher may open it to end a hang)."""
+        with self._lock:
+            if self._fd is not None:
+                fcntl.flock(self._fd, fcntl.LOCK_UN)
+                os.close(self._fd)
+                self._fd = None
 
     def __enter__(self):
         return self

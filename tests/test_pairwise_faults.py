@@ -204,6 +204,7 @@ def test_ctrl_c_keeps_finished_blocks_and_stops_the_local_cluster(serial, tmp_pa
     own = os.getpid()
     before = {p.pid for p in psutil.Process().children(recursive=True)}
     seen = {}
+    returned = threading.Event()
     with Gate(tmp_path / "gate") as gate:
 
         def interrupt():
@@ -211,9 +212,15 @@ def test_ctrl_c_keeps_finished_blocks_and_stops_the_local_cluster(serial, tmp_pa
                 wait_for(_blocked(gate, store, free=2, waiting=2), "two pairs done and both workers inside a pair")
             except AssertionError as exc:
                 seen["error"] = exc
+                gate.release()  # a failure, not a run waiting forever at the gate
                 return
             seen["workers"] = _new_children(before)
             os.kill(own, signal.SIGINT)  # as a Ctrl-C: to this process, while it waits for the blocked pairs
+            # hang guard only: a run the Ctrl-C did not stop would wait at the gate forever; opened,
+            # it finishes and pytest.raises fails (the deadline never decides a result)
+            if not returned.wait(timeout=120):
+                seen["error"] = AssertionError("the Ctrl-C did not stop the run in 120 s; the gate was opened")
+                gate.release()
 
         watcher = threading.Thread(target=interrupt)
         watcher.start()
@@ -222,6 +229,7 @@ def test_ctrl_c_keeps_finished_blocks_and_stops_the_local_cluster(serial, tmp_pa
                 compute_pairwise(_shapes(), n_jobs=2, block_size=1, store=store, progress=False, **PARAMS,
                                  **gate.params(free=2))
         finally:
+            returned.set()
             gate.release()
             watcher.join()
         assert "error" not in seen, seen["error"]
