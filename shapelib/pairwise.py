@@ -300,8 +300,9 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     bi, bj = len(xi), len(xj)
-    if _batched(metric, rtol):
-        out = _bound_block(xi, xj, diagonal=diagonal, metric=_name(metric), params=params)
+    bound = _batched_bound(metric, rtol)
+    if bound:
+        out = _bound_block(xi, xj, diagonal=diagonal, metric=bound, params=params)
         if out is not None:
             return out
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
@@ -325,16 +326,12 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     return out
 
 
-def _name(metric) -> str:
-    """The name of ``metric``: a name, or a :class:`~shapelib.distances.MetricInfo` record (what tasks carry)."""
-    return metric if isinstance(metric, str) else metric.name
-
-
-def _batched(metric, rtol) -> bool:
-    """Whether a block of ``metric`` is one batched call: shapelib's own closed-form bounds (not a
-    function registered in their place), without a bracket's ``rtol``."""
-    info = metric_info(metric) if isinstance(metric, str) else metric
-    return rtol is None and info.name in BOUND_METRICS and is_builtin(info)
+def _batched_bound(metric, rtol) -> str | None:
+    """The bound whose blocks are one batched call, or None: shapelib's own closed-form bounds (not a
+    function registered in their place), without a bracket's ``rtol``. ``metric``: a name or a
+    :class:`~shapelib.distances.MetricInfo` record (what tasks carry)."""
+    info = metric_info(metric)
+    return info.name if rtol is None and info.name in BOUND_METRICS and is_builtin(info) else None
 
 
 #: a closed-form bound's matrix in this process is one block of at most this many shapes a side
@@ -754,12 +751,13 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
     bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice (once if the
     first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
     the calls took under ``budget`` seconds, and the fastest call counts."""
-    if _batched(metric, rtol):  # the cost of a pair within a block
+    bound = _batched_bound(metric, rtol)
+    if bound:  # the cost of a pair within a block
         m = min(len(x), 64)
         best = math.inf
         for _ in range(2):  # the first call also pays one-off costs
             t0 = time.perf_counter()
-            out = _bound_block(x[:m], x[:m], diagonal=True, metric=_name(metric), params=params)
+            out = _bound_block(x[:m], x[:m], diagonal=True, metric=bound, params=params)
             best = min(best, time.perf_counter() - t0)
         if out is not None:
             return best / max(1, m * (m - 1) // 2)
@@ -850,7 +848,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         b = int(block_size) if block_size is not None else default_block_size(
             seconds_per_pair, n, n_workers=n_workers if local else max(2, _cluster_size(client)),
             symmetric=symmetric)
-        if block_size is None and _batched(metric, rtol) and local and n_workers == 1:
+        if block_size is None and _batched_bound(metric, rtol) and local and n_workers == 1:
             b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
         st = _Store.create(store, {**want, "block_size": b})
     done = st.task_done()
