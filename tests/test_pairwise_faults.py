@@ -216,8 +216,9 @@ def test_ctrl_c_keeps_finished_blocks_and_stops_the_local_cluster(serial, tmp_pa
                 return
             seen["workers"] = _new_children(before)
             os.kill(own, signal.SIGINT)  # as a Ctrl-C: to this process, while it waits for the blocked pairs
-            # hang guard only: a run the Ctrl-C did not stop would wait at the gate forever; opened,
-            # it finishes and pytest.raises fails (the deadline never decides a result)
+            # hang guard, like wait_for's deadline: a run the Ctrl-C did not stop would wait at the
+            # gate forever; opened, it finishes and the test fails. A Ctrl-C that works stops the run
+            # within POLL_SECONDS plus the cluster's close (NANNY_CLOSE_SECONDS), far inside 120 s
             if not returned.wait(timeout=120):
                 seen["error"] = AssertionError("the Ctrl-C did not stop the run in 120 s; the gate was opened")
                 gate.release()
