@@ -183,8 +183,18 @@ def landmark_diffeomorphism(u, v, *, lam: float = 10.0, kernel_width: float = 1.
         λ of eq. (3) (the paper uses λ = 10).
     kernel_width : float
         Width ``s`` of the Gaussian kernel ``exp(−|r|²/(2s²))``.
-    n_steps, tol, max_iter, window, init, warn
-        As in :func:`shapelib.geodesic`.
+    n_steps : int
+        Time steps of the path.
+    tol : float
+        Convergence tolerance (as :func:`shapelib.geodesic`).
+    max_iter : int
+        Maximum Levenberg–Marquardt iterations.
+    window : int
+        Iterations over which the energy decrease is measured.
+    init : array_like, shape (n_steps + 1, K, d), optional
+        Initial path (default: the straight line).
+    warn : bool
+        Emit a :class:`~shapelib.solver.result.GeodesicWarning` when it stops before converging.
 
     Returns
     -------

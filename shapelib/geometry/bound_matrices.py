@@ -789,7 +789,7 @@ def bound_matrix_sweep(shapes, *, metric: str, sigma2s, grid_spacing: float = DE
     See Also
     --------
     shapelib.alpha_bound_matrix, shapelib.fisher_rao_bound_matrix
-    shapelib.estimate_sigma2 : σ² from the landmarks' own scatter.
+    shapelib.estimate_sigma2 : The σ² of the landmarks' own scatter.
 
     References
     ----------

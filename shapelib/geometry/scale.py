@@ -59,9 +59,9 @@ class ScaleWarning(UserWarning):
 
     See Also
     --------
-    shapelib.sigma_ratio : σ in units of the spacing.
+    shapelib.sigma_ratio : The ratio of σ to the spacing.
     shapelib.to_centroid_size : Bring shapes to the study's scale.
-    shapelib.estimate_sigma2 : σ² from the data.
+    shapelib.estimate_sigma2 : The σ² the data suggest.
 
     References
     ----------
@@ -117,7 +117,7 @@ def landmark_spacing(shapes) -> float:
 
     See Also
     --------
-    shapelib.sigma_ratio : σ in units of this spacing.
+    shapelib.sigma_ratio : The ratio of σ to this spacing.
 
     References
     ----------

@@ -337,7 +337,7 @@ def check_entry(u, v, s2, *, metric, stacklevel, what=None):
     Returns
     -------
     float or None
-        σ / spacing (None where the α bound skipped the scale check).
+        The ratio σ / spacing (None where the α bound skipped the scale check).
 
     Raises
     ------
@@ -443,10 +443,10 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
         energy is nearly flat along "sliding" directions of dense landmarks, so the last
         digits come slowly; the discretisation error in ``n_steps``, visible in
         ``length − lower_bound``, is usually far larger than ``tol``.)
-    window : int
-        Number of iterations over which the energy decrease is measured.
     max_iter : int
         Maximum Levenberg–Marquardt iterations.
+    window : int
+        Number of iterations over which the energy decrease is measured.
     init : array_like, shape (n_steps + 1, K, d), optional
         Initial path (default: the straight line in landmark space, as in the paper's figures).
     grid_spacing, grid_margin : float

@@ -562,8 +562,10 @@ def log_map(base, shape, *, metric: str = "alpha", sigma2, n_steps: int = DEFAUL
         σ² of eq. (5).
     n_steps : int
         Time steps of the discrete geodesic (the log vector's error is O(1/n)).
-    tol, max_iter
-        Path solver stop (:func:`shapelib.geodesic`).
+    tol : float
+        Path solver tolerance (:func:`shapelib.geodesic`).
+    max_iter : int
+        Path solver iterations.
     init : array_like (n_steps + 1, K, d), optional
         Warm start.
     grid_spacing, grid_margin : float
@@ -860,8 +862,16 @@ def exp_map(base, vector, *, metric: str = "alpha", sigma2, n_steps: int = DEFAU
         The start shape.
     vector : array_like (K, d)
         Initial velocity (a tangent vector at ``base``).
-    metric, sigma2, n_steps, rcond, grid_spacing, grid_margin
-        As in :func:`shapelib.log_map`; ``rcond`` is the truncation.
+    metric : {"alpha", "fisher_rao"}
+        α-order (eq. 22) or Fisher–Rao (eq. 6) metric.
+    sigma2 : float
+        σ² of eq. (5).
+    n_steps : int
+        Time steps of the discrete geodesic.
+    rcond : float
+        The truncation: singular values below ``rcond`` times the largest are dropped.
+    grid_spacing, grid_margin : float
+        Fisher–Rao quadrature.
     return_result : bool
         Return a :class:`~shapelib.solver.result.GeodesicResult` of the whole discrete geodesic
         (its ``path``, ``length``, ``energy``; usable by :func:`shapelib.extrinsic_warp`) instead

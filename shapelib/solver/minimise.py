@@ -329,8 +329,18 @@ def minimise_path(model: PathMetric, u, v, *, n_steps, tol, max_iter, window, in
         exact Newton steps and the Newton-decrement certificate unless ``hessian="model"``.
     u, v : ndarray, shape (K, d)
         The fixed ends (validated by the caller).
-    n_steps, tol, max_iter, window, init, warn
-        As in :func:`shapelib.geodesic`.
+    n_steps : int
+        Time steps of the path.
+    tol : float
+        Convergence tolerance (as :func:`shapelib.geodesic`).
+    max_iter : int
+        Maximum Levenberg–Marquardt iterations.
+    window : int
+        Iterations over which the energy decrease is measured.
+    init : array_like, shape (n_steps + 1, K, d), optional
+        Initial path (default: the straight line).
+    warn : bool
+        Emit a :class:`~shapelib.solver.result.GeodesicWarning` when it stops before converging.
     length_scale : float
         Unit of ``max_step_over_sigma`` (σ, or the kernel width of diffeomorphisms).
     sigma2 : float, optional
