@@ -252,7 +252,8 @@ def tps_bending_energy(u, v, *, kernel: str | None = None) -> float:
         = \frac{1}{16\pi} \int_{\mathbb{R}^2} \sum_{i,j} (\partial_i \partial_j f)^2\, dx
         \quad (\text{2-D, } U = r^2 \log r^2),
 
-    a comparison measure of Table I of [2]_ (not a metric: not symmetric).
+    the smoothness term :math:`\|Lf\|^2` of the spline matching model of eq. (1) of [2]_ with the
+    thin-plate operator, and a comparison measure of its Table I (not a metric: not symmetric).
 
     Parameters
     ----------
@@ -359,8 +360,9 @@ def wendland_bending_energy(u, v, *, support: float | None = None, affine: bool 
         E_W(u \to v) = \operatorname{tr}(D^\top B D), \qquad D = v - u,
 
     with :math:`B` the upper-left block of the inverse of the bordered kernel matrix (``affine=True``)
-    or :math:`B = K^{-1}` (``affine=False``). A comparison measure of Table I of [2]_ (not
-    symmetric).
+    or :math:`B = K^{-1}` (``affine=False``): the term :math:`\|Lf\|^2` of eq. (1) of [2]_ with
+    the operator whose Green's function is :math:`\psi_{3,1}`, and a comparison measure of its
+    Table I (not symmetric).
 
     Parameters
     ----------

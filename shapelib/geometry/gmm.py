@@ -39,7 +39,7 @@ form a mixed second difference of :math:`g(x) = \exp(-|x|^2/4\sigma^2)`: with
     \alpha = -\frac{2 r \cdot \delta_a + |\delta_a|^2}{4\sigma^2}, \qquad
     \beta = \frac{2 r \cdot \delta_b - |\delta_b|^2}{4\sigma^2},
 
-whose terms are O(|δ|²) themselves (``_l2_sq_near``); :func:`l2_distance` uses it when the
+whose terms are :math:`O(|\delta|^2)` themselves (``_l2_sq_near``); :func:`l2_distance` uses it when the
 plain difference has lost more than three digits (:data:`L2_NEAR`) and the landmarks moved by at
 most √2 σ (beyond that the two terms grow like :math:`\exp(|\delta|^2/2\sigma^2)` and cancel each
 other instead).
