@@ -23,7 +23,8 @@ of N(N − 1)/2 separate pairs.
     .. math::
 
         K^2 (4\pi\sigma^2)^{d/2} \langle q_i, q_j\rangle = \sum_{a,b} A_{i,ab} B_{j,ab}
-        - \sum_{a,b} g(x_{ia} - x_{jb})\, \operatorname{expm1}\!\left(-\frac{\delta_{ia} \cdot \delta_{jb}}{2\sigma^2}\right)
+        - \sum_{a,b} g(x_{ia} - x_{jb})\,
+        \operatorname{expm1}\!\left(-\frac{\delta_{ia} \cdot \delta_{jb}}{2\sigma^2}\right)
 
     is the sum of the mixed second differences of ``g`` around ``r = m_a − m_b`` (``A``, ``B``:
     ``√g(r)`` times ``expm1`` of per-shape exponents; :func:`_alpha_factors`). The first sum is one

@@ -422,7 +422,7 @@ def _fr_qform(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.n
 
 def fisher_rao_quadratic_form(theta, velocity, sigma2, *, spacing: float = DEFAULT_SPACING,
                               margin: float = DEFAULT_MARGIN) -> float:
-    r"""The Fisher–Rao quadratic form :math:`\dot\theta^\top g(\theta)\, \dot\theta` by quadrature, without the matrix.
+    r"""The Fisher–Rao quadratic form :math:`\dot\theta^\top g(\theta)\, \dot\theta`, by quadrature, no matrix.
 
     The integrand of the path energy (eq. 8) under the metric of eq. (6) [1]_:
 

@@ -840,7 +840,7 @@ def exp_path(base, vector, *, options: GeodesicOptions, n_steps: int | None = No
 def exp_map(base, vector, *, metric: str = "alpha", sigma2, n_steps: int = DEFAULT_LOG_STEPS,
             rcond: float = DEFAULT_RCOND, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN,
             return_result: bool = False):
-    r"""Riemannian exponential: the shape reached at ``t = 1`` by the geodesic leaving ``base`` with velocity ``vector``.
+    r"""Riemannian exponential: the end at ``t = 1`` of the geodesic leaving ``base`` with velocity ``vector``.
 
     Discrete geodesic shooting on the path energy of eq. (8) of [1]_ [2]_:
     :math:`\theta_1 = \text{base} + v / n`, then each :math:`\theta_{t+1}` solves the discrete
