@@ -9,13 +9,13 @@ metrics (:func:`metric_info`, :func:`register_metric`).
     the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
     :func:`shapelib.geodesic` [``sigma2`` (required), ``n_steps``, ``tol``, ``max_iter``, ...];
     with ``rtol=x``, the upper end of the certified bracket of
-    :func:`shapelib.solver.bracket.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
+    :func:`shapelib.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
 ``"alpha_bound"``
     Closed-form lower bound :math:`\|p_u - p_v\|` on the α geodesic distance (the L² distance of
-    the eq. 5 densities, :func:`shapelib.geometry.gmm.l2_distance`) [``sigma2``].
+    the eq. 5 densities, :func:`shapelib.l2_distance`) [``sigma2``].
 ``"fisher_rao_bound"``
     Great-circle lower bound :math:`2 \arccos \int \sqrt{p_u p_v}\, dx` on the Fisher–Rao
-    geodesic distance (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`) [``sigma2``,
+    geodesic distance (:func:`shapelib.fisher_rao_lower_bound`) [``sigma2``,
     ``grid_spacing``, ``grid_margin``].
 ``"diffeomorphism"``
     Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.comparison.diffeomorphism`
@@ -96,7 +96,7 @@ class MetricInfo:
     function : callable
         ``function(u, v, **params)``: the distance (a float), or for a path metric the path's
         result (with ``length``, ``lower_bound``, ``energy``, ``converged``, ``n_iter``, as
-        :class:`~shapelib.solver.geodesic.GeodesicResult`). Sent to Dask workers with each task, pickled
+        :class:`~shapelib.GeodesicResult`). Sent to Dask workers with each task, pickled
         by reference: a module-level function (or a :func:`functools.partial` of one) in a module
         the workers can import.
     symmetric : bool
@@ -105,7 +105,7 @@ class MetricInfo:
         A path metric (``function`` returns the geodesic; :func:`~shapelib.distances.path_result`).
     bracket : callable or None
         ``bracket(u, v, *, rtol, **params)`` returning a certified bracket (``lower``, ``upper``,
-        ``energy``, ``converged``, ``n_iter``, as :class:`~shapelib.solver.bracket.DistanceBracket`): the
+        ``energy``, ``converged``, ``n_iter``, as :class:`~shapelib.DistanceBracket`): the
         metric can be certified to a relative tolerance (``rtol=``). None: it cannot.
     accepts : callable
         The function whose keyword options (its signature) are the metric's options; default
@@ -252,7 +252,7 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
 
 
 def metric_info(metric) -> MetricInfo:
-    r"""The :class:`~shapelib.distances.MetricInfo` of a metric.
+    r"""The :class:`~shapelib.MetricInfo` of a metric.
 
     ``metric`` is a name, or a record (returned as is). The records of the information metrics of
     [1]_ name their lower bounds (``"alpha_bound"``, ``"fisher_rao_bound"``):
@@ -581,7 +581,7 @@ def distance(u, v, *, metric: str, rtol: float | None = None, **params) -> float
     rtol : float, optional
         ``"alpha"``, ``"fisher_rao"`` only. ``None``: the length of the geodesic computed by
         :func:`shapelib.geodesic` (eqs. 8–12). A number: the upper end of the certified bracket
-        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.solver.bracket.distance_bracket`).
+        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.distance_bracket`).
     **params
         Options of that metric (e.g. ``sigma2`` for the information metrics).
 

@@ -129,7 +129,7 @@ def animate_geodesic(result, *, title="", closed=True, links=None):
     """An animation of the shapes along a geodesic, one frame per path point, forth and back.
 
     A matplotlib :class:`~matplotlib.animation.FuncAnimation` of the shapes along ``result.path``
-    (the intrinsic deformation of [1]_, a :class:`~shapelib.solver.geodesic.GeodesicResult`);
+    (the intrinsic deformation of [1]_, a :class:`~shapelib.GeodesicResult`);
     ``closed`` draws each shape as a closed outline in landmark order, unless ``links`` says which
     landmarks to join. Save it with ``anim.save(path, writer=...)``.
 

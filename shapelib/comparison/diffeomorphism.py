@@ -194,7 +194,7 @@ def landmark_diffeomorphism(u, v, *, lam: float = 10.0, kernel_width: float = 1.
     init : array_like, shape (n_steps + 1, K, d), optional
         Initial path (default: the straight line).
     warn : bool
-        Emit a :class:`~shapelib.solver.result.GeodesicWarning` when it stops before converging.
+        Emit a :class:`~shapelib.GeodesicWarning` when it stops before converging.
 
     Returns
     -------

@@ -36,7 +36,7 @@ def hausdorff_distance(u, v) -> float:
     -------
     float
         ``max(max_a min_b |u_a − v_b|, max_b min_a |u_a − v_b|)``. It depends on the pose of
-        the shapes: :class:`~shapelib.geometry.procrustes.PoseWarning` if they are not aligned.
+        the shapes: :class:`~shapelib.PoseWarning` if they are not aligned.
 
     Raises
     ------

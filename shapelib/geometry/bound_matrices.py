@@ -4,7 +4,7 @@ Both lower bounds the library certifies geodesic distances with are inner produc
 of one shape each, so the N × N matrix of a population is a handful of matrix products instead
 of N(N − 1)/2 separate pairs.
 
-α-order bound (eq. 22's metric is the pull-back of L²; :func:`shapelib.geometry.gmm.l2_distance`)
+α-order bound (eq. 22's metric is the pull-back of L²; :func:`shapelib.l2_distance`)
     With the closed-form overlap :math:`g(z) = \exp(-|z|^2/4\sigma^2)`,
 
     .. math::
@@ -35,14 +35,14 @@ of N(N − 1)/2 separate pairs.
     count (``benchmarks/bench_pairwise.py`` measures both). Now the difference cancels only as far
     as two shapes are closer to each other than to ``m``: the pairs where it has cancelled more
     than one digit (:data:`ALPHA_NEAR_CENTRED`) are recomputed pair by pair without any
-    cancellation, exactly as :func:`~shapelib.geometry.gmm.l2_distance` does. The expansion needs
+    cancellation, exactly as :func:`~shapelib.l2_distance` does. The expansion needs
     every landmark within √2 σ of ``m`` (beyond, the two sums grow like ``exp(|δ|²/2σ²)`` and
     cancel each other); pairs with a shape further out — at small σ, most of them — use the plain
     overlaps, which at such σ barely cancel (:data:`ALPHA_NEAR_PLAIN`). Either way the result
-    agrees with :func:`~shapelib.geometry.gmm.l2_distance` to ~1e-13 relative
+    agrees with :func:`~shapelib.l2_distance` to ~1e-13 relative
     (``tests/test_bound_matrices.py`` asks 1e-12).
 
-Fisher–Rao bound (``2√p`` on the sphere of radius 2; :func:`shapelib.solver.geodesic.fisher_rao_lower_bound`)
+Fisher–Rao bound (``2√p`` on the sphere of radius 2; :func:`shapelib.fisher_rao_lower_bound`)
     .. math::
 
         d_{ij} = 4 \arcsin\frac{\|\psi_i - \psi_j\|}{4}, \qquad \psi = 2\sqrt{p},
@@ -395,7 +395,7 @@ def alpha_bound_matrix(shapes, *, sigma2, n_threads: int | None = None) -> np.nd
 def alpha_bound_block(rows, cols, *, sigma2, n_threads: int | None = None) -> np.ndarray:
     r"""The ``(R, C)`` block of α bounds ``‖p_i − p_j‖`` between two sets of shapes.
 
-    A block of :func:`~shapelib.geometry.bound_matrices.alpha_bound_matrix` (blocks assemble to the
+    A block of :func:`~shapelib.alpha_bound_matrix` (blocks assemble to the
     full matrix): what the pairwise engine hands a worker. Each entry is the closed-form L² distance
     of eq. (5)'s mixtures, the lower bound on the α-order distance of eq. (22) [1]_:
 
@@ -651,7 +651,7 @@ def fisher_rao_bound_block(rows, cols, *, sigma2, grid_spacing: float = DEFAULT_
     ------
     ValueError
         Bad shapes or options, or a grid too large (as
-        :func:`~shapelib.geometry.bound_matrices.fisher_rao_bound_matrix`).
+        :func:`~shapelib.fisher_rao_bound_matrix`).
 
     See Also
     --------

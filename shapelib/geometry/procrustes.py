@@ -602,7 +602,7 @@ def pose_change(u, v) -> tuple[float, float]:
     r"""How much of the difference between ``u`` and ``v`` is pose: ``(moved, remaining)``.
 
     With :math:`v'` the rigid superimposition of ``v`` onto ``u``
-    (:func:`~shapelib.geometry.procrustes.procrustes_align` without scaling) and
+    (:func:`~shapelib.procrustes_align` without scaling) and
     :math:`\bar S = (S(u) + S(v))/2` the mean centroid size,
 
     .. math::
@@ -673,7 +673,7 @@ def check_pose(shapes, *, metric: str, tol: float = POSE_TOL, stacklevel: int = 
 
     Two shapes taken from a larger aligned set are not aligned to each other exactly, but what
     aligning them changes is of second order in their shape difference, so they pass. More shapes:
-    any shape that :func:`~shapelib.geometry.procrustes.pose_align` moves by more than ``tol``.
+    any shape that :func:`~shapelib.pose_align` moves by more than ``tol``.
     Skipped (returns NaN) inside ``shapelib._validate.set_checked``, where the pairwise engine has
     checked the set. The pose-dependent metrics are those of [1]_ (eqs. 6, 22), their bounds,
     landmark diffeomorphisms and the Hausdorff distance.

@@ -245,7 +245,7 @@ def to_centroid_size(shapes, size: float = PAPER_CENTROID_SIZE) -> np.ndarray:
 
 
 def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
-    r"""Warn (:class:`~shapelib.geometry.scale.ScaleWarning`) when σ does not fit the landmarks' scale.
+    r"""Warn (:class:`~shapelib.ScaleWarning`) when σ does not fit the landmarks' scale.
 
     Warns when
 

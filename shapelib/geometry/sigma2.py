@@ -3,7 +3,7 @@ r"""σ² from the data: the free parameter of the GMM shape (eq. 5) estimated fr
 The paper fixes σ² by hand (0.1, 0.5, 1.5) and names "estimating the free parameter σ² directly
 from the data" as its next step. Two estimators, both of the landmarks' own variability:
 
-Landmark scatter (``scatter_sigma2``; the rule :func:`shapelib.geometry.scale.estimate_sigma2` uses)
+Landmark scatter (``scatter_sigma2``; the rule :func:`shapelib.estimate_sigma2` uses)
     The generative reading of eq. (5): landmark ``a`` of shape ``i`` is a noisy observation of
     its mixture component, ``x_ia = μ_a + ε_ia``, ``ε ~ N(0, σ² I_d)`` independent. The maximum
     likelihood estimate of σ² is the mean squared deviation of the landmarks from the mean shape
@@ -20,7 +20,7 @@ Landmark scatter (``scatter_sigma2``; the rule :func:`shapelib.geometry.scale.es
     density of the difference of two corresponding landmarks under the model, so displacements
     of the size the population shows are weighed as typical, larger ones as signal.
     Position and orientation are not landmark noise: the shapes are first superimposed rigidly
-    (:func:`~shapelib.geometry.procrustes.pose_align`: generalised Procrustes with rotations and
+    (:func:`~shapelib.pose_align`: generalised Procrustes with rotations and
     translations, sizes kept), which fits
     ``d(d + 1)/2`` pose parameters per shape, so the denominator is
     ``(N − 1) K d − N d(d + 1)/2`` (without it σ̂² of aligned shapes is low by ``d(d + 1)/(2 K d)``:

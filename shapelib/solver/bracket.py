@@ -2,16 +2,16 @@ r"""Certified distance brackets: ``lower ≤ d(u, v) ≤ upper`` to a relative a
 
 A geodesic distance (eqs. 8–12) is only as accurate as the time discretisation of the path
 (``n_steps``), which is ~1e-4 relative for the corpus callosum at σ² = 0.5 — so driving the
-path energy to 1e-9 (the Newton-decrement certificate of :func:`shapelib.solver.geodesic.geodesic`)
+path energy to 1e-9 (the Newton-decrement certificate of :func:`shapelib.geodesic`)
 buys nothing for a distance. What a distance needs is a certified interval:
 
 * **lower**: the closed-form bound of the metric (:func:`lower_bound`). Both metrics are
   pull-backs of flat L² (α-order, eq. 22: :math:`\theta \mapsto p`; Fisher–Rao, eq. 6:
   :math:`\theta \mapsto 2\sqrt{p}` on the sphere of radius 2), so no path is shorter than the
-  chord :math:`\|p_u - p_v\|` (:func:`shapelib.geometry.gmm.l2_distance`) or the great circle
-  :math:`2 \arccos \int \sqrt{p_u p_v}\, dx` (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`).
+  chord :math:`\|p_u - p_v\|` (:func:`shapelib.l2_distance`) or the great circle
+  :math:`2 \arccos \int \sqrt{p_u p_v}\, dx` (:func:`shapelib.fisher_rao_lower_bound`).
 * **upper**: the length of an actual path from ``u`` to ``v``
-  (:func:`shapelib.solver.geodesic.path_length`), which no geodesic can beat.
+  (:func:`shapelib.path_length`), which no geodesic can beat.
 
 .. math::
 
@@ -100,7 +100,7 @@ class DistanceBracket:
     converged : bool
         ``rel_gap ≤ rtol``.
     stopped_by : str
-        A :class:`~shapelib.solver.result.BracketStopReason` value (also :attr:`stop_reason`):
+        A :class:`~shapelib.BracketStopReason` value (also :attr:`stop_reason`):
         ``"rtol"``, ``"stalled"`` (the gap stopped shrinking; reported as it is),
         ``"trivial"`` (``u == v``) or ``"max_n_steps"``.
     seconds : float
@@ -149,7 +149,7 @@ class DistanceBracket:
 
     @property
     def stop_reason(self) -> BracketStopReason:
-        """Why the refinement stopped (:class:`~shapelib.solver.result.BracketStopReason`)."""
+        """Why the refinement stopped (:class:`~shapelib.BracketStopReason`)."""
         return BracketStopReason(self.stopped_by)
 
     def summary(self) -> str:
@@ -180,9 +180,9 @@ def lower_bound(u, v, *, metric: str, sigma2, grid_spacing: float = DEFAULT_SPAC
     u, v : array_like, shape (K, d)
         Shapes in landmark correspondence.
     metric : {"alpha", "fisher_rao"}
-        α-order (eq. 22): the L² chord ``‖p_u − p_v‖`` (:func:`shapelib.geometry.gmm.l2_distance`, exact).
+        α-order (eq. 22): the L² chord ``‖p_u − p_v‖`` (:func:`shapelib.l2_distance`, exact).
         Fisher–Rao (eq. 6): the great circle ``2 arccos ∫ √(p_u p_v)``
-        (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`, by quadrature).
+        (:func:`shapelib.fisher_rao_lower_bound`, by quadrature).
     sigma2 : float
         σ² of eq. (5).
     grid_spacing, grid_margin : float
@@ -288,7 +288,7 @@ def extrapolate_doublings(gaps):
         2^p = \frac{d_1}{d_2}, \qquad g_\infty = g_3 - \frac{d_2^2}{d_1 - d_2},
         \qquad d_1 = g_1 - g_2, \quad d_2 = g_2 - g_3.
 
-    Used by :func:`~shapelib.solver.bracket.distance_bracket` to stop a bracket whose gap converges
+    Used by :func:`~shapelib.distance_bracket` to stop a bracket whose gap converges
     above ``rtol`` (the discretisation of eq. 8 of [1]_ is then not what keeps the bracket open), and
     by ``notebooks/alpha_discretisation.py``.
 
@@ -385,11 +385,11 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     grid_margin : float
         Fisher–Rao quadrature margin (:mod:`shapelib.geometry.quadrature`).
     hessian : {"exact", "model"}, optional
-        Hessian of the Levenberg–Marquardt steps (:func:`shapelib.solver.geodesic.geodesic`); default
+        Hessian of the Levenberg–Marquardt steps (:func:`shapelib.geodesic`); default
         the cheaper per metric for brackets (:data:`DEFAULT_HESSIAN`: exact for α, the model
         Hessian for Fisher–Rao).
     warn : bool
-        Emit a :class:`shapelib.solver.geodesic.GeodesicWarning` when ``rtol`` was not reached, with the
+        Emit a :class:`shapelib.GeodesicWarning` when ``rtol`` was not reached, with the
         gap reached.
 
     Returns
@@ -424,7 +424,7 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     1e-3 with a few iterations; at σ² = 0.1 most pairs stop ``"stalled"`` at a gap of a few
     1e-3, because the α geodesic is measurably longer than the L² chord there
     (``docs/guide/solver.md``). The 1e-9 Newton-decrement certificate of a local minimum remains
-    available through :func:`shapelib.solver.geodesic.geodesic` (``tol=``).
+    available through :func:`shapelib.geodesic` (``tol=``).
 
     References
     ----------

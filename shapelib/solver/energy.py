@@ -1,5 +1,5 @@
 r"""The discrete path energy (eq. 8 on piecewise-linear paths), its gradient and Hessian, and
-the length of a path — for any :class:`~shapelib.solver.path_metric.PathMetric`.
+the length of a path — for any :class:`~shapelib.PathMetric`.
 
 On each of the ``n`` segments the landmarks move at constant velocity and the energy is
 integrated in time with a 3-point Gauss–Legendre rule:

@@ -178,8 +178,8 @@ def fisher_rao_lower_bound(u, v, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
     (:mod:`shapelib.geometry.quadrature`): with the default grid within 5e-8 (relative) of a grid
     of step 0.2 σ and margin 9 σ on ADHD-200 pairs at σ² from 0.007 to 17. Checked at entry as
     :func:`shapelib.geodesic` is: landmark dimension, σ against the landmarks' scale
-    (:class:`~shapelib.geometry.scale.ScaleWarning`) and their pose
-    (:class:`~shapelib.geometry.procrustes.PoseWarning`).
+    (:class:`~shapelib.ScaleWarning`) and their pose
+    (:class:`~shapelib.PoseWarning`).
 
     Parameters
     ----------

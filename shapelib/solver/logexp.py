@@ -179,7 +179,7 @@ class GeodesicOptions:
         check_positive(self.grid_margin, name="grid_margin")
 
     def model(self):
-        """The :class:`~shapelib.solver.path_metric.PathMetric` of these options."""
+        """The :class:`~shapelib.PathMetric` of these options."""
         return path_metric(self.metric, self.sigma2, grid_spacing=self.grid_spacing, grid_margin=self.grid_margin)
 
     def replace(self, **changes) -> "GeodesicOptions":
@@ -417,7 +417,7 @@ class LogResult:
     n_iter : int
         Its iterations.
     stop_reason : str
-        A :class:`~shapelib.solver.result.StopReason` value.
+        A :class:`~shapelib.StopReason` value.
     seconds : float
         Wall-clock time.
 
@@ -873,7 +873,7 @@ def exp_map(base, vector, *, metric: str = "alpha", sigma2, n_steps: int = DEFAU
     grid_spacing, grid_margin : float
         Fisher–Rao quadrature.
     return_result : bool
-        Return a :class:`~shapelib.solver.result.GeodesicResult` of the whole discrete geodesic
+        Return a :class:`~shapelib.GeodesicResult` of the whole discrete geodesic
         (its ``path``, ``length``, ``energy``; usable by :func:`shapelib.extrinsic_warp`) instead
         of the end point.
 
@@ -932,7 +932,7 @@ def exp_map(base, vector, *, metric: str = "alpha", sigma2, n_steps: int = DEFAU
 
 
 def path_as_result(path, *, options: GeodesicOptions, log=None) -> GeodesicResult:
-    r"""A :class:`~shapelib.solver.result.GeodesicResult` for a discrete geodesic computed outside the path solver.
+    r"""A :class:`~shapelib.GeodesicResult` for a discrete geodesic computed outside the path solver.
 
     E.g. by :func:`~shapelib.solver.logexp.exp_path`: its length and energy (eq. 8 of [1]_) under
     ``options``' metric, and ``lower_bound`` the metric's closed-form bound between the ends,

@@ -1,5 +1,5 @@
 r"""The path solver: Levenberg–Marquardt (a trust-region Newton method) on the discrete path energy
-of any :class:`~shapelib.solver.path_metric.PathMetric`, with a certified stop.
+of any :class:`~shapelib.PathMetric`, with a certified stop.
 
 The pieces, each its own function:
 
@@ -11,7 +11,7 @@ The pieces, each its own function:
   :math:`\text{tol} \cdot E` the path is a certified local minimum;
 * :func:`accept_step` — the accept loop: a trial step is kept if it lowers the energy; the
   damping follows the ratio of actual to predicted decrease;
-* the stop rules, each reported as a :class:`~shapelib.solver.result.StopReason`.
+* the stop rules, each reported as a :class:`~shapelib.StopReason`.
 
 :func:`minimise_path` runs them; :func:`shapelib.geodesic`, :func:`shapelib.distance_bracket` and
 :func:`shapelib.landmark_diffeomorphism` call it.
@@ -340,7 +340,7 @@ def minimise_path(model: PathMetric, u, v, *, n_steps, tol, max_iter, window, in
     init : array_like, shape (n_steps + 1, K, d), optional
         Initial path (default: the straight line).
     warn : bool
-        Emit a :class:`~shapelib.solver.result.GeodesicWarning` when it stops before converging.
+        Emit a :class:`~shapelib.GeodesicWarning` when it stops before converging.
     length_scale : float
         Unit of ``max_step_over_sigma`` (σ, or the kernel width of diffeomorphisms).
     sigma2 : float, optional
@@ -348,7 +348,7 @@ def minimise_path(model: PathMetric, u, v, *, n_steps, tol, max_iter, window, in
     hessian : {"exact", "model"}, optional
         Default: exact where the metric has it.
     stacklevel : int
-        Of the :class:`~shapelib.solver.result.GeodesicWarning`, counted from here.
+        Of the :class:`~shapelib.GeodesicWarning`, counted from here.
     target_energy : float, optional
         Stop as soon as the energy is at or below it (:attr:`StopReason.TARGET_ENERGY`, counted
         as converged) — :func:`shapelib.distance_bracket` passes ``(lower · (1 + rtol))²``,

@@ -351,7 +351,7 @@ class FisherRaoPathMetric(PathMetric):
 
 def path_metric(metric: str, sigma2: float, *, grid_spacing: float = DEFAULT_SPACING,
                 grid_margin: float = DEFAULT_MARGIN) -> PathMetric:
-    r"""The :class:`~shapelib.solver.path_metric.PathMetric` of an information metric by name.
+    r"""The :class:`~shapelib.PathMetric` of an information metric by name.
 
     ``"alpha"``: the α-order entropy metric of eq. (22); ``"fisher_rao"``: the Fisher–Rao metric
     of eq. (6) [1]_, integrated on a grid of step ``grid_spacing · σ`` and margin
@@ -376,8 +376,8 @@ def path_metric(metric: str, sigma2: float, *, grid_spacing: float = DEFAULT_SPA
     Returns
     -------
     PathMetric
-        :class:`~shapelib.solver.path_metric.AlphaPathMetric` or
-        :class:`~shapelib.solver.path_metric.FisherRaoPathMetric`.
+        :class:`~shapelib.AlphaPathMetric` or
+        :class:`~shapelib.FisherRaoPathMetric`.
 
     Raises
     ------
