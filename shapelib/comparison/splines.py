@@ -297,8 +297,8 @@ def tps_bending_energy(u, v, *, kernel: str | None = None) -> float:
     >>> import numpy as np
     >>> import shapelib as sl
     >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-    >>> round(sl.tps_bending_energy(u, 2.0 * u @ np.array([[1.0, 0.3], [0.0, 1.0]]) + 1.0), 12)
-    0.0
+    >>> bool(abs(sl.tps_bending_energy(u, 2.0 * u @ np.array([[1.0, 0.3], [0.0, 1.0]]) + 1.0)) < 1e-12)
+    True
     >>> v = np.array([[0.0, 0.0], [1.2, 0.0], [1.0, 1.0], [0.0, 1.0]])
     >>> round(sl.tps_bending_energy(u, v), 6)
     0.007213
