@@ -41,7 +41,7 @@ Fisher–Rao metric (eq. 6)
     exactly when K = 1.
 
 The α formulas below (quadratic form, gradient, second derivatives) are written once here, in
-numpy; the geodesic solver runs compiled versions of the same sums (:mod:`shapelib.geometry._kernels`,
+numpy; the geodesic solver runs compiled versions of the same sums (``shapelib.geometry._kernels``,
 numba), which ``tests/test_kernels.py`` checks against these to ~1e-12.
 """
 

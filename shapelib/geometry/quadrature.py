@@ -22,7 +22,7 @@ A margin of 6σ is enough (5σ starts to show at 3e-6). The defaults are ``h = 0
 K = 1 case ``g = I/σ²``.
 
 The grid is a tensor product, so each isotropic Gaussian factorises over its axes and the
-integrands need ``Σ_i n_i K`` exponentials rather than ``M K`` (:func:`shapelib.geometry.metrics.psi_coef`).
+integrands need ``Σ_i n_i K`` exponentials rather than ``M K`` (``shapelib.geometry.metrics.psi_coef``).
 """
 
 from __future__ import annotations

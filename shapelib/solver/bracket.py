@@ -379,14 +379,14 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         than ``rtol``, and no ``n_steps`` will close the bracket.
     grid_spacing : float, optional
         Fisher–Rao quadrature step in units of σ (:mod:`shapelib.geometry.quadrature`). Default
-        :data:`BRACKET_SPACING` (0.5) when ``rtol ≥ 1e-5`` — its quadrature error, ≤ 3.2e-7
+        ``BRACKET_SPACING`` (0.5) when ``rtol ≥ 1e-5`` — its quadrature error, ≤ 3.2e-7
         relative on the corpus callosum pairs, is far below such a tolerance — else the library's
         0.35 (:data:`shapelib.geometry.quadrature.DEFAULT_SPACING`).
     grid_margin : float
         Fisher–Rao quadrature margin (:mod:`shapelib.geometry.quadrature`).
     hessian : {"exact", "model"}, optional
         Hessian of the Levenberg–Marquardt steps (:func:`shapelib.geodesic`); default
-        the cheaper per metric for brackets (:data:`DEFAULT_HESSIAN`: exact for α, the model
+        the cheaper per metric for brackets (``DEFAULT_HESSIAN``: exact for α, the model
         Hessian for Fisher–Rao).
     warn : bool
         Emit a :class:`shapelib.GeodesicWarning` when ``rtol`` was not reached, with the

@@ -44,10 +44,10 @@ Solver: Levenberg–Marquardt (a trust-region Newton method) on a block-tridiago
 factorised by block Cholesky in O(n (Kd)³):
 
 * by default the **exact** Hessian of the path energy, assembled from the second derivatives
-  of ``Q = vᵀg(θ)v`` — in closed form for α (:func:`shapelib.geometry.metrics.alpha_qform_hessian`, run
+  of ``Q = vᵀg(θ)v`` — in closed form for α (``shapelib.geometry.metrics.alpha_qform_hessian``, run
   as one compiled pass over the path, with the gradient, by
-  :func:`shapelib.geometry._kernels.alpha_path_grad_hessian`),
-  by the same quadrature as the metric for Fisher–Rao (:func:`shapelib.geometry.metrics.fr_qform_hessian_compiled`).
+  ``shapelib.geometry._kernels.alpha_path_grad_hessian``),
+  by the same quadrature as the metric for Fisher–Rao (``shapelib.geometry.metrics.fr_qform_hessian_compiled``).
   Where it is positive definite the Newton decrement :math:`\tfrac12 g^\top H^{-1} g` estimates the energy still
   to be gained; the solver stops when it falls below ``tol · E`` (``result.stop_reason ==
   StopReason.NEWTON_DECREMENT``), which certifies a local minimum, or when the relative energy decrease

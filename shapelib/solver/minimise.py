@@ -350,7 +350,7 @@ def minimise_path(model: PathMetric, u, v, *, n_steps, tol, max_iter, window, in
     stacklevel : int
         Of the :class:`~shapelib.GeodesicWarning`, counted from here.
     target_energy : float, optional
-        Stop as soon as the energy is at or below it (:attr:`StopReason.TARGET_ENERGY`, counted
+        Stop as soon as the energy is at or below it (``StopReason.TARGET_ENERGY``, counted
         as converged) — :func:`shapelib.distance_bracket` passes ``(lower · (1 + rtol))²``,
         since ``length ≤ √E``.
     lower_bound : float, optional
@@ -359,7 +359,7 @@ def minimise_path(model: PathMetric, u, v, *, n_steps, tol, max_iter, window, in
     Returns
     -------
     GeodesicResult
-        With ``log["stopped_by"]`` a :class:`StopReason` value.
+        With ``log["stopped_by"]`` a :class:`~shapelib.StopReason` value.
 
     Raises
     ------

@@ -178,7 +178,7 @@ class PathMetric:
 class AlphaPathMetric(PathMetric):
     r"""The α-order entropy metric (eq. 22) as the path solver sees it.
 
-    Closed form, compiled kernels (:mod:`shapelib.geometry._kernels`), exact Hessian in one compiled
+    Closed form, compiled kernels (``shapelib.geometry._kernels``), exact Hessian in one compiled
     pass over the path; lower bound :math:`\|p_u - p_v\|` (:func:`shapelib.l2_distance`) [1]_:
 
     .. math::
