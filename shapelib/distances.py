@@ -29,12 +29,16 @@ metrics (:func:`metric_info`, :func:`register_metric`).
 
 Each metric is one :class:`MetricInfo` record (its function, whether it is symmetric, a path
 metric, certifiable to ``rtol``, the function whose keyword options it takes, its lower-bound
-metric, a one-line description); :func:`register_metric` adds one, after which every entry point
-(the pairwise engine and its Dask workers, the CLI's ``--metric``) accepts its name.
+metric, its batched block function, whether it depends on pose, a one-line description);
+:func:`register_metric` adds one, after which every entry point (the pairwise engine and its Dask
+workers, the CLI's ``--metric``) accepts its name. The engine reads everything it needs from the
+record: it has no list of metric names of its own.
 
-Every per-pair computation of the library (the pairwise engine :mod:`shapelib.pairwise`, the CLI,
-the notebooks) goes through :func:`pair_record`. Paper-specific conventions (alignment, scale,
-squared values) belong to the study notebooks.
+Validation happens once, at the public door: :func:`distance` and :func:`pair_record` check the
+options and the two shapes, then call the record's unchecked :meth:`MetricInfo.record`; the pairwise
+engine checks the options and the whole set of shapes once per run (and once per block on a Dask
+worker), then calls :meth:`MetricInfo.record` for every pair. Paper-specific conventions (alignment,
+scale, squared values) belong to the study notebooks.
 """
 
 from __future__ import annotations
@@ -45,19 +49,22 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence, Set
 from dataclasses import dataclass
-from functools import partial
+
+import numpy as np
+from functools import lru_cache, partial
 
 from ._validate import InputError, as_shape_pair, literal
 from .comparison.diffeomorphism import landmark_diffeomorphism
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
-from .geometry.procrustes import procrustes_distance
+from .geometry.bound_matrices import alpha_bound_block, fisher_rao_bound_block
+from .geometry.procrustes import procrustes_distance, procrustes_distance_unchecked
 from .solver.bracket import distance_bracket
 from .solver.geodesic import alpha_lower_bound, fisher_rao_lower_bound, geodesic
 
 __all__ = ["distance", "pair_record", "path_result", "check_metric_params",
-           "MetricInfo", "metric_info", "register_metric",
-           "METRICS", "SYMMETRIC", "PATH_METRICS", "BRACKET_METRICS", "RECORD_FIELDS"]
+           "MetricInfo", "metric_info", "register_metric", "pose_dependent",
+           "METRICS", "SYMMETRIC", "PATH_METRICS", "BRACKET_METRICS", "POSE_DEPENDENT", "RECORD_FIELDS"]
 
 #: keys of :func:`pair_record`'s dict, in order
 RECORD_FIELDS = ("value", "lower", "upper", "energy", "converged", "n_iter", "seconds")
@@ -95,6 +102,30 @@ class MetricInfo:
         Name of the registered metric that bounds this one from below, if any.
     description : str
         One line, shown by ``shapelib distances --help``.
+    block : callable or None
+        ``block(rows, cols=None, *, n_threads=None, **params)``: the metric between every shape of
+        ``rows`` (R, K, d) and every shape of ``cols`` (C, K, d) as one ``(R, C)`` array in one
+        batched call (``cols=None``: ``rows`` with itself, the symmetric matrix with a zero
+        diagonal), as :mod:`scipy.spatial.distance`'s ``MetricInfo`` carries a ``pdist_func``. The
+        pairwise engine computes a block of pairs with it (without ``rtol``); a ``ValueError`` it
+        raises sends the block pair by pair. None: pair by pair always.
+    pose_dependent : bool or callable
+        Whether the value changes when one shape of a pair is rotated or moved; a callable
+        ``pose_dependent(params) -> bool`` when that depends on the options (``"wendland"`` with
+        ``affine=False``). The engine checks the pose of the shapes once for such a metric
+        (:func:`shapelib.geometry.procrustes.check_pose`), the CLI aligns them.
+    core : callable or None
+        ``core(u, v, **params)``: ``function`` without its input checks, for shapes that are
+        already float64 ``(K, d)`` arrays (checked once for a whole set); default ``function``.
+
+    Examples
+    --------
+    >>> from shapelib.distances import metric_info
+    >>> info = metric_info("procrustes")
+    >>> info.symmetric, info.path, info.pose_dependent
+    (True, False, False)
+    >>> metric_info("alpha_bound").block is not None
+    True
     """
 
     name: str
@@ -105,6 +136,9 @@ class MetricInfo:
     accepts: Callable | None = None
     lower_bound: str | None = None
     description: str = ""
+    block: Callable | None = None
+    pose_dependent: bool | Callable = False
+    core: Callable | None = None
 
     def options_of(self, rtol=None) -> Callable:
         """The function whose keyword options the metric takes (the bracket's with ``rtol``)."""
@@ -114,8 +148,31 @@ class MetricInfo:
 
     def compute(self, u, v, **params) -> float:
         """The distance of ``u`` and ``v`` (a path metric's geodesic length), unchecked."""
-        out = self.function(u, v, **params)
+        out = (self.core or self.function)(u, v, **params)
         return float(out.length if self.path else out)
+
+    def depends_on_pose(self, params: dict | None = None) -> bool:
+        """Whether the metric with options ``params`` depends on the pose of the shapes."""
+        pose = self.pose_dependent
+        return bool(pose(dict(params or {})) if callable(pose) else pose)
+
+    def record(self, u, v, *, rtol=None, **params) -> dict:
+        """:func:`pair_record` without its checks: ``u``, ``v`` float64 ``(K, d)`` arrays and
+        ``params`` (and ``rtol``) already checked (:func:`check_metric_params`)."""
+        t0 = time.perf_counter()
+        if rtol is not None:
+            b = self.bracket(u, v, rtol=rtol, **params)
+            rec = (b.upper, b.lower, b.upper, b.energy, b.converged, b.n_iter)
+        elif self.path:
+            r = (self.core or self.function)(u, v, **params)
+            rec = (r.length, r.lower_bound, r.length, r.energy, r.converged, r.n_iter)
+        else:
+            d = float((self.core or self.function)(u, v, **params))
+            rec = (d, d, d, math.nan, True, 0)
+        seconds = time.perf_counter() - t0
+        value, lower, upper, energy, converged, n_iter = rec
+        return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
+                "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
 
 
 _REGISTRY: dict[str, MetricInfo] = {}
@@ -123,7 +180,8 @@ _REGISTRY: dict[str, MetricInfo] = {}
 
 def register_metric(name: str, function: Callable, *, symmetric: bool = True, path: bool = False,
                     bracket: Callable | None = None, accepts: Callable | None = None,
-                    lower_bound: str | None = None, description: str = "",
+                    lower_bound: str | None = None, description: str = "", block: Callable | None = None,
+                    pose_dependent: bool | Callable = False, core: Callable | None = None,
                     replace: bool = False) -> MetricInfo:
     """Add a metric to the registry: afterwards :func:`distance`, :func:`pair_record`,
     :func:`shapelib.pairwise_distances` and ``shapelib distances --metric`` accept ``name``.
@@ -151,15 +209,20 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
         raise ValueError(f"metric name must be an identifier-like string; got {name!r}")
     if name in _REGISTRY and not replace:
         raise ValueError(f"metric {name!r} is already registered; pass replace=True to replace it")
-    for what, f in (("function", function), ("bracket", bracket), ("accepts", accepts)):
+    for what, f in (("function", function), ("bracket", bracket), ("accepts", accepts), ("block", block),
+                    ("core", core)):
         if f is not None and not callable(f):
             raise ValueError(f"metric {name!r}: {what} must be callable; got {f!r}")
     if function is None:
         raise ValueError(f"metric {name!r}: function must be callable; got None")
     if lower_bound is not None and lower_bound not in _REGISTRY and lower_bound != name:
         raise ValueError(f"metric {name!r}: lower_bound {lower_bound!r} is not a registered metric")
+    if not callable(pose_dependent) and not isinstance(pose_dependent, (bool, np.bool_)):
+        raise ValueError(f"metric {name!r}: pose_dependent must be a bool or callable; got {pose_dependent!r}")
     info = MetricInfo(name=name, function=function, symmetric=bool(symmetric), path=bool(path), bracket=bracket,
-                      accepts=accepts, lower_bound=lower_bound, description=" ".join(str(description).split()))
+                      accepts=accepts, lower_bound=lower_bound, description=" ".join(str(description).split()),
+                      block=block, pose_dependent=pose_dependent if callable(pose_dependent) else bool(pose_dependent),
+                      core=core)
     _REGISTRY[name] = info
     return info
 
@@ -248,6 +311,11 @@ SYMMETRIC = _NameSet(lambda m: m.symmetric)
 PATH_METRICS = _Names(lambda m: m.path)
 #: path metrics whose distance can be certified to a relative tolerance (``rtol=``)
 BRACKET_METRICS = _Names(lambda m: m.bracket is not None)
+#: metrics whose value changes when one shape of a pair is rotated or moved, whatever their options
+#: (the others — Procrustes, and the bending energies, whose matrices annihilate the affine part — do
+#: not; ``"wendland"`` does with ``affine=False``: :func:`pose_dependent`). The pairwise engine checks
+#: the shapes' pose for them (:func:`shapelib.geometry.procrustes.check_pose`), the CLI aligns them.
+POSE_DEPENDENT = _Names(lambda m: m.pose_dependent is True)
 
 
 #: name -> function of the metrics shapelib registers itself (see :func:`is_builtin`)
@@ -256,33 +324,40 @@ _BUILTIN = {}
 
 def is_builtin(info) -> bool:
     """Whether the record ``info`` is shapelib's own metric of that name, not a replacement
-    registered with ``register_metric(..., replace=True)`` (the engine batches only its own bounds)."""
+    registered with ``register_metric(..., replace=True)``."""
     return _BUILTIN.get(info.name) is info.function
 
 
-def _alpha_bound(u, v, *, sigma2):
-    return alpha_lower_bound(u, v, sigma2=sigma2)  # l2_distance with the geodesic's entry checks
+def _wendland_pose(params) -> bool:
+    """``"wendland"`` depends on pose only with ``affine=False`` (its energy then includes the affine part)."""
+    return params.get("affine", True) is False
 
 
 for _name, _fn, _kw in (
         ("alpha", partial(geodesic, metric="alpha"),
-         dict(path=True, bracket=partial(distance_bracket, metric="alpha"),
+         dict(path=True, bracket=partial(distance_bracket, metric="alpha"), pose_dependent=True,
               description="α-order geodesic length (eqs. 8, 22); needs sigma2; certifiable to a relative tolerance (rtol)")),
         ("fisher_rao", partial(geodesic, metric="fisher_rao"),
-         dict(path=True, bracket=partial(distance_bracket, metric="fisher_rao"),
+         dict(path=True, bracket=partial(distance_bracket, metric="fisher_rao"), pose_dependent=True,
               description="Fisher–Rao geodesic length (eqs. 6, 8); needs sigma2; certifiable to a relative tolerance (rtol)")),
         ("diffeomorphism", landmark_diffeomorphism,
-         dict(path=True, description="landmark-diffeomorphism (Camion–Younes) geodesic length (eq. 3)")),
-        ("alpha_bound", _alpha_bound,
-         dict(description="closed-form lower bound ‖p_u − p_v‖ on alpha (eq. 5)")),
+         dict(path=True, pose_dependent=True,
+              description="landmark-diffeomorphism (Camion–Younes) geodesic length (eq. 3)")),
+        ("alpha_bound", alpha_lower_bound,
+         dict(block=alpha_bound_block, pose_dependent=True,
+              description="closed-form lower bound ‖p_u − p_v‖ on alpha (eq. 5)")),
         ("fisher_rao_bound", fisher_rao_lower_bound,
-         dict(description="great-circle lower bound 2 arccos ∫√(p_u p_v) on fisher_rao")),
-        ("procrustes", procrustes_distance, dict(description="Procrustes distance (kind: angle, full, partial)")),
-        ("hausdorff", hausdorff_distance, dict(description="symmetrised Hausdorff distance of the landmark sets")),
+         dict(block=fisher_rao_bound_block, pose_dependent=True,
+              description="great-circle lower bound 2 arccos ∫√(p_u p_v) on fisher_rao")),
+        ("procrustes", procrustes_distance,
+         dict(core=procrustes_distance_unchecked, description="Procrustes distance (kind: angle, full, partial)")),
+        ("hausdorff", hausdorff_distance,
+         dict(pose_dependent=True, description="symmetrised Hausdorff distance of the landmark sets")),
         ("tps", tps_bending_energy,
          dict(symmetric=False, description="thin-plate spline bending energy of the map u -> v (not symmetric)")),
         ("wendland", wendland_bending_energy,
-         dict(symmetric=False, description="Wendland ψ3,1 spline bending energy of the map u -> v (not symmetric)")),
+         dict(symmetric=False, pose_dependent=_wendland_pose,
+              description="Wendland ψ3,1 spline bending energy of the map u -> v (not symmetric)")),
 ):
     register_metric(_name, _fn, **_kw)
     _BUILTIN[_name] = _fn
@@ -307,6 +382,19 @@ def target_function(metric, rtol):
     return metric_info(metric).options_of(rtol)
 
 
+@lru_cache(maxsize=256)
+def _options(function) -> tuple:
+    """``(takes **kwargs, option names, required option names)`` of a metric's function, read from
+    its signature once (``inspect.signature`` costs tens of µs: more than a cheap pair)."""
+    sig = inspect.signature(function)
+    if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+        return True, (), ()
+    allowed = tuple(name for name in sig.parameters if name not in _FIXED)
+    required = tuple(name for name, p in sig.parameters.items()
+                     if name not in _FIXED and p.default is p.empty and p.kind is not p.VAR_POSITIONAL)
+    return False, allowed, required
+
+
 def check_metric_params(metric, params: dict, *, rtol=None) -> None:
     """Raise ``ValueError`` naming an unknown ``metric``, an option it does not take, a missing
     required option (``sigma2``) or an ``rtol`` it cannot honour.
@@ -322,16 +410,13 @@ def check_metric_params(metric, params: dict, *, rtol=None) -> None:
             raise ValueError(f"rtol applies to the certified metrics {BRACKET_METRICS}, not {metric!r}")
         if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not (math.isfinite(rtol) and rtol > 0):
             raise ValueError(f"rtol must be a finite number > 0; got {rtol!r}")
-    sig = inspect.signature(info.options_of(rtol))
-    if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+    any_option, allowed, required = _options(info.options_of(rtol))
+    if any_option:
         return
-    allowed = [name for name in sig.parameters if name not in _FIXED]
     unknown = sorted(set(params) - set(allowed))
     if unknown:
-        raise ValueError(f"metric {metric!r} has no parameter(s) {unknown}; it takes {allowed}")
-    missing = [name for name, p in sig.parameters.items()
-               if name not in _FIXED and p.default is p.empty and p.kind is not p.VAR_POSITIONAL
-               and name not in params]
+        raise ValueError(f"metric {metric!r} has no parameter(s) {unknown}; it takes {list(allowed)}")
+    missing = [name for name in required if name not in params]
     if missing:
         words = ", ".join("{sigma2}" if m == "sigma2" else f"{literal(m)}=..." for m in missing)
         raise InputError(f"metric {literal(repr(metric))} needs {words}", {"metric": metric, "parameters": tuple(missing)})
@@ -387,29 +472,19 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
     info = metric_info(metric)
     check_metric_params(info, params, rtol=rtol)
     u, v = as_shape_pair(u, v)
-    t0 = time.perf_counter()
-    if rtol is not None:
-        b = info.bracket(u, v, rtol=rtol, **params)
-        rec = (b.upper, b.lower, b.upper, b.energy, b.converged, b.n_iter)
-    elif info.path:
-        r = info.function(u, v, **params)
-        rec = (r.length, r.lower_bound, r.length, r.energy, r.converged, r.n_iter)
-    else:
-        d = float(info.function(u, v, **params))
-        rec = (d, d, d, math.nan, True, 0)
-    seconds = time.perf_counter() - t0
-    value, lower, upper, energy, converged, n_iter = rec
-    return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
-            "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
+    return info.record(u, v, rtol=rtol, **params)
 
 
-#: metrics whose value changes when one shape of a pair is rotated or moved (the others — Procrustes,
-#: and the bending energies, whose matrices annihilate the affine part — do not): the pairwise engine
-#: checks the shapes' pose for them (:func:`shapelib.geometry.procrustes.check_pose`), the CLI aligns
-POSE_DEPENDENT = ("alpha", "fisher_rao", "alpha_bound", "fisher_rao_bound", "diffeomorphism", "hausdorff")
+def pose_dependent(metric, params: dict | None = None) -> bool:
+    """Whether ``metric`` (a name or a :class:`MetricInfo`) with options ``params`` depends on the
+    pose of the shapes: the record's ``pose_dependent`` (:data:`POSE_DEPENDENT`; ``"wendland"``
+    with ``affine=False`` too, whose energy then includes the affine part).
 
-
-def pose_dependent(metric: str, params: dict) -> bool:
-    """Whether ``metric`` with ``params`` depends on the pose of the shapes (:data:`POSE_DEPENDENT`;
-    ``"wendland"`` too with ``affine=False``, whose energy then includes the affine part)."""
-    return metric in POSE_DEPENDENT or (metric == "wendland" and params.get("affine", True) is False)
+    Examples
+    --------
+    >>> pose_dependent("hausdorff"), pose_dependent("procrustes")
+    (True, False)
+    >>> pose_dependent("wendland", {"affine": False})
+    True
+    """
+    return metric_info(metric).depends_on_pose(params)

@@ -336,14 +336,25 @@ def alpha_bound_matrix(shapes, *, sigma2, n_threads: int | None = None) -> np.nd
     return _alpha_matrices(x, None, np.array([check_sigma2(sigma2)]), n_threads=_threads(n_threads))[0]
 
 
-def alpha_bound_block(rows, cols, *, sigma2, n_threads: int | None = None) -> np.ndarray:
+def alpha_bound_block(rows, cols=None, *, sigma2, n_threads: int | None = None) -> np.ndarray:
     """The ``(R, C)`` block of α bounds ``‖p_i − p_j‖`` between ``rows`` (R, K, d) and ``cols`` (C, K, d).
 
-    A block of :func:`alpha_bound_matrix` (blocks assemble to the full matrix): what the pairwise
-    engine hands a worker.
+    A block of :func:`alpha_bound_matrix` (blocks assemble to the full matrix; ``cols=None``: the
+    matrix of ``rows`` itself): the block function of the ``"alpha_bound"`` metric record
+    (:attr:`shapelib.distances.MetricInfo.block`), what the pairwise engine hands a worker. Same
+    implementation as :func:`alpha_bound_matrix`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).normal(size=(4, 5, 2))
+    >>> b = alpha_bound_block(x[:2], x[2:], sigma2=1.0)
+    >>> bool(np.allclose(b, alpha_bound_matrix(x, sigma2=1.0)[:2, 2:]))
+    True
     """
     x, y = _pair_of_sets(rows, cols)
-    return _alpha_matrices(x, y, np.array([check_sigma2(sigma2)]), n_threads=_threads(n_threads))[0]
+    return _alpha_matrices(x, None if cols is None else y, np.array([check_sigma2(sigma2)]),
+                           n_threads=_threads(n_threads))[0]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -475,13 +486,27 @@ def fisher_rao_bound_matrix(shapes, *, sigma2, grid_spacing: float = DEFAULT_SPA
                       n_threads=_threads(n_threads))
 
 
-def fisher_rao_bound_block(rows, cols, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
+def fisher_rao_bound_block(rows, cols=None, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
                            grid_margin: float = DEFAULT_MARGIN, n_threads: int | None = None) -> np.ndarray:
     """The ``(R, C)`` block of Fisher–Rao bounds between ``rows`` (R, K, d) and ``cols`` (C, K, d),
-    on one grid covering both (what the pairwise engine hands a worker)."""
+    on one grid covering both (``cols=None``: the matrix of ``rows`` itself).
+
+    The block function of the ``"fisher_rao_bound"`` metric record
+    (:attr:`shapelib.distances.MetricInfo.block`), what the pairwise engine hands a worker; same
+    implementation as :func:`fisher_rao_bound_matrix`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).normal(size=(3, 5, 2))
+    >>> b = fisher_rao_bound_block(x[:1], x[1:], sigma2=1.0)
+    >>> b.shape, bool(np.all((b > 0) & (b <= 2 * np.pi)))
+    ((1, 2), True)
+    """
     x, y = _pair_of_sets(rows, cols)
     spacing, margin = _check_grid_options(grid_spacing, grid_margin)
-    return _fr_matrix(x, y, check_sigma2(sigma2), spacing=spacing, margin=margin, n_threads=_threads(n_threads))
+    return _fr_matrix(x, None if cols is None else y, check_sigma2(sigma2), spacing=spacing, margin=margin,
+                      n_threads=_threads(n_threads))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -493,15 +518,11 @@ def bound_block(metric: str, rows, cols=None, *, n_threads: int | None = None, *
     """``metric`` (one of :data:`BOUND_METRICS`) between ``rows`` and ``cols`` (``None``: ``rows``
     with itself, the symmetric matrix), with that metric's options (``sigma2``; Fisher–Rao also
     ``grid_spacing``, ``grid_margin``)."""
-    if metric == "alpha_bound":
-        if cols is None:
-            return alpha_bound_matrix(rows, n_threads=n_threads, **params)
-        return alpha_bound_block(rows, cols, n_threads=n_threads, **params)
-    if metric == "fisher_rao_bound":
-        if cols is None:
-            return fisher_rao_bound_matrix(rows, n_threads=n_threads, **params)
-        return fisher_rao_bound_block(rows, cols, n_threads=n_threads, **params)
-    raise ValueError(f"metric must be one of {BOUND_METRICS}; got {metric!r}")
+    try:
+        block = BLOCKS[metric]
+    except (KeyError, TypeError):
+        raise ValueError(f"metric must be one of {BOUND_METRICS}; got {metric!r}") from None
+    return block(rows, cols, n_threads=n_threads, **params)
 
 
 def bound_matrix_sweep(shapes, *, metric: str, sigma2s, grid_spacing: float = DEFAULT_SPACING,
@@ -536,3 +557,7 @@ def bound_matrix_sweep(shapes, *, metric: str, sigma2s, grid_spacing: float = DE
         return np.stack([_fr_matrix(x, None, s2, spacing=spacing, margin=margin, n_threads=n_threads)
                          for s2 in s2s])
     raise ValueError(f"metric must be one of {BOUND_METRICS}; got {metric!r}")
+
+
+#: the block function of each closed-form bound (what its :class:`shapelib.distances.MetricInfo` carries)
+BLOCKS = {"alpha_bound": alpha_bound_block, "fisher_rao_bound": fisher_rao_bound_block}
