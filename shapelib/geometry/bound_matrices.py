@@ -398,7 +398,7 @@ def _psi_chunks(x, grid, s2):
 
 def _fr_grid(x, y, s2, spacing, margin):
     points = x if y is None else np.concatenate([x, y])
-    return make_grid(points, s2, spacing=spacing, margin=margin)
+    return make_grid(points, sigma2=s2, grid_spacing=spacing, grid_margin=margin)
 
 
 def _fr_matrix(x, y, s2, *, spacing, margin, n_threads):

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import logsumexp
 
-from .._validate import as_shape, as_shape_pair, check_sigma2
+from .._validate import as_shape, as_shape_pair, check_sigma2, keeps_old_calls
 
 __all__ = [
     "gmm_density",
@@ -67,7 +67,8 @@ def _point_sets(a, b, names):
     return a, b
 
 
-def gmm_log_density(x, theta, sigma2) -> np.ndarray:
+@keeps_old_calls(keyword_only=("sigma2",))
+def gmm_log_density(x, theta, *, sigma2) -> np.ndarray:
     """``log p(x | θ)`` of eq. (5) at the points ``x`` (M, d), computed stably (log-sum-exp)."""
     x, theta = _point_sets(x, theta, ("x", "theta"))
     s2 = check_sigma2(sigma2)
@@ -76,7 +77,8 @@ def gmm_log_density(x, theta, sigma2) -> np.ndarray:
     return logsumexp(log_n, axis=1) - np.log(k)
 
 
-def gmm_density(x, theta, sigma2) -> np.ndarray:
+@keeps_old_calls(keyword_only=("sigma2",))
+def gmm_density(x, theta, *, sigma2) -> np.ndarray:
     """The GMM shape density of eq. (5).
 
     Parameters
@@ -93,10 +95,11 @@ def gmm_density(x, theta, sigma2) -> np.ndarray:
     ndarray, shape (M,)
         ``p(x | θ) = (1/K) Σ_a (2πσ²)^{-d/2} exp(−|x − φ_a|² / (2σ²))``.
     """
-    return np.exp(gmm_log_density(x, theta, sigma2))
+    return np.exp(gmm_log_density(x, theta, sigma2=sigma2))
 
 
-def gaussian_overlap(a, b, sigma2) -> np.ndarray:
+@keeps_old_calls(keyword_only=("sigma2",))
+def gaussian_overlap(a, b, *, sigma2) -> np.ndarray:
     """Matrix of overlaps ``G_ij = ∫ N(x; a_i, σ²I) N(x; b_j, σ²I) dx = (4πσ²)^{-d/2} e^{−|a_i − b_j|²/(4σ²)}``."""
     a, b = _point_sets(a, b, ("a", "b"))
     s2 = check_sigma2(sigma2)
@@ -104,12 +107,14 @@ def gaussian_overlap(a, b, sigma2) -> np.ndarray:
     return np.exp(-_sqdist(a, b) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2)
 
 
-def l2_inner(u, v, sigma2) -> float:
+@keeps_old_calls(keyword_only=("sigma2",))
+def l2_inner(u, v, *, sigma2) -> float:
     """Closed-form L² inner product ``∫ p(x|u) p(x|v) dx = (1/(K_u K_v)) Σ_ab G(u_a − v_b)``."""
-    return float(gaussian_overlap(u, v, sigma2).mean())
+    return float(gaussian_overlap(u, v, sigma2=sigma2).mean())
 
 
-def l2_distance(u, v, sigma2) -> float:
+@keeps_old_calls(keyword_only=("sigma2",))
+def l2_distance(u, v, *, sigma2) -> float:
     """Closed-form L² distance ``‖p_u − p_v‖`` between the GMM densities of two shapes.
 
     This is the lower bound certified by :func:`shapelib.geodesic` for the α-order metric:
@@ -125,8 +130,8 @@ def l2_distance(u, v, sigma2) -> float:
     """
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
-    uu, vv = l2_inner(u, u, s2), l2_inner(v, v, s2)
-    sq = uu + vv - 2 * l2_inner(u, v, s2)
+    uu, vv = l2_inner(u, u, sigma2=s2), l2_inner(v, v, sigma2=s2)
+    sq = uu + vv - 2 * l2_inner(u, v, sigma2=s2)
     if sq <= L2_NEAR * (uu + vv) and _small_displacement(u[None], v[None], s2)[0]:
         sq = float(_l2_sq_near(u[None], v[None], s2)[0])
     return float(np.sqrt(max(sq, 0.0)))

@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernels
-from .._validate import as_shape, check_sigma2
+from .._validate import as_shape, check_sigma2, keeps_old_calls
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, Grid, make_grid
 
 __all__ = [
@@ -70,7 +70,8 @@ def _alpha_metric_blocks(c, delta, s2: float) -> np.ndarray:
     return out
 
 
-def alpha_metric(theta, sigma2) -> np.ndarray:
+@keeps_old_calls(keyword_only=("sigma2",))
+def alpha_metric(theta, *, sigma2) -> np.ndarray:
     """The α-order (α = 2) entropy metric tensor of eq. (22), in closed form.
 
     Parameters
@@ -108,7 +109,8 @@ def _alpha_qform(theta: np.ndarray, vel: np.ndarray, s2: float) -> np.ndarray:
     return np.einsum("mab,mab->m", c, vv / (2 * s2) - dva * dvb / (4 * s2 * s2))
 
 
-def alpha_quadratic_form(theta, velocity, sigma2) -> float:
+@keeps_old_calls(keyword_only=("sigma2",))
+def alpha_quadratic_form(theta, velocity, *, sigma2) -> float:
     """``θ̇ᵀ g_α(θ) θ̇ = ∫ (∂_t p)² dx`` without forming the ``(Kd, Kd)`` matrix (eq. 8 integrand)."""
     theta = as_shape(theta, name="theta")
     vel = as_shape(velocity, name="velocity")
@@ -206,19 +208,21 @@ def _fr_gram(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     return out.reshape(k * d, k * d)
 
 
-def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin: float = DEFAULT_MARGIN) -> np.ndarray:
+@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
+def fisher_rao_metric(theta, *, sigma2, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN) -> np.ndarray:
     """The Fisher–Rao metric tensor of eq. (6) for the GMM of eq. (5), by quadrature.
 
     ``g_ij = ∫ (1/p) ∂_i p ∂_j p dx`` is computed as ``∫ ∂_i ψ ∂_j ψ dx`` with ``ψ = 2√p``
-    (numerically stable in the tails) by the trapezoid rule on a grid of step ``spacing·σ``
-    reaching ``margin·σ`` beyond the landmarks (see :mod:`shapelib.geometry.quadrature` for accuracy).
+    (numerically stable in the tails) by the trapezoid rule on a grid of step ``grid_spacing·σ``
+    reaching ``grid_margin·σ`` beyond the landmarks (see :mod:`shapelib.geometry.quadrature` for accuracy).
 
     Parameters
     ----------
     theta : array_like, shape (K, d)
     sigma2 : float
-    spacing, margin : float, keyword-only
-        Grid step and margin in units of σ.
+    grid_spacing, grid_margin : float
+        Grid step and margin in units of σ (formerly ``spacing``, ``margin``: still accepted for
+        one release, with a :class:`DeprecationWarning`).
 
     Returns
     -------
@@ -227,7 +231,7 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
     """
     theta = as_shape(theta, name="theta")
     s2 = check_sigma2(sigma2)
-    grid = make_grid(theta, s2, spacing=spacing, margin=margin)
+    grid = make_grid(theta, sigma2=s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     g = grid.weight * _fr_gram(theta, s2, grid)
     return 0.5 * (g + g.T)
 
@@ -245,15 +249,16 @@ def _fr_qform(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.n
     return np.array([grid.integrate(_fr_psidot(t, w, s2, grid)[3] ** 2) for t, w in zip(theta, vel)])
 
 
-def fisher_rao_quadratic_form(theta, velocity, sigma2, *, spacing: float = DEFAULT_SPACING,
-                              margin: float = DEFAULT_MARGIN) -> float:
+@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
+def fisher_rao_quadratic_form(theta, velocity, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
+                              grid_margin: float = DEFAULT_MARGIN) -> float:
     """``θ̇ᵀ g_FR(θ) θ̇ = ∫ (∂_t p)² / p dx`` by quadrature, without forming the matrix."""
     theta = as_shape(theta, name="theta")
     vel = as_shape(velocity, name="velocity")
     if vel.shape != theta.shape:
         raise ValueError(f"velocity must have the shape of theta {theta.shape}; got {vel.shape}")
     s2 = check_sigma2(sigma2)
-    grid = make_grid(theta, s2, spacing=spacing, margin=margin)
+    grid = make_grid(theta, sigma2=s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     return float(_fr_qform(theta[None], vel[None], s2, grid)[0])
 
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validate import check_positive
+from .._validate import check_positive, keeps_old_calls
 
 __all__ = ["Grid", "make_grid", "DEFAULT_SPACING", "DEFAULT_MARGIN", "MAX_ENTRIES"]
 
@@ -75,9 +75,10 @@ def _points(points):
     return pts
 
 
-def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin: float = DEFAULT_MARGIN,
+@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
+def make_grid(points, *, sigma2: float, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN,
               max_entries: int | None = None) -> Grid:
-    """Regular grid covering ``points`` (any array with last axis d) plus ``margin·σ``, step ``spacing·σ``.
+    """Regular grid covering ``points`` (any array with last axis d) plus ``margin·σ``, step ``grid_spacing·σ``.
 
     Parameters
     ----------
@@ -85,8 +86,9 @@ def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin
         Every landmark position the integrands will see (e.g. all shapes along a path).
     sigma2 : float
         σ² of eq. (5).
-    spacing, margin : float
-        Grid step and margin in units of σ.
+    grid_spacing, grid_margin : float
+        Grid step and margin in units of σ (formerly ``spacing``, ``margin``: still accepted for
+        one release, with a :class:`DeprecationWarning`).
     max_entries : int, optional
         Refuse (``ValueError``, before allocating anything) a grid whose nodes × landmarks
         (``points.shape[-2]``) exceed this. The node count grows like (extent / σ)^d, so shapes
@@ -99,8 +101,8 @@ def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin
         Non-finite points, or a grid above ``max_entries`` (the message gives its size, the memory
         per (nodes × landmarks) array and what to change).
     """
-    spacing = check_positive(spacing, name="spacing")
-    margin = check_positive(margin, name="margin")
+    spacing = check_positive(grid_spacing, name="grid_spacing")
+    margin = check_positive(grid_margin, name="grid_margin")
     sigma = np.sqrt(check_positive(sigma2, name="sigma2"))
     pts = _points(points)
     k = pts.shape[-2] if pts.ndim >= 2 else 1

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._validate import as_shape, as_shapes, check_positive, check_sigma2
+from .._validate import as_shape, as_shapes, check_positive, check_sigma2, keeps_old_calls
 from .procrustes import generalized_procrustes, preshape
 from .sigma2 import predictive_sigma2, scatter_sigma2
 
@@ -77,7 +77,8 @@ def landmark_spacing(shapes) -> float:
     return float(np.mean([cKDTree(s).query(s, k=2)[0][:, 1] for s in x]))
 
 
-def sigma_ratio(shapes, sigma2) -> float:
+@keeps_old_calls(keyword_only=("sigma2",))
+def sigma_ratio(shapes, *, sigma2) -> float:
     """σ in units of the mean nearest-landmark spacing, ``√σ² / landmark_spacing(shapes)``.
 
     The paper's corpus callosum settings (centroid size 20, σ² = 0.1, 0.5, 1.5) give 1.1, 2.6
@@ -155,7 +156,8 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
 FISHER_RAO_RATIO_MIN = float(1.0 / np.sqrt(8.0 * np.log(1.0 / np.finfo(np.float64).eps)))
 
 
-def check_fisher_rao_scale(shapes, sigma2, *, metric: str = "fisher_rao", ratio: float | None = None) -> None:
+@keeps_old_calls(keyword_only=("sigma2",))
+def check_fisher_rao_scale(shapes, *, sigma2, metric: str = "fisher_rao", ratio: float | None = None) -> None:
     """Raise ``ValueError`` before any work when σ is below :data:`FISHER_RAO_RATIO_MIN` times the
     mean nearest-landmark spacing: the Fisher–Rao metric (eq. 6) and its bound would see isolated
     points whose densities underflow between them (a division by zero, or a meaningless value).

@@ -56,7 +56,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
         ratio = check_scale(x, params["sigma2"], stacklevel=4)
         if metric in ("fisher_rao", "fisher_rao_bound"):  # a degenerate quadrature: an error before any work
-            check_fisher_rao_scale(x, params["sigma2"], metric=metric, ratio=ratio)
+            check_fisher_rao_scale(x, sigma2=params["sigma2"], metric=metric, ratio=ratio)
     if pose_dependent(info, params):  # likewise (check_pose: a pair, or a whole set to align)
         check_pose(x, metric=metric, stacklevel=4)
     symmetric = info.symmetric
@@ -143,7 +143,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if not computed.all() and not log["stopped"]:
         raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
     result = _result(st, data, computed, log)
-    words = result.convergence_summary()
+    words = result._nonconverged()
     if words:
         warnings.warn(f"{words}; see PairwiseResult.to_frame() (status, rel_gap)", GeodesicWarning, stacklevel=3)
     return result
