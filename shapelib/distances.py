@@ -117,6 +117,10 @@ class MetricInfo:
     core : callable or None
         ``core(u, v, **params)``: ``function`` without its input checks, for shapes that are
         already float64 ``(K, d)`` arrays (checked once for a whole set); default ``function``.
+    quadrature : bool
+        The metric integrates on a grid of step ``grid_spacing · σ`` (the Fisher–Rao metrics): a σ
+        that leaves the grid nothing to resolve is an error before any work
+        (:func:`shapelib.geometry.scale.check_fisher_rao_scale`, once for a whole set).
 
     Examples
     --------
@@ -139,6 +143,7 @@ class MetricInfo:
     block: Callable | None = None
     pose_dependent: bool | Callable = False
     core: Callable | None = None
+    quadrature: bool = False
 
     def options_of(self, rtol=None) -> Callable:
         """The function whose keyword options the metric takes (the bracket's with ``rtol``)."""
@@ -182,7 +187,7 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
                     bracket: Callable | None = None, accepts: Callable | None = None,
                     lower_bound: str | None = None, description: str = "", block: Callable | None = None,
                     pose_dependent: bool | Callable = False, core: Callable | None = None,
-                    replace: bool = False) -> MetricInfo:
+                    quadrature: bool = False, replace: bool = False) -> MetricInfo:
     """Add a metric to the registry: afterwards :func:`distance`, :func:`pair_record`,
     :func:`shapelib.pairwise_distances` and ``shapelib distances --metric`` accept ``name``.
 
@@ -222,7 +227,7 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
     info = MetricInfo(name=name, function=function, symmetric=bool(symmetric), path=bool(path), bracket=bracket,
                       accepts=accepts, lower_bound=lower_bound, description=" ".join(str(description).split()),
                       block=block, pose_dependent=pose_dependent if callable(pose_dependent) else bool(pose_dependent),
-                      core=core)
+                      core=core, quadrature=bool(quadrature))
     _REGISTRY[name] = info
     return info
 
@@ -338,7 +343,7 @@ for _name, _fn, _kw in (
          dict(path=True, bracket=partial(distance_bracket, metric="alpha"), pose_dependent=True,
               description="α-order geodesic length (eqs. 8, 22); needs sigma2; certifiable to a relative tolerance (rtol)")),
         ("fisher_rao", partial(geodesic, metric="fisher_rao"),
-         dict(path=True, bracket=partial(distance_bracket, metric="fisher_rao"), pose_dependent=True,
+         dict(path=True, bracket=partial(distance_bracket, metric="fisher_rao"), pose_dependent=True, quadrature=True,
               description="Fisher–Rao geodesic length (eqs. 6, 8); needs sigma2; certifiable to a relative tolerance (rtol)")),
         ("diffeomorphism", landmark_diffeomorphism,
          dict(path=True, pose_dependent=True,
@@ -347,7 +352,7 @@ for _name, _fn, _kw in (
          dict(block=alpha_bound_block, pose_dependent=True,
               description="closed-form lower bound ‖p_u − p_v‖ on alpha (eq. 5)")),
         ("fisher_rao_bound", fisher_rao_lower_bound,
-         dict(block=fisher_rao_bound_block, pose_dependent=True,
+         dict(block=fisher_rao_bound_block, pose_dependent=True, quadrature=True,
               description="great-circle lower bound 2 arccos ∫√(p_u p_v) on fisher_rao")),
         ("procrustes", procrustes_distance,
          dict(core=procrustes_distance_unchecked, description="Procrustes distance (kind: angle, full, partial)")),

@@ -71,6 +71,8 @@ def test_pose_dependence_is_read_from_the_record(rng, user_metric):
     assert not pose_dependent("wendland") and pose_dependent("wendland", {"affine": False})
     assert set(POSE_DEPENDENT) == {"alpha", "fisher_rao", "alpha_bound", "fisher_rao_bound", "diffeomorphism",
                                    "hausdorff", "mean_gap"}
+    assert {n for n in ("alpha", "fisher_rao", "alpha_bound", "fisher_rao_bound", "mean_gap")
+            if metric_info(n).quadrature} == {"fisher_rao", "fisher_rao_bound"}
     base = rng.normal(size=(6, 2))
     x = np.stack([base + 0.01 * rng.normal(size=base.shape) for _ in range(4)])
     t = np.pi / 2

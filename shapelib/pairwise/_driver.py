@@ -55,7 +55,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     n, k, d = x.shape
     if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
         ratio = check_scale(x, params["sigma2"], stacklevel=4)
-        if metric in ("fisher_rao", "fisher_rao_bound"):  # a degenerate quadrature: an error before any work
+        if info.quadrature:  # a degenerate quadrature: an error before any work
             check_fisher_rao_scale(x, sigma2=params["sigma2"], metric=metric, ratio=ratio)
     if pose_dependent(info, params):  # likewise (check_pose: a pair, or a whole set to align)
         check_pose(x, metric=metric, stacklevel=4)

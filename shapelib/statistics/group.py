@@ -160,8 +160,9 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
     >>> s = np.linspace(0, 2 * np.pi, 8, endpoint=False)
     >>> rng = np.random.default_rng(1)
     >>> x = np.stack([np.c_[(2.0 + 0.3 * (i % 2)) * np.cos(s), np.sin(s)] + 0.02 * rng.normal(size=(8, 2))
-    ...               for i in range(8)])
-    >>> test = sl.mean_difference_test(x, np.arange(8) % 2, sigma2=0.5, n_permutations=99, group_means=False,
+    ...               for i in range(12)])
+    >>> x = sl.pose_align(x)[0]
+    >>> test = sl.mean_difference_test(x, np.arange(12) % 2, sigma2=0.5, n_permutations=199, group_means=False,
     ...                                n_jobs=1)
     >>> bool(test.p_value < 0.05)
     True
