@@ -66,6 +66,18 @@ Fisher–Rao bound (``2√p`` on the sphere of radius 2; :func:`shapelib.solver.
     each value is one :func:`fisher_rao_bound_matrix` (its cost grows like σ^{-d}: the small-σ
     end dominates a sweep).
 
+Where each bound lives
+    One implementation per bound and scale. One pair: the α bound is
+    :func:`shapelib.geometry.gmm.l2_distance` (:func:`shapelib.solver.geodesic.alpha_lower_bound`
+    adds the entry checks of a geodesic), the Fisher–Rao bound
+    :meth:`shapelib.solver.path_metric.FisherRaoPathMetric.lower_bound`
+    (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`); :func:`shapelib.solver.bracket.lower_bound`
+    picks one by metric name. Many pairs: :func:`alpha_bound_block` and :func:`fisher_rao_bound_block`
+    here (``cols=None``: the symmetric matrix, which :func:`alpha_bound_matrix` and
+    :func:`fisher_rao_bound_matrix` name), the ``block`` function of the ``"alpha_bound"`` and
+    ``"fisher_rao_bound"`` records of :mod:`shapelib.distances` (:data:`BLOCKS`, which
+    :func:`bound_block` dispatches on); :func:`bound_matrix_sweep` for many σ².
+
 Threads. ``n_threads`` (default: every core this process may use) runs blocks of rows on a
 thread pool — ``numpy.exp`` and BLAS release the GIL — with BLAS on one thread inside each, so
 the pool does not oversubscribe the cores. The pairwise engine passes ``n_threads=1`` inside its
