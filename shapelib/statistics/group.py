@@ -192,6 +192,8 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
     def base():
         if pooled is not None:
             return pooled.mean
+        if mean_options.get("init") is not None:  # the user's start
+            return np.asarray(mean_options["init"], dtype=np.float64)
         start.setdefault("init", procrustes_mean(x))
         return start["init"]
 
