@@ -148,9 +148,9 @@ def timed(f, repeat=1):
 
 def tensor_comparison(theta, s2):
     """Our Fisher–Rao metric tensor against the cheapest plain N×N grid at least as accurate."""
-    ref = fisher_rao_metric(theta, s2, spacing=0.1, margin=10)
+    ref = fisher_rao_metric(theta, sigma2=s2, grid_spacing=0.1, grid_margin=10)
     scale = np.abs(ref).max()
-    ours, t_ours = timed(lambda: fisher_rao_metric(theta, s2), repeat=3)
+    ours, t_ours = timed(lambda: fisher_rao_metric(theta, sigma2=s2), repeat=3)
     err_ours = np.abs(ours - ref).max() / scale
     half = np.abs(theta).max() + 8 * np.sqrt(s2)
     rows = []

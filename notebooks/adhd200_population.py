@@ -286,7 +286,7 @@ scopes = {"all": (matrices, lab), "subset": (sub_matrices, sub_lab)}
 rows = []
 for scope, (mats, lb) in scopes.items():
     for metric, d in mats.items():
-        res = permanova(d, lb[["diagnosis", "sex", "age"]], permutations=permutations, seed=seed)
+        res = permanova(d, lb[["diagnosis", "sex", "age"]], n_permutations=permutations, seed=seed)
         for term in ("diagnosis", "sex", "age"):
             t = res.table.loc[term]
             rows.append({"scope": scope, "metric": metric, "term": term, "n": len(d), "pseudo_F": t.pseudo_F,
@@ -303,7 +303,7 @@ perm.pivot_table(index=["scope", "metric"], columns="term", values=["pseudo_F", 
 rows = []
 for scope, (mats, lb) in scopes.items():
     for metric, d in mats.items():
-        k = knn_loo_accuracy(d, lb["diagnosis"], n_neighbors=n_neighbors, permutations=permutations, seed=seed)
+        k = knn_loo_accuracy(d, lb["diagnosis"], n_neighbors=n_neighbors, n_permutations=permutations, seed=seed)
         rows.append({"scope": scope, "metric": metric, "n": len(d), "accuracy": k.accuracy, "p": k.p_value,
                      "null_mean": k.null.mean(), "majority": k.majority_rate})
         values[f"adhd200/knn/{scope}/{metric}/accuracy"] = k.accuracy
@@ -358,7 +358,7 @@ mds
 rows = []
 for scope, (mats, _) in scopes.items():
     for a, b in itertools.combinations(mats, 2):
-        r, p = mantel_test(mats[a], mats[b], permutations=permutations, seed=seed)
+        r, p = mantel_test(mats[a], mats[b], n_permutations=permutations, seed=seed)
         rows.append({"scope": scope, "a": a, "b": b, "r": r, "p": p})
         values[f"adhd200/mantel/{scope}/{a}~{b}/r"] = r
         values[f"adhd200/mantel/{scope}/{a}~{b}/p"] = p
@@ -406,21 +406,21 @@ def sigma_curves(name, x, spacing_x, covariates, term, labels_knn, reference, ex
         t0 = time.perf_counter()
         mats = bound_matrix_sweep(x, metric=metric, sigma2s=s2s, **opts)
         timings[f"sweep/{name}/{metric}"] = time.perf_counter() - t0
-        perm = permanova_sweep(mats, covariates, term=term, permutations=sweep_permutations, seed=seed)
-        kn = knn_sweep(mats, labels_knn, n_neighbors=n_neighbors, permutations=sweep_permutations, seed=seed)
+        perm = permanova_sweep(mats, covariates, term=term, n_permutations=sweep_permutations, seed=seed)
+        kn = knn_sweep(mats, labels_knn, n_neighbors=n_neighbors, n_permutations=sweep_permutations, seed=seed)
         tests[metric] = (perm, kn)
         for k, (r, m) in enumerate(zip(ratios, mats)):
             rows.append({"data": name, "metric": metric, "k": k, "sigma_over_spacing": r, "sigma2": s2s[k],
                          "F": perm.statistic[k], "R2": perm.results[k].table.loc[term, "r2"], "p": perm.p_values[k],
                          "knn": kn.statistic[k], "knn_p": kn.p_values[k],
-                         "mantel": mantel_test(m, reference, permutations=1)[0]})
+                         "mantel": mantel_test(m, reference, n_permutations=1)[0]})
         for label, s2 in extra_sigma2.items():  # the data's σ² (and the study's): exactly, not the nearest sweep value
             d = bound_functions[metric](x, sigma2=s2, **opts)
-            pm = permanova(d, covariates, permutations=sweep_permutations, seed=seed).table.loc[term]
-            kk = knn_loo_accuracy(d, labels_knn, n_neighbors=n_neighbors, permutations=sweep_permutations, seed=seed)
+            pm = permanova(d, covariates, n_permutations=sweep_permutations, seed=seed).table.loc[term]
+            kk = knn_loo_accuracy(d, labels_knn, n_neighbors=n_neighbors, n_permutations=sweep_permutations, seed=seed)
             rows.append({"data": name, "metric": metric, "k": label, "sigma_over_spacing": np.sqrt(s2) / spacing_x,
                          "sigma2": s2, "F": pm.pseudo_F, "R2": pm.r2, "p": pm.p_value, "knn": kk.accuracy,
-                         "knn_p": kk.p_value, "mantel": mantel_test(d, reference, permutations=1)[0]})
+                         "knn_p": kk.p_value, "mantel": mantel_test(d, reference, n_permutations=1)[0]})
     return pd.DataFrame(rows), tests
 
 
@@ -483,8 +483,8 @@ wing_spacing = landmark_spacing(wing_shapes)
 wing_rule = estimate_sigma2(wing_shapes)
 wing_pred = estimate_sigma2(wing_shapes, method="predictive")
 wing_proc = pairwise_distances(wing_raw, metric="procrustes", n_jobs=1, progress=False)
-wing_proc_knn = knn_loo_accuracy(wing_proc, genus, n_neighbors=n_neighbors, permutations=sweep_permutations, seed=seed)
-wing_proc_F = permanova(wing_proc, pd.DataFrame({"genus": genus}), permutations=sweep_permutations,
+wing_proc_knn = knn_loo_accuracy(wing_proc, genus, n_neighbors=n_neighbors, n_permutations=sweep_permutations, seed=seed)
+wing_proc_F = permanova(wing_proc, pd.DataFrame({"genus": genus}), n_permutations=sweep_permutations,
                         seed=seed).table.loc["genus", "pseudo_F"]
 curves_wing, tests_wing = sigma_curves("mosquito", wing_shapes, wing_spacing, pd.DataFrame({"genus": genus}), "genus",
                                        genus, wing_proc, {"rule": wing_rule.sigma2})

@@ -37,7 +37,7 @@ def density_image(theta, s2, pad):
     xs = np.linspace(lo[0], hi[0], resolution)
     ys = np.linspace(lo[1], hi[1], int(resolution * (hi[1] - lo[1]) / (hi[0] - lo[0])))
     xx, yy = np.meshgrid(xs, ys)
-    p = gmm_density(np.column_stack([xx.ravel(), yy.ravel()]), theta, s2).reshape(xx.shape)
+    p = gmm_density(np.column_stack([xx.ravel(), yy.ravel()]), theta, sigma2=s2).reshape(xx.shape)
     return p, (lo[0], hi[0], lo[1], hi[1])
 
 
@@ -51,8 +51,8 @@ for row, (theta, s2s, pad, label) in enumerate([(cc, cc_sigma2s, 3.0, "cc"), (fi
         axes[row, c].imshow(p, origin="lower", extent=ext, cmap="gray_r")
         axes[row, c].set_title(f"σ² = {s2}")
         # the density integrates to one (quadrature check of eq. 5)
-        grid = make_grid(theta, s2, spacing=0.35, margin=6)
-        values[f"fig01/{label}/s2_{s2}/integral"] = float(grid.integrate(gmm_density(grid.nodes, theta, s2)))
+        grid = make_grid(theta, sigma2=s2, grid_spacing=0.35, grid_margin=6)
+        values[f"fig01/{label}/s2_{s2}/integral"] = float(grid.integrate(gmm_density(grid.nodes, theta, sigma2=s2)))
 for ax in axes.ravel():
     ax.set_aspect("equal")
     ax.set_xticks([])

@@ -233,7 +233,7 @@ if fisher_rao:
         "intrinsic/adhd/fisher_rao/p": fr_test.p_value,
         "intrinsic/adhd/fisher_rao/distance": fr_test.distance,
         "intrinsic/adhd/fisher_rao/cos_alpha": cos_fr,
-        "intrinsic/adhd/fisher_rao/mean_gap_l2": float(sl.l2_distance(fr_pooled.mean, sub_alpha.pooled.mean, sigma2)
+        "intrinsic/adhd/fisher_rao/mean_gap_l2": float(sl.l2_distance(fr_pooled.mean, sub_alpha.pooled.mean, sigma2=sigma2)
                                                       / np.sqrt(sub_alpha.pooled.variance)),
     })
     fig = plotting.plot_mean_difference(fr_test, mag=magnification, every=4)

@@ -102,9 +102,9 @@ assert values["tutorial/tps_roundtrip_max_abs_diff"] == 0.0
 aligned = to_centroid_size(shapes, size=centroid_size)  # generalized Procrustes, then centroid size
 io.write_landmarks(out / "aligned.csv", aligned, specimens[["id", "class"]])
 values["tutorial/mean_landmark_spacing"] = landmark_spacing(aligned)
-values["tutorial/sigma_over_spacing"] = sigma_ratio(aligned, sigma2)
-print(f"pixels: sigma / spacing = {sigma_ratio(shapes, sigma2):.3f}; "
-      f"centroid size {centroid_size:g}: sigma / spacing = {sigma_ratio(aligned, sigma2):.2f}")
+values["tutorial/sigma_over_spacing"] = sigma_ratio(aligned, sigma2=sigma2)
+print(f"pixels: sigma / spacing = {sigma_ratio(shapes, sigma2=sigma2):.3f}; "
+      f"centroid size {centroid_size:g}: sigma / spacing = {sigma_ratio(aligned, sigma2=sigma2):.2f}")
 
 colors = dict(zip(classes, plt.rcParams["axes.prop_cycle"].by_key()["color"]))
 fig, axes = plt.subplots(1, 2, figsize=(10, 4))

@@ -15,8 +15,8 @@ Where each equation lives:
 * §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
 * log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
-  tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics`, on the engine through
-  :mod:`shapelib.population`
+  tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics` (each takes the engine's
+  ``n_jobs`` / ``client`` / ``scheduler`` itself)
 """
 
 from ._validate import InputError
@@ -53,8 +53,8 @@ _LAZY_SUBMODULES = ("io", "pairwise", "population", "statistics", "datasets", "s
 #: earlier names of submodules, still served on first use
 _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
-_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population", "tangent_pca": "population",
-                   "geodesic_regression": "population", "mean_difference_test": "population",
+_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "statistics", "tangent_pca": "statistics",
+                   "geodesic_regression": "statistics", "mean_difference_test": "statistics",
                    "TangentPCA": "statistics.tangent_pca"}
 
 

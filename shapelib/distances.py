@@ -1,22 +1,20 @@
-r"""One entry point for every shape distance in the study: :func:`distance`, :func:`pair_record`
+"""One entry point for every shape distance in the study: :func:`distance`, :func:`pair_record`
 (the matrix of a whole population: :func:`shapelib.pairwise_distances`), over one registry of
 metrics (:func:`metric_info`, :func:`register_metric`).
 
 ``metric`` names and what they compute (keyword options in brackets):
 
 ``"alpha"``, ``"fisher_rao"``
-    Geodesic length :math:`\int_0^1 \sqrt{\dot\theta^\top g(\theta)\, \dot\theta}\, dt` under
-    the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
+    Geodesic length under the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
     :func:`shapelib.geodesic` [``sigma2`` (required), ``n_steps``, ``tol``, ``max_iter``, ...];
     with ``rtol=x``, the upper end of the certified bracket of
-    :func:`shapelib.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
+    :func:`shapelib.solver.bracket.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
 ``"alpha_bound"``
-    Closed-form lower bound :math:`\|p_u - p_v\|` on the α geodesic distance (the L² distance of
-    the eq. 5 densities, :func:`shapelib.l2_distance`) [``sigma2``].
+    Closed-form lower bound ``‖p_u − p_v‖`` on the α geodesic distance (the L² distance of the
+    eq. 5 densities, :func:`shapelib.geometry.gmm.l2_distance`) [``sigma2``].
 ``"fisher_rao_bound"``
-    Great-circle lower bound :math:`2 \arccos \int \sqrt{p_u p_v}\, dx` on the Fisher–Rao
-    geodesic distance (:func:`shapelib.fisher_rao_lower_bound`) [``sigma2``,
-    ``grid_spacing``, ``grid_margin``].
+    Great-circle lower bound ``2 arccos ∫√(p_u p_v)`` on the Fisher–Rao geodesic distance
+    (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`) [``sigma2``, ``grid_spacing``, ``grid_margin``].
 ``"diffeomorphism"``
     Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.comparison.diffeomorphism`
     [``lam`` (default 10), ``kernel_width``, ``n_steps``, ...].
@@ -31,20 +29,16 @@ metrics (:func:`metric_info`, :func:`register_metric`).
 
 Each metric is one :class:`MetricInfo` record (its function, whether it is symmetric, a path
 metric, certifiable to ``rtol``, the function whose keyword options it takes, its lower-bound
-metric, a one-line description); :func:`register_metric` adds one, after which every entry point
-(the pairwise engine and its Dask workers, the CLI's ``--metric``) accepts its name.
+metric, its batched block function, whether it depends on pose, a one-line description);
+:func:`register_metric` adds one, after which every entry point (the pairwise engine and its Dask
+workers, the CLI's ``--metric``) accepts its name. The engine reads everything it needs from the
+record: it has no list of metric names of its own.
 
-Every per-pair computation of the library (the pairwise engine :mod:`shapelib.pairwise`, the CLI,
-the notebooks) goes through :func:`pair_record`. Paper-specific conventions (alignment, scale,
-squared values) belong to the study notebooks.
-
-For the information metrics every value is certified by its bounds,
-
-.. math::
-
-    \text{lower} \le d(u, v) \le \text{upper},
-
-the ``lower`` and ``upper`` of :func:`pair_record`.
+Validation happens once, at the public door: :func:`distance` and :func:`pair_record` check the
+options and the two shapes, then call the record's unchecked :meth:`MetricInfo.record`; the pairwise
+engine checks the options and the whole set of shapes once per run (and once per block on a Dask
+worker), then calls :meth:`MetricInfo.record` for every pair. Paper-specific conventions (alignment,
+scale, squared values) belong to the study notebooks.
 """
 
 from __future__ import annotations
@@ -55,19 +49,22 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence, Set
 from dataclasses import dataclass
-from functools import partial
+
+import numpy as np
+from functools import lru_cache, partial
 
 from ._validate import InputError, as_shape_pair, literal
 from .comparison.diffeomorphism import landmark_diffeomorphism
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
-from .geometry.procrustes import procrustes_distance
+from .geometry.bound_matrices import alpha_bound_block, fisher_rao_bound_block
+from .geometry.procrustes import procrustes_distance, procrustes_distance_unchecked
 from .solver.bracket import distance_bracket
 from .solver.geodesic import alpha_lower_bound, fisher_rao_lower_bound, geodesic
 
 __all__ = ["distance", "pair_record", "path_result", "check_metric_params",
-           "MetricInfo", "metric_info", "register_metric",
-           "METRICS", "SYMMETRIC", "PATH_METRICS", "BRACKET_METRICS", "RECORD_FIELDS"]
+           "MetricInfo", "metric_info", "register_metric", "pose_dependent",
+           "METRICS", "SYMMETRIC", "PATH_METRICS", "BRACKET_METRICS", "POSE_DEPENDENT", "RECORD_FIELDS"]
 
 #: keys of :func:`pair_record`'s dict, in order
 RECORD_FIELDS = ("value", "lower", "upper", "energy", "converged", "n_iter", "seconds")
@@ -114,6 +111,24 @@ class MetricInfo:
         Name of the registered metric that bounds this one from below, if any.
     description : str
         One line, shown by ``shapelib distances --help``.
+    block : callable or None
+        ``block(rows, cols=None, *, n_threads=None, **params)``: the metric between every shape of
+        ``rows`` (R, K, d) and every shape of ``cols`` (C, K, d) as one ``(R, C)`` array in one
+        batched call (``cols=None``: ``rows`` with itself), as :mod:`scipy.spatial.distance`'s
+        ``MetricInfo`` carries a ``pdist_func``. The pairwise engine computes a block of pairs with
+        it (without ``rtol``); a ``ValueError`` it raises sends the block pair by pair. None: pair by
+        pair always.
+    pose_dependent : bool or callable
+        Whether the value changes when one shape of a pair is rotated or moved; a callable
+        ``pose_dependent(params) -> bool`` when that depends on the options (``"wendland"`` with
+        ``affine=False``). The engine checks the pose of the shapes once for such a metric, the CLI
+        aligns them.
+    core : callable or None
+        ``core(u, v, **params)``: ``function`` without its input checks, for shapes that are
+        already float64 ``(K, d)`` arrays (checked once for a whole set); default ``function``.
+    quadrature : bool
+        The metric integrates on a grid of step ``grid_spacing · σ`` (the Fisher–Rao metrics): a σ
+        that leaves the grid nothing to resolve is an error before any work, once for a whole set.
 
     See Also
     --------
@@ -144,6 +159,10 @@ class MetricInfo:
     accepts: Callable | None = None
     lower_bound: str | None = None
     description: str = ""
+    block: Callable | None = None
+    pose_dependent: bool | Callable = False
+    core: Callable | None = None
+    quadrature: bool = False
 
     def options_of(self, rtol=None) -> Callable:
         """The function whose keyword options the metric takes (the bracket's with ``rtol``)."""
@@ -153,8 +172,31 @@ class MetricInfo:
 
     def compute(self, u, v, **params) -> float:
         """The distance of ``u`` and ``v`` (a path metric's geodesic length), unchecked."""
-        out = self.function(u, v, **params)
+        out = (self.core or self.function)(u, v, **params)
         return float(out.length if self.path else out)
+
+    def depends_on_pose(self, params: dict | None = None) -> bool:
+        """Whether the metric with options ``params`` depends on the pose of the shapes."""
+        pose = self.pose_dependent
+        return bool(pose(dict(params or {})) if callable(pose) else pose)
+
+    def record(self, u, v, *, rtol=None, **params) -> dict:
+        """:func:`pair_record` without its checks: ``u``, ``v`` float64 ``(K, d)`` arrays and
+        ``params`` (and ``rtol``) already checked (:func:`check_metric_params`)."""
+        t0 = time.perf_counter()
+        if rtol is not None:
+            b = self.bracket(u, v, rtol=rtol, **params)
+            rec = (b.upper, b.lower, b.upper, b.energy, b.converged, b.n_iter)
+        elif self.path:
+            r = (self.core or self.function)(u, v, **params)
+            rec = (r.length, r.lower_bound, r.length, r.energy, r.converged, r.n_iter)
+        else:
+            d = float((self.core or self.function)(u, v, **params))
+            rec = (d, d, d, math.nan, True, 0)
+        seconds = time.perf_counter() - t0
+        value, lower, upper, energy, converged, n_iter = rec
+        return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
+                "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
 
 
 _REGISTRY: dict[str, MetricInfo] = {}
@@ -162,8 +204,9 @@ _REGISTRY: dict[str, MetricInfo] = {}
 
 def register_metric(name: str, function: Callable, *, symmetric: bool = True, path: bool = False,
                     bracket: Callable | None = None, accepts: Callable | None = None,
-                    lower_bound: str | None = None, description: str = "",
-                    replace: bool = False) -> MetricInfo:
+                    lower_bound: str | None = None, description: str = "", block: Callable | None = None,
+                    pose_dependent: bool | Callable = False, core: Callable | None = None,
+                    quadrature: bool = False, replace: bool = False) -> MetricInfo:
     r"""Add a metric to the registry.
 
     Afterwards :func:`shapelib.distance`, :func:`shapelib.pair_record`,
@@ -238,15 +281,20 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
         raise ValueError(f"metric name must be an identifier-like string; got {name!r}")
     if name in _REGISTRY and not replace:
         raise ValueError(f"metric {name!r} is already registered; pass replace=True to replace it")
-    for what, f in (("function", function), ("bracket", bracket), ("accepts", accepts)):
+    for what, f in (("function", function), ("bracket", bracket), ("accepts", accepts), ("block", block),
+                    ("core", core)):
         if f is not None and not callable(f):
             raise ValueError(f"metric {name!r}: {what} must be callable; got {f!r}")
     if function is None:
         raise ValueError(f"metric {name!r}: function must be callable; got None")
     if lower_bound is not None and lower_bound not in _REGISTRY and lower_bound != name:
         raise ValueError(f"metric {name!r}: lower_bound {lower_bound!r} is not a registered metric")
+    if not callable(pose_dependent) and not isinstance(pose_dependent, (bool, np.bool_)):
+        raise ValueError(f"metric {name!r}: pose_dependent must be a bool or callable; got {pose_dependent!r}")
     info = MetricInfo(name=name, function=function, symmetric=bool(symmetric), path=bool(path), bracket=bracket,
-                      accepts=accepts, lower_bound=lower_bound, description=" ".join(str(description).split()))
+                      accepts=accepts, lower_bound=lower_bound, description=" ".join(str(description).split()),
+                      block=block, pose_dependent=pose_dependent if callable(pose_dependent) else bool(pose_dependent),
+                      core=core, quadrature=bool(quadrature))
     _REGISTRY[name] = info
     return info
 
@@ -375,6 +423,11 @@ SYMMETRIC = _NameSet(lambda m: m.symmetric)
 PATH_METRICS = _Names(lambda m: m.path)
 #: path metrics whose distance can be certified to a relative tolerance (``rtol=``)
 BRACKET_METRICS = _Names(lambda m: m.bracket is not None)
+#: metrics whose value changes when one shape of a pair is rotated or moved, whatever their options
+#: (the others — Procrustes, and the bending energies, whose matrices annihilate the affine part — do
+#: not; ``"wendland"`` does with ``affine=False``: :func:`pose_dependent`). The pairwise engine checks
+#: the shapes' pose for them (:func:`shapelib.geometry.procrustes.check_pose`), the CLI aligns them.
+POSE_DEPENDENT = _Names(lambda m: m.pose_dependent is True)
 
 
 #: name -> function of the metrics shapelib registers itself (see :func:`is_builtin`)
@@ -382,37 +435,42 @@ _BUILTIN = {}
 
 
 def is_builtin(info) -> bool:
-    """Whether the record ``info`` is shapelib's own metric of that name.
-
-    Not a replacement registered with ``register_metric(..., replace=True)``: the engine batches
-    only its own bounds.
+    """Whether the record ``info`` is shapelib's own metric of that name, not a replacement
+    registered with ``register_metric(..., replace=True)``.
     """
     return _BUILTIN.get(info.name) is info.function
 
 
-def _alpha_bound(u, v, *, sigma2):
-    return alpha_lower_bound(u, v, sigma2=sigma2)  # l2_distance with the geodesic's entry checks
+def _wendland_pose(params) -> bool:
+    """``"wendland"`` depends on pose only with ``affine=False`` (its energy then includes the affine part)."""
+    return params.get("affine", True) is False
 
 
 for _name, _fn, _kw in (
         ("alpha", partial(geodesic, metric="alpha"),
-         dict(path=True, bracket=partial(distance_bracket, metric="alpha"),
+         dict(path=True, bracket=partial(distance_bracket, metric="alpha"), pose_dependent=True,
               description="α-order geodesic length (eqs. 8, 22); needs sigma2; certifiable to a relative tolerance (rtol)")),
         ("fisher_rao", partial(geodesic, metric="fisher_rao"),
-         dict(path=True, bracket=partial(distance_bracket, metric="fisher_rao"),
+         dict(path=True, bracket=partial(distance_bracket, metric="fisher_rao"), pose_dependent=True, quadrature=True,
               description="Fisher–Rao geodesic length (eqs. 6, 8); needs sigma2; certifiable to a relative tolerance (rtol)")),
         ("diffeomorphism", landmark_diffeomorphism,
-         dict(path=True, description="landmark-diffeomorphism (Camion–Younes) geodesic length (eq. 3)")),
-        ("alpha_bound", _alpha_bound,
-         dict(description="closed-form lower bound ‖p_u − p_v‖ on alpha (eq. 5)")),
+         dict(path=True, pose_dependent=True,
+              description="landmark-diffeomorphism (Camion–Younes) geodesic length (eq. 3)")),
+        ("alpha_bound", alpha_lower_bound,
+         dict(block=alpha_bound_block, pose_dependent=True,
+              description="closed-form lower bound ‖p_u − p_v‖ on alpha (eq. 5)")),
         ("fisher_rao_bound", fisher_rao_lower_bound,
-         dict(description="great-circle lower bound 2 arccos ∫√(p_u p_v) on fisher_rao")),
-        ("procrustes", procrustes_distance, dict(description="Procrustes distance (kind: angle, full, partial)")),
-        ("hausdorff", hausdorff_distance, dict(description="symmetrised Hausdorff distance of the landmark sets")),
+         dict(block=fisher_rao_bound_block, pose_dependent=True, quadrature=True,
+              description="great-circle lower bound 2 arccos ∫√(p_u p_v) on fisher_rao")),
+        ("procrustes", procrustes_distance,
+         dict(core=procrustes_distance_unchecked, description="Procrustes distance (kind: angle, full, partial)")),
+        ("hausdorff", hausdorff_distance,
+         dict(pose_dependent=True, description="symmetrised Hausdorff distance of the landmark sets")),
         ("tps", tps_bending_energy,
          dict(symmetric=False, description="thin-plate spline bending energy of the map u -> v (not symmetric)")),
         ("wendland", wendland_bending_energy,
-         dict(symmetric=False, description="Wendland ψ3,1 spline bending energy of the map u -> v (not symmetric)")),
+         dict(symmetric=False, pose_dependent=_wendland_pose,
+              description="Wendland ψ3,1 spline bending energy of the map u -> v (not symmetric)")),
 ):
     register_metric(_name, _fn, **_kw)
     _BUILTIN[_name] = _fn
@@ -484,6 +542,19 @@ def target_function(metric, rtol):
     return metric_info(metric).options_of(rtol)
 
 
+@lru_cache(maxsize=256)
+def _options(function) -> tuple:
+    """``(takes **kwargs, option names, required option names)`` of a metric's function, read from
+    its signature once (``inspect.signature`` costs tens of µs: more than a cheap pair)."""
+    sig = inspect.signature(function)
+    if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+        return True, (), ()
+    allowed = tuple(name for name in sig.parameters if name not in _FIXED)
+    required = tuple(name for name, p in sig.parameters.items()
+                     if name not in _FIXED and p.default is p.empty and p.kind is not p.VAR_POSITIONAL)
+    return False, allowed, required
+
+
 def check_metric_params(metric, params: dict, *, rtol=None) -> None:
     r"""Check a metric's options against the function that computes it.
 
@@ -545,16 +616,13 @@ def check_metric_params(metric, params: dict, *, rtol=None) -> None:
             raise ValueError(f"rtol applies to the certified metrics {BRACKET_METRICS}, not {metric!r}")
         if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not (math.isfinite(rtol) and rtol > 0):
             raise ValueError(f"rtol must be a finite number > 0; got {rtol!r}")
-    sig = inspect.signature(info.options_of(rtol))
-    if any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+    any_option, allowed, required = _options(info.options_of(rtol))
+    if any_option:
         return
-    allowed = [name for name in sig.parameters if name not in _FIXED]
     unknown = sorted(set(params) - set(allowed))
     if unknown:
-        raise ValueError(f"metric {metric!r} has no parameter(s) {unknown}; it takes {allowed}")
-    missing = [name for name, p in sig.parameters.items()
-               if name not in _FIXED and p.default is p.empty and p.kind is not p.VAR_POSITIONAL
-               and name not in params]
+        raise ValueError(f"metric {metric!r} has no parameter(s) {unknown}; it takes {list(allowed)}")
+    missing = [name for name in required if name not in params]
     if missing:
         words = ", ".join("{sigma2}" if m == "sigma2" else f"{literal(m)}=..." for m in missing)
         raise InputError(f"metric {literal(repr(metric))} needs {words}", {"metric": metric, "parameters": tuple(missing)})
@@ -690,32 +758,42 @@ def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> di
     info = metric_info(metric)
     check_metric_params(info, params, rtol=rtol)
     u, v = as_shape_pair(u, v)
-    t0 = time.perf_counter()
-    if rtol is not None:
-        b = info.bracket(u, v, rtol=rtol, **params)
-        rec = (b.upper, b.lower, b.upper, b.energy, b.converged, b.n_iter)
-    elif info.path:
-        r = info.function(u, v, **params)
-        rec = (r.length, r.lower_bound, r.length, r.energy, r.converged, r.n_iter)
-    else:
-        d = float(info.function(u, v, **params))
-        rec = (d, d, d, math.nan, True, 0)
-    seconds = time.perf_counter() - t0
-    value, lower, upper, energy, converged, n_iter = rec
-    return {"value": float(value), "lower": float(lower), "upper": float(upper), "energy": float(energy),
-            "converged": bool(converged), "n_iter": int(n_iter), "seconds": float(seconds)}
+    return info.record(u, v, rtol=rtol, **params)
 
 
-#: metrics whose value changes when one shape of a pair is rotated or moved (the others — Procrustes,
-#: and the bending energies, whose matrices annihilate the affine part — do not): the pairwise engine
-#: checks the shapes' pose for them (:func:`shapelib.geometry.procrustes.check_pose`), the CLI aligns
-POSE_DEPENDENT = ("alpha", "fisher_rao", "alpha_bound", "fisher_rao_bound", "diffeomorphism", "hausdorff")
+def pose_dependent(metric, params: dict | None = None) -> bool:
+    """Whether ``metric`` with options ``params`` depends on the pose of the shapes.
 
+    The record's ``pose_dependent`` (:data:`POSE_DEPENDENT`; ``"wendland"`` with ``affine=False``
+    too, whose energy then includes the affine part): a value that changes when one shape of a
+    pair is rotated or moved; the information metrics of [1]_ depend on pose, Procrustes does not.
 
-def pose_dependent(metric: str, params: dict) -> bool:
-    """Whether ``metric`` with ``params`` depends on the pose of the shapes.
+    Parameters
+    ----------
+    metric : str or MetricInfo
+        A registered metric's name or record.
+    params : dict, optional
+        The metric's keyword options.
 
-    The metrics of ``POSE_DEPENDENT``; ``"wendland"`` too with ``affine=False``, whose energy then
-    includes the affine part.
+    Returns
+    -------
+    bool
+
+    See Also
+    --------
+    shapelib.geometry.procrustes.check_pose : the check the engine runs once for such a metric.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> pose_dependent("hausdorff"), pose_dependent("procrustes")
+    (True, False)
+    >>> pose_dependent("wendland", {"affine": False})
+    True
     """
-    return metric in POSE_DEPENDENT or (metric == "wendland" and params.get("affine", True) is False)
+    return metric_info(metric).depends_on_pose(params)

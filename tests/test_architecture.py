@@ -141,3 +141,30 @@ def test_the_mathematics_imports_no_io_dask_or_plotting(area):
              for t, _ in targets if t.split(".")[0] in FORBIDDEN_IN_MATH
              or (t.startswith("shapelib") and _area(t) in {"io", "pairwise", "plotting", "study", "cli", "datasets"})]
     assert not wrong, "\n".join(wrong)
+
+
+#: the compiled kernels (numba), long by nature, and the two modules another change splits
+LONG_MODULES_ALLOWED = {"shapelib.geometry._kernels": "compiled kernels",
+                        "shapelib.cli": "being split into a package by command group",
+                        "shapelib.io": "being split with the command line"}
+#: the most lines a module of the package may have
+MAX_MODULE_LINES = 700
+
+
+def test_every_module_is_a_small_room():
+    """No module over ~700 lines: a module with several jobs is a package of small private ones
+    (as :mod:`shapelib.pairwise` is)."""
+    long = {m: len(p.read_text().splitlines()) for m, p in MODULES.items()}
+    over = {m: n for m, n in long.items() if n > MAX_MODULE_LINES and m not in LONG_MODULES_ALLOWED}
+    assert not over, over
+    assert len(MODULES["shapelib.pairwise"].read_text().splitlines()) < 200  # the package's door, not its rooms
+
+
+def test_the_statistics_reach_the_engine_through_the_executor_module_only():
+    """The statistics take n_jobs / client / scheduler themselves through :mod:`shapelib._executor`
+    (Dask imported inside its functions), never through the pairwise engine or population."""
+    for mod, targets in IMPORTS.items():
+        if _area(mod) == "statistics":
+            assert not {t for t, _ in targets if t.startswith(("shapelib.pairwise", "shapelib.population"))}, mod
+    executor = {t for t, _ in IMPORTS["shapelib._executor"]}
+    assert not {t for t in executor if t.startswith("shapelib.") and t not in ("shapelib._validate",)}, executor

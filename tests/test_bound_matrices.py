@@ -63,7 +63,7 @@ def test_alpha_matrix_equals_l2_distance_pair_by_pair(rng, d, s2):
     n = len(x)
     for i in range(n):
         for j in range(i + 1, n):
-            ref = l2_distance(x[i], x[j], s2)
+            ref = l2_distance(x[i], x[j], sigma2=s2)
             assert a[i, j] == pytest.approx(ref, rel=1e-12, abs=0), (i, j)
     assert a[1, n - 1] == 0.0  # an exact copy: the cancellation-free form gives exactly 0
 
@@ -80,7 +80,7 @@ def test_alpha_near_pairs_match_a_60_digit_sum(rng, d):
     for j in (1, 2, 3):
         exact = np.sqrt(_decimal_l2_sq(x[0], x[j], s2))
         assert a[0, j] == pytest.approx(exact, rel=1e-12)
-        assert l2_distance(x[0], x[j], s2) == pytest.approx(exact, rel=1e-12)
+        assert l2_distance(x[0], x[j], sigma2=s2) == pytest.approx(exact, rel=1e-12)
     assert _l2_sq_near(x[:1], x[2:3], s2)[0] == pytest.approx(_decimal_l2_sq(x[0], x[2], s2), rel=1e-12)
 
 
@@ -105,7 +105,7 @@ def test_alpha_matrix_far_from_the_reference_uses_plain_overlaps(rng):
         a = alpha_bound_matrix(x, sigma2=s2)
         for i in range(len(x)):
             for j in range(i + 1, len(x)):
-                assert a[i, j] == pytest.approx(l2_distance(x[i], x[j], s2), rel=1e-12)
+                assert a[i, j] == pytest.approx(l2_distance(x[i], x[j], sigma2=s2), rel=1e-12)
 
 
 def test_alpha_matrix_is_a_symmetric_distance_matrix_and_threads_agree(rng):

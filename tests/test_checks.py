@@ -45,7 +45,7 @@ LAYOUT_ENTRY_POINTS = {
     "generalized_procrustes": lambda x: sl.generalized_procrustes(x),
     "to_centroid_size": lambda x: sl.to_centroid_size(x),
     "landmark_spacing": lambda x: sl.landmark_spacing(x),
-    "sigma_ratio": lambda x: sl.sigma_ratio(x, 0.5),
+    "sigma_ratio": lambda x: sl.sigma_ratio(x, sigma2=0.5),
     "check_scale": lambda x: sl.geometry.scale.check_scale(x, 0.5),
 }
 

@@ -57,7 +57,7 @@ def test_bound_metrics_are_the_closed_forms_and_bound_the_geodesics(shapes):
     from shapelib.distances import SYMMETRIC, pair_record
 
     u, v = shapes[:2]
-    assert distance(u, v, metric="alpha_bound", sigma2=0.5) == l2_distance(u, v, 0.5)
+    assert distance(u, v, metric="alpha_bound", sigma2=0.5) == l2_distance(u, v, sigma2=0.5)
     assert distance(u, v, metric="fisher_rao_bound", sigma2=0.5) == fisher_rao_lower_bound(u, v, sigma2=0.5)
     assert {"alpha_bound", "fisher_rao_bound"} <= SYMMETRIC
     for metric in ("alpha", "fisher_rao"):
@@ -104,7 +104,7 @@ def test_rtol_gives_the_certified_bracket(shapes):
 
     u, v = shapes[:2]
     rec = pair_record(u, v, metric="alpha", sigma2=0.5, rtol=1e-3)
-    assert rec["lower"] == pytest.approx(l2_distance(u, v, 0.5), rel=1e-12)
+    assert rec["lower"] == pytest.approx(l2_distance(u, v, sigma2=0.5), rel=1e-12)
     assert rec["lower"] <= rec["upper"] == rec["value"]
     assert rec["converged"] == (rec["upper"] / rec["lower"] - 1 <= 1e-3)
     assert rec["n_iter"] > 0 and rec["seconds"] > 0

@@ -89,8 +89,8 @@ def test_fisher_rao_lower_bound_matches_bhattacharyya_quadrature(pair):
     from shapelib.geometry.quadrature import make_grid
 
     u, v = pair
-    grid = make_grid(np.stack([u, v]), 0.5, spacing=0.1, margin=10)
-    bc = grid.integrate(np.sqrt(gmm_density(grid.nodes, u, 0.5) * gmm_density(grid.nodes, v, 0.5)))
+    grid = make_grid(np.stack([u, v]), sigma2=0.5, grid_spacing=0.1, grid_margin=10)
+    bc = grid.integrate(np.sqrt(gmm_density(grid.nodes, u, sigma2=0.5) * gmm_density(grid.nodes, v, sigma2=0.5)))
     assert fisher_rao_lower_bound(u, v, sigma2=0.5) == pytest.approx(2 * np.arccos(bc), rel=1e-6)
 
 

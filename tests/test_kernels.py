@@ -83,7 +83,7 @@ def test_fisher_rao_compiled_match_numpy(rng, d):
 
     theta, vel = rng.normal(size=(2, 3, 5, d))
     s2 = 0.4
-    grid = make_grid(theta, s2, margin=6)
+    grid = make_grid(theta, sigma2=s2, grid_margin=6)
     tol = 1e-10  # sums over ~10⁴ nodes with cancellation, in another order than numpy's: ~1e-12 apart
     assert _rel(fr_qform_compiled(theta, vel, s2, grid), _fr_qform(theta, vel, s2, grid)) < 1e-12
     grad = _fr_qform_grad(theta, vel, s2, grid)

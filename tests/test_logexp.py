@@ -105,7 +105,7 @@ def test_tangent_space_coordinates_are_isometric(pair, rng):
     assert np.isclose(ts.coords(a) @ ts.coords(b), ts.inner(a, b), rtol=1e-10)
     assert np.allclose(ts.vectors(ts.coords(a)), a)
     assert np.allclose(ts.project(a), a)
-    g = shapelib.alpha_metric(u, 1.0)
+    g = shapelib.alpha_metric(u, sigma2=1.0)
     assert np.isclose(ts.inner(a, b), a.ravel() @ g @ b.ravel())
     assert ts.discarded_fraction(a[None]) < 1e-12
 

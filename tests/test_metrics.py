@@ -20,24 +20,24 @@ from shapelib.geometry.quadrature import make_grid
 def grid_metrics(theta, s2, spacing=0.125, margin=10):
     """Independent brute-force evaluation of eqs. (6) and (22) on a fine grid."""
     k = len(theta)
-    grid = make_grid(theta, s2, spacing=spacing, margin=margin)
+    grid = make_grid(theta, sigma2=s2, grid_spacing=spacing, grid_margin=margin)
     x = grid.nodes
     n = np.exp(-((x[:, None, :] - theta[None]) ** 2).sum(-1) / (2 * s2)) / (2 * np.pi * s2)
     dp = (n[..., None] * (x[:, None, :] - theta[None]) / (k * s2)).reshape(len(x), -1)
-    p = gmm_density(x, theta, s2)
+    p = gmm_density(x, theta, sigma2=s2)
     return grid.weight * dp.T @ dp, grid.weight * (dp / p[:, None]).T @ dp
 
 
 def test_alpha_metric_closed_form_matches_quadrature(rng):
     theta = rng.normal(size=(5, 2))
     ga, _ = grid_metrics(theta, 0.3, spacing=0.25)
-    assert np.allclose(alpha_metric(theta, 0.3), ga, rtol=0, atol=1e-12 * np.abs(ga).max())
+    assert np.allclose(alpha_metric(theta, sigma2=0.3), ga, rtol=0, atol=1e-12 * np.abs(ga).max())
 
 
 def test_alpha_metric_structure(rng):
     theta = rng.normal(size=(4, 2))
     s2, k = 0.7, 4
-    g = alpha_metric(theta, s2)
+    g = alpha_metric(theta, sigma2=s2)
     assert np.allclose(g, g.T)
     # diagonal blocks are I / (8 π K² σ⁴): intra-landmark off-diagonals vanish (paper §IV)
     for a in range(k):
@@ -49,19 +49,19 @@ def test_alpha_metric_structure(rng):
 def test_fisher_rao_default_grid_accuracy(rng, s2):
     theta = rng.normal(size=(8, 2)) * 1.5
     _, gf = grid_metrics(theta, s2)
-    g = fisher_rao_metric(theta, s2)
+    g = fisher_rao_metric(theta, sigma2=s2)
     assert np.abs(g - gf).max() <= 1e-5 * np.abs(gf).max()
 
 
 def test_fisher_rao_single_landmark_is_identity_over_sigma2():
     for s2 in (0.05, 1.0, 3.0):
-        assert np.allclose(fisher_rao_metric(np.array([[0.3, -1.0]]), s2) * s2, np.eye(2), atol=1e-9)
+        assert np.allclose(fisher_rao_metric(np.array([[0.3, -1.0]]), sigma2=s2) * s2, np.eye(2), atol=1e-9)
 
 
 def test_fisher_rao_dominated_by_complete_data_information(rng):
     theta = rng.normal(size=(6, 2)) * 0.5
     s2 = 0.4
-    g = fisher_rao_metric(theta, s2)
+    g = fisher_rao_metric(theta, sigma2=s2)
     assert np.allclose(g, g.T)
     eig = np.linalg.eigvalsh(np.eye(12) / (6 * s2) - g)
     assert eig.min() > -1e-9
@@ -72,16 +72,16 @@ def test_well_separated_landmarks_decouple(rng):
     # far apart components: FR -> blockdiag(I/(Kσ²)), α off-diagonal blocks -> 0
     theta = np.array([[0.0, 0.0], [50.0, 0.0], [0.0, 50.0]])
     s2 = 0.5
-    assert np.allclose(fisher_rao_metric(theta, s2), np.eye(6) / (3 * s2), atol=1e-9)
-    g = alpha_metric(theta, s2)
+    assert np.allclose(fisher_rao_metric(theta, sigma2=s2), np.eye(6) / (3 * s2), atol=1e-9)
+    g = alpha_metric(theta, sigma2=s2)
     assert np.abs(g[:2, 2:]).max() < 1e-300 + 1e-200
 
 
 def test_quadratic_forms_match_matrices(rng):
     theta, v = rng.normal(size=(2, 5, 2))
     s2 = 0.6
-    assert alpha_quadratic_form(theta, v, s2) == pytest.approx(v.ravel() @ alpha_metric(theta, s2) @ v.ravel(), rel=1e-12)
-    assert fisher_rao_quadratic_form(theta, v, s2) == pytest.approx(v.ravel() @ fisher_rao_metric(theta, s2) @ v.ravel(), rel=1e-10)
+    assert alpha_quadratic_form(theta, v, sigma2=s2) == pytest.approx(v.ravel() @ alpha_metric(theta, sigma2=s2) @ v.ravel(), rel=1e-12)
+    assert fisher_rao_quadratic_form(theta, v, sigma2=s2) == pytest.approx(v.ravel() @ fisher_rao_metric(theta, sigma2=s2) @ v.ravel(), rel=1e-10)
 
 
 def test_rotation_equivariance(rng):
@@ -90,7 +90,7 @@ def test_rotation_equivariance(rng):
     r = np.array([[c, -s], [s, c]])
     big = np.kron(np.eye(4), r)
     for metric in (alpha_metric, fisher_rao_metric):
-        g, gr = metric(theta, 0.5), metric(theta @ r.T, 0.5)
+        g, gr = metric(theta, sigma2=0.5), metric(theta @ r.T, sigma2=0.5)
         assert np.allclose(gr, big @ g @ big.T, atol=1e-8 * np.abs(g).max())
 
 
@@ -101,7 +101,7 @@ def test_quadratic_form_gradients_against_finite_differences(rng, which):
     if which == "alpha":
         f = lambda t, w: _alpha_qform_grad(t[None], w[None], s2)
     else:
-        grid = make_grid(theta, s2, margin=8)  # fixed grid so the FD is of the same function
+        grid = make_grid(theta, sigma2=s2, grid_margin=8)  # fixed grid so the FD is of the same function
         f = lambda t, w: _fr_qform_grad(t[None], w[None], s2, grid)
     q, dt, dv = f(theta, v)
     eps = 1e-6
@@ -126,9 +126,9 @@ def test_quadratic_form_hessian_against_finite_differences(rng, d, metric):
     s2 = 0.4
     if metric == "alpha":
         hess, grad = (lambda t, w: alpha_qform_hessian(t, w, s2)), (lambda t, w: _alpha_qform_grad(t, w, s2))
-        tensors = np.stack([alpha_metric(t, s2) for t in theta])
+        tensors = np.stack([alpha_metric(t, sigma2=s2) for t in theta])
     else:
-        grid = make_grid(theta, s2, margin=6)  # fixed grid: the FD is of the same function
+        grid = make_grid(theta, sigma2=s2, grid_margin=6)  # fixed grid: the FD is of the same function
         hess, grad = (lambda t, w: _fr_qform_hessian(t, w, s2, grid)), (lambda t, w: _fr_qform_grad(t, w, s2, grid))
         tensors = fr_tensor_batch(theta, s2, grid)
     q_tt, q_tv, q_vv = hess(theta, v)
@@ -154,13 +154,13 @@ def test_quadratic_form_hessian_against_finite_differences(rng, d, metric):
 
 def test_metric_errors():
     with pytest.raises(ValueError, match="sigma2"):
-        alpha_metric(np.zeros((2, 2)), 0.0)
+        alpha_metric(np.zeros((2, 2)), sigma2=0.0)
     with pytest.raises(ValueError, match="non-finite"):
-        fisher_rao_metric(np.array([[np.nan, 0.0]]), 1.0)
+        fisher_rao_metric(np.array([[np.nan, 0.0]]), sigma2=1.0)
     with pytest.raises(ValueError, match="velocity must have the shape"):
-        alpha_quadratic_form(np.zeros((2, 2)), np.zeros((3, 2)), 1.0)
+        alpha_quadratic_form(np.zeros((2, 2)), np.zeros((3, 2)), sigma2=1.0)
     with pytest.raises(ValueError, match="spacing"):
-        fisher_rao_metric(np.zeros((2, 2)), 1.0, spacing=0)
+        fisher_rao_metric(np.zeros((2, 2)), sigma2=1.0, grid_spacing=0)
 
 
 @pytest.mark.parametrize("d", [2, 3])
@@ -172,9 +172,9 @@ def test_psi_on_tensor_grid_matches_direct_log_space_evaluation(rng, d):
     s2 = 0.05 if d == 2 else 0.5
     far = 80 * np.sqrt(s2) * np.eye(d)
     theta = np.concatenate([rng.normal(size=(4, d)) * 0.3 + far[0], rng.normal(size=(4, d)) * 0.3 + far[1]])
-    grid = make_grid(theta, s2, spacing=0.5, margin=4)
+    grid = make_grid(theta, sigma2=s2, grid_spacing=0.5, grid_margin=4)
     psi, coef = psi_coef(theta, s2, grid)
-    p = gmm_density(grid.nodes, theta, s2)
+    p = gmm_density(grid.nodes, theta, sigma2=s2)
     nk = np.exp(-((grid.nodes[:, None, :] - theta[None]) ** 2).sum(-1) / (2 * s2)) / (2 * np.pi * s2) ** (d / 2)
     near = p > 1e-250  # where the direct evaluation itself is meaningful
     assert np.sum(~near) > 0 and np.sum(near) > 0  # both regimes are exercised

@@ -25,7 +25,7 @@ def test_result():
     stretch = np.column_stack([0.2 * base[:, 0], np.zeros(12)])
     x = shapelib.pose_align(np.stack([base + (i >= 8) * stretch + 0.1 * rng.normal(size=base.shape)
                                       for i in range(16)]))[0]
-    return mean_difference_test(x, [0] * 8 + [1] * 8, sigma2=1.0, n_permutations=99, geodesic_steps=8), x
+    return mean_difference_test(x, [0] * 8 + [1] * 8, sigma2=1.0, n_permutations=99, geodesic_steps=8, n_jobs=1), x
 
 
 def test_deformation_grid_follows_the_magnified_geodesic(test_result):
@@ -46,7 +46,7 @@ def test_figures_are_drawn(test_result, tmp_path):
     fig = plotting.plot_mean_difference(res, mag=2.0, n_lines=9)
     fig.savefig(tmp_path / "difference.png")
     assert len(fig.axes) == 2
-    pca = tangent_pca(x, mean=res.pooled, modes=(0, 1), sd=(-2, 0, 2))
+    pca = tangent_pca(x, mean=res.pooled, modes=(0, 1), sd=(-2, 0, 2), n_jobs=1)
     fig = plotting.plot_modes(pca, components=(0, 1), sd=(-2, 0, 2))
     fig.savefig(tmp_path / "modes.png")
     assert len(fig.axes) == 6
@@ -68,6 +68,6 @@ def test_three_dimensional_shapes_are_drawn_but_have_no_plane_grid():
     with pytest.raises(ValueError, match="3-D"):
         plotting.deformation_grid(geo)
     no_geo = mean_difference_test(np.stack([u, 1.01 * u, 0.99 * u, 1.02 * u]), [0, 0, 1, 1], sigma2=1.0,
-                                  n_permutations=19, group_means=False)
+                                  n_permutations=19, group_means=False, n_jobs=1)
     with pytest.raises(ValueError, match="group_means=False"):
         plotting.plot_mean_difference(no_geo)

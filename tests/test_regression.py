@@ -37,7 +37,7 @@ def test_noiseless_data_on_a_geodesic_are_recovered(metric):
     geo = shapelib.geodesic(u, v, metric=metric, sigma2=1.0, n_steps=8, tol=1e-12)
     idx = np.array([0, 2, 3, 5, 8])
     y, t = geo.path[idx], 10.0 + idx / 8 * 4
-    res = geodesic_regression(y, t, metric=metric, sigma2=1.0, path_steps=8, tol=1e-6)
+    res = geodesic_regression(y, t, metric=metric, sigma2=1.0, path_steps=8, tol=1e-6, n_jobs=1)
     assert res.converged and res.r2 > 1 - 1e-9
     assert np.abs(res.fitted - y).max() < 1e-6
     assert np.abs(res.path - geo.path).max() < 1e-6  # the whole geodesic, between the data too
@@ -46,7 +46,7 @@ def test_noiseless_data_on_a_geodesic_are_recovered(metric):
 
 def test_half_way_points_and_velocity(geodesic_data):
     geo, y, t = geodesic_data
-    res = geodesic_regression(y, t, sigma2=1.0, tol=1e-6, path_steps=16)
+    res = geodesic_regression(y, t, sigma2=1.0, tol=1e-6, path_steps=16, n_jobs=1)
     assert res.r2 > 1 - 1e-9
     # the geodesic's speed in t: its length over the covariate range
     assert np.isclose(res.speed * (t.max() - t.min()), geo.length, rtol=0.02)
@@ -62,7 +62,7 @@ def test_noisy_fit_is_stationary_and_r2_is_fletchers(geodesic_data):
     geo, y, t = geodesic_data
     rng = np.random.default_rng(2)
     noisy = y + 0.1 * rng.normal(size=y.shape)
-    res = geodesic_regression(noisy, t, sigma2=1.0, tol=1e-4)
+    res = geodesic_regression(noisy, t, sigma2=1.0, tol=1e-4, n_jobs=1)
     assert res.converged and 0 < res.r2 < 1
     # R² = 1 − Σd²(y, ŷ) / Σd²(y, mean), every d² a geodesic energy recomputed independently
     ss_res = sum(shapelib.geodesic(f, x, sigma2=1.0, n_steps=4, tol=1e-10).energy
@@ -89,7 +89,7 @@ def test_small_sigma_limit_is_linear_regression():
     y = base + (t - 14)[:, None, None] * slope / 6 + 0.05 * rng.normal(size=(9, *base.shape))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", shapelib.ScaleWarning)
-        res = geodesic_regression(y, t, sigma2=0.09, tol=1e-9)
+        res = geodesic_regression(y, t, sigma2=0.09, tol=1e-9, n_jobs=1)
     tc = t - t.mean()
     b = np.einsum("n,nkd->kd", tc, y) / (tc @ tc)
     a = y.mean(axis=0)
@@ -106,17 +106,17 @@ def test_three_dimensional_landmarks():
     v = shapelib.procrustes_align(u, v, scaling=False)  # a pair in pose
     geo = shapelib.geodesic(u, v, sigma2=1.0, n_steps=8, tol=1e-12)
     idx = np.array([0, 3, 5, 8])
-    res = geodesic_regression(geo.path[idx], idx / 8.0, sigma2=1.0, path_steps=8, tol=1e-6)
+    res = geodesic_regression(geo.path[idx], idx / 8.0, sigma2=1.0, path_steps=8, tol=1e-6, n_jobs=1)
     assert res.r2 > 1 - 1e-9 and res.intercept.shape == (8, 3)
 
 
 def test_bad_input(geodesic_data):
     _, y, t = geodesic_data
     with pytest.raises(ValueError, match="one value per shape"):
-        geodesic_regression(y, t[:-1], sigma2=1.0)
+        geodesic_regression(y, t[:-1], sigma2=1.0, n_jobs=1)
     with pytest.raises(ValueError, match="constant"):
-        geodesic_regression(y, np.ones(len(y)), sigma2=1.0)
+        geodesic_regression(y, np.ones(len(y)), sigma2=1.0, n_jobs=1)
     with pytest.raises(ValueError, match="non-finite"):
-        geodesic_regression(y, np.where(np.arange(len(t)) == 3, np.nan, t), sigma2=1.0)
+        geodesic_regression(y, np.where(np.arange(len(t)) == 3, np.nan, t), sigma2=1.0, n_jobs=1)
     with pytest.raises(ValueError, match="mean must be"):
-        geodesic_regression(y, t, sigma2=1.0, mean=y[0])
+        geodesic_regression(y, t, sigma2=1.0, mean=y[0], n_jobs=1)

@@ -23,8 +23,8 @@ def test_landmark_spacing_of_a_lattice_and_its_invariances(rng):
     c, s = np.cos(1.1), np.sin(1.1)
     moved = 3.0 * x @ np.array([[c, -s], [s, c]]).T + [5.0, -2.0]
     assert landmark_spacing(np.stack([x, moved])) == pytest.approx(0.5 * (0.7 + 2.1), rel=1e-12)
-    assert sigma_ratio(x, 0.49) == pytest.approx(1.0, rel=1e-12)
-    assert sigma_ratio(np.zeros((3, 2)), 1.0) == np.inf
+    assert sigma_ratio(x, sigma2=0.49) == pytest.approx(1.0, rel=1e-12)
+    assert sigma_ratio(np.zeros((3, 2)), sigma2=1.0) == np.inf
     with pytest.raises(ValueError, match="at least 2 landmarks"):
         landmark_spacing(np.zeros((1, 2)))
 
@@ -109,6 +109,6 @@ def test_fisher_rao_grid_is_refused_before_it_is_built():
             with pytest.raises(ValueError, match=r"would have [\d,]+ nodes .*GiB.*to_centroid_size"):
                 f(u, u + 1.0, metric="fisher_rao", sigma2=13.0)
     with pytest.raises(ValueError, match="above the limit of 10 nodes x landmarks"):
-        quadrature.make_grid(np.zeros((1, 2)), 1.0, max_entries=10)
+        quadrature.make_grid(np.zeros((1, 2)), sigma2=1.0, max_entries=10)
     with pytest.raises(ValueError, match="non-finite"):
-        quadrature.make_grid(np.array([[0.0, np.nan]]), 1.0)
+        quadrature.make_grid(np.array([[0.0, np.nan]]), sigma2=1.0)

@@ -43,9 +43,9 @@ def test_one_factor_equals_scikit_bio_draw_for_draw(shift):
 
     y, g = _points(n=30, shift=shift, seed=1)
     d = cdist(y, y)
-    ours = permanova(d, {"group": g}, permutations=199, seed=7)
+    ours = permanova(d, {"group": g}, n_permutations=199, seed=7)
     for permute in ("residuals", "rows"):
-        other = permanova(d, {"group": g}, permutations=199, seed=7, permute=permute)
+        other = permanova(d, {"group": g}, n_permutations=199, seed=7, permute=permute)
         assert other.table.loc["group", "pseudo_F"] == pytest.approx(ours.table.loc["group", "pseudo_F"], rel=1e-12)
         np.testing.assert_allclose(other.null["group"], ours.null["group"], rtol=1e-10)
     sk = sk_permanova(DistanceMatrix(d), g, permutations=199, seed=7)
@@ -61,7 +61,7 @@ def test_three_groups_match_scikit_bio_non_euclidean():
     y = rng.normal(size=(33, 2))
     d = cdist(y, y, "cityblock") ** 0.5  # not Euclidean-embeddable in general
     g = np.repeat(["x", "y", "z"], 11)
-    ours = permanova(d, pd.DataFrame({"g": pd.Categorical(g)}), permutations=99, seed=0)
+    ours = permanova(d, pd.DataFrame({"g": pd.Categorical(g)}), n_permutations=99, seed=0)
     sk = sk_permanova(DistanceMatrix(d), g, permutations=99, seed=0)
     assert ours.table.loc["g", "df"] == 2
     assert ours.table.loc["g", "pseudo_F"] == pytest.approx(sk["test statistic"], rel=1e-12)
@@ -76,7 +76,7 @@ def test_f_with_covariates_equals_least_squares_trace_f():
     grp = np.array([0, 1] * (n // 2))
     y = rng.normal(size=(n, 4)) + 0.3 * age[:, None] + 0.5 * grp[:, None]
     d = cdist(y, y)
-    res = permanova(d, {"group": grp, "sex": sex, "age": age}, permutations=19, seed=0)
+    res = permanova(d, {"group": grp, "sex": sex, "age": age}, n_permutations=19, seed=0)
     one = np.ones((n, 1))
     for term, others in [("group", [sex, age]), ("sex", [grp, age]), ("age", [grp, sex])]:
         z = np.column_stack([one] + others)
@@ -86,7 +86,7 @@ def test_f_with_covariates_equals_least_squares_trace_f():
     assert res.table.loc["Total", "sum_of_squares"] == pytest.approx(np.sum(yc**2), rel=1e-12)
     assert res.table.loc["Residual", "df"] == n - 4
     # sequential sums of squares add up to the model's
-    seq = permanova(d, {"group": grp, "sex": sex, "age": age}, by="terms", permutations=9, seed=0).table
+    seq = permanova(d, {"group": grp, "sex": sex, "age": age}, by="terms", n_permutations=9, seed=0).table
     assert seq.loc[["group", "sex", "age", "Residual"], "sum_of_squares"].sum() == pytest.approx(
         seq.loc["Total", "sum_of_squares"], rel=1e-12)
     assert seq.loc["age", "pseudo_F"] == pytest.approx(res.table.loc["age", "pseudo_F"], rel=1e-9)  # last term
@@ -99,7 +99,7 @@ def test_freedman_lane_permuted_f_equals_refit_on_permuted_residuals():
     grp = np.array([0, 1] * (n // 2))
     y = rng.normal(size=(n, 3)) + 0.2 * age[:, None]
     d = cdist(y, y)
-    res = permanova(d, {"group": grp, "age": age}, permutations=5, seed=11)
+    res = permanova(d, {"group": grp, "age": age}, n_permutations=5, seed=11)
     r = np.random.default_rng(11)
     perms = np.stack([r.permutation(n) for _ in range(5)])
     z = np.column_stack([np.ones(n), age])
@@ -121,7 +121,7 @@ def test_sequential_permuted_f_equals_refit_on_residuals_of_the_other_terms():
     grp = (rng.uniform(size=n) < 0.5 + 0.02 * (age - 14)).astype(int)  # correlated with age
     y = rng.normal(size=(n, 3)) + 0.3 * age[:, None]
     d = cdist(y, y)
-    res = permanova(d, {"group": grp, "age": age}, by="terms", permutations=6, seed=5)
+    res = permanova(d, {"group": grp, "age": age}, by="terms", n_permutations=6, seed=5)
     r = np.random.default_rng(5)
     perms = np.stack([r.permutation(n) for _ in range(6)])
     one = np.ones((n, 1))
@@ -154,7 +154,7 @@ def test_a_term_without_effect_keeps_its_size_when_a_later_term_has_one(by):
         grp = rng.permutation(np.array([0, 1] * (n // 2)))
         age = rng.normal(size=n)
         y = rng.normal(size=(n, 2)) + 3.0 * age[:, None]
-        res = permanova(cdist(y, y), {"group": grp, "age": age}, by=by, permutations=99, seed=rep)
+        res = permanova(cdist(y, y), {"group": grp, "age": age}, by=by, n_permutations=99, seed=rep)
         rejections += res.table.loc["group", "p_value"] <= 0.05
     assert 4 <= rejections <= 19
 
@@ -184,7 +184,7 @@ def test_exact_ties_in_the_null_count_towards_p():
     ties = sum(ss_within(g[p]) == observed for p in draws)
     assert ties > 0  # the case under test
     for permute in ("residuals", "rows"):
-        res = permanova(d.astype(float), {"g": g}, permute=permute, permutations=199, seed=0)
+        res = permanova(d.astype(float), {"g": g}, permute=permute, n_permutations=199, seed=0)
         assert res.table.loc["g", "p_value"] == pytest.approx((1 + exact) / 200, abs=1e-15)
 
 
@@ -192,8 +192,8 @@ def test_numeric_covariates_in_any_units():
     y, g = _points(n=20, seed=3)
     age = np.random.default_rng(3).uniform(7, 21, 20)
     d = cdist(y, y)
-    base = permanova(d, {"g": g, "age": age}, permutations=19, seed=0).table
-    tiny = permanova(d, {"g": g, "age": age * 1e-12}, permutations=19, seed=0).table
+    base = permanova(d, {"g": g, "age": age}, n_permutations=19, seed=0).table
+    tiny = permanova(d, {"g": g, "age": age * 1e-12}, n_permutations=19, seed=0).table
     pd.testing.assert_frame_equal(base, tiny, rtol=1e-9)
 
 
@@ -201,14 +201,14 @@ def test_f_invariant_to_relabelling_scaling_and_reordering():
     y, g = _points(n=30, shift=0.8, seed=5)
     d = cdist(y, y)
     age = np.linspace(0, 1, 30)
-    base = permanova(d, {"g": g, "age": age}, permutations=99, seed=3).table
-    swapped = permanova(d, {"g": np.where(g == "a", "b", "a"), "age": age}, permutations=99, seed=3).table
-    scaled = permanova(7.5 * d, {"g": g, "age": age}, permutations=99, seed=3).table
+    base = permanova(d, {"g": g, "age": age}, n_permutations=99, seed=3).table
+    swapped = permanova(d, {"g": np.where(g == "a", "b", "a"), "age": age}, n_permutations=99, seed=3).table
+    scaled = permanova(7.5 * d, {"g": g, "age": age}, n_permutations=99, seed=3).table
     pd.testing.assert_frame_equal(base, swapped, rtol=1e-10)
     pd.testing.assert_frame_equal(base[["df", "r2", "pseudo_F", "p_value"]],
                                   scaled[["df", "r2", "pseudo_F", "p_value"]], rtol=1e-10)
     order = np.random.default_rng(0).permutation(30)
-    moved = permanova(d[np.ix_(order, order)], {"g": g[order], "age": age[order]}, permutations=9, seed=3).table
+    moved = permanova(d[np.ix_(order, order)], {"g": g[order], "age": age[order]}, n_permutations=9, seed=3).table
     assert moved.loc["g", "pseudo_F"] == pytest.approx(base.loc["g", "pseudo_F"], rel=1e-10)
 
 
@@ -216,7 +216,7 @@ def test_identical_groups_give_zero_f_and_p_one():
     y, _ = _points(n=20, seed=6)
     y2 = np.vstack([y, y])  # every point once in each group: the group centroids coincide
     g = np.repeat(["a", "b"], 20)
-    res = permanova(cdist(y2, y2), {"g": g}, permutations=99, seed=0)
+    res = permanova(cdist(y2, y2), {"g": g}, n_permutations=99, seed=0)
     assert res.table.loc["g", "pseudo_F"] == pytest.approx(0.0, abs=1e-12)
     assert res.table.loc["g", "p_value"] == 1.0
 
@@ -231,14 +231,14 @@ def test_p_values_are_calibrated_under_the_null_with_a_covariate():
         grp = np.array([0, 1] * (n // 2))
         age = rng.normal(size=n) + grp  # confounded with the grouping
         y = rng.normal(size=(n, 2)) + 2.0 * age[:, None]
-        res = permanova(cdist(y, y), {"group": grp, "age": age}, permutations=99, seed=rep)
+        res = permanova(cdist(y, y), {"group": grp, "age": age}, n_permutations=99, seed=rep)
         rejections += res.table.loc["group", "p_value"] <= 0.05
     assert 4 <= rejections <= 19
 
 
 def test_a_real_difference_is_detected():
     y, g = _points(n=40, shift=1.5, seed=8)
-    res = permanova(cdist(y, y), {"g": g}, permutations=199, seed=0)
+    res = permanova(cdist(y, y), {"g": g}, n_permutations=199, seed=0)
     assert res.table.loc["g", "p_value"] == pytest.approx(1 / 200)
 
 
@@ -259,7 +259,7 @@ def test_permanova_errors_name_the_problem():
         permanova(d, {"g": g}, permute="labels")
     for bad in (0, None, True, 2.5, "99"):
         with pytest.raises(ValueError, match="permutations must be a positive integer"):
-            permanova(d, {"g": g}, permutations=bad)
+            permanova(d, {"g": g}, n_permutations=bad)
     with pytest.raises(ValueError, match="all zero"):
         permanova(np.zeros((10, 10)), {"g": g})
     with pytest.raises(ValueError, match=r"\['h'\] are not columns"):
@@ -302,7 +302,7 @@ def test_knn_equals_scikit_learn_permutation_test_score_draw_for_draw():
 
     y, g = _points(n=30, shift=1.0, seed=9)
     d = cdist(y, y)
-    ours = knn_loo_accuracy(d, g, n_neighbors=3, permutations=15, seed=4)
+    ours = knn_loo_accuracy(d, g, n_neighbors=3, n_permutations=15, seed=4)
     score, null, p = permutation_test_score(
         KNeighborsClassifier(n_neighbors=3, metric="precomputed"), d, g, cv=LeaveOneOut(), n_permutations=15,
         random_state=4)
@@ -314,7 +314,7 @@ def test_knn_equals_scikit_learn_permutation_test_score_draw_for_draw():
 
 def test_knn_separable_groups_and_errors():
     y, g = _points(n=40, shift=8.0, seed=10)
-    res = knn_loo_accuracy(cdist(y, y), g, n_neighbors=5, permutations=99, seed=0)
+    res = knn_loo_accuracy(cdist(y, y), g, n_neighbors=5, n_permutations=99, seed=0)
     assert res.accuracy == 1.0 and res.p_value == pytest.approx(0.01)
     assert (res.predictions == g).all()
     assert abs(res.null.mean() - 0.5) < 0.1  # chance level under permutation
@@ -356,7 +356,7 @@ def test_mantel_errors_name_the_problem():
     d = cdist(*[np.arange(6.0)[:, None]] * 2)
     for bad in (0, -1, 2.5, None, "99", True):
         with pytest.raises(ValueError, match="permutations must be a positive integer"):
-            mantel_test(d, d, permutations=bad)
+            mantel_test(d, d, n_permutations=bad)
     flat = np.ones((6, 6)) - np.eye(6)
     with pytest.raises(ValueError, match="y has all off-diagonal distances equal"):
         mantel_test(d, flat)
@@ -368,12 +368,12 @@ def test_mantel_identical_monotone_and_independent():
     rng = np.random.default_rng(13)
     y = rng.normal(size=(30, 2))
     d = cdist(y, y)
-    r, p = mantel_test(d, d**2, permutations=99)
+    r, p = mantel_test(d, d**2, n_permutations=99)
     assert r == pytest.approx(1.0) and p == pytest.approx(0.01)  # Spearman: squaring is monotone
-    r_p, _ = mantel_test(d, d**2, method="pearson", permutations=9)
+    r_p, _ = mantel_test(d, d**2, method="pearson", n_permutations=9)
     assert r_p < 1.0
     z = rng.normal(size=(30, 2))
-    r0, p0 = mantel_test(d, cdist(z, z), permutations=99)
+    r0, p0 = mantel_test(d, cdist(z, z), n_permutations=99)
     assert abs(r0) < 0.2 and p0 > 0.01
     with pytest.raises(ValueError, match="method"):
         mantel_test(d, d, method="kendall")

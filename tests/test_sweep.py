@@ -54,9 +54,9 @@ def test_permanova_sweep_equals_permanova_per_matrix_and_finds_the_informative_s
     noise = rng.normal(size=y.shape)
     mats = [_euclid(noise), _euclid(y), _euclid(rng.normal(size=y.shape))]
     cov = pd.DataFrame({"group": labels})
-    sweep = permanova_sweep(mats, cov, term="group", permutations=199, seed=3)
+    sweep = permanova_sweep(mats, cov, term="group", n_permutations=199, seed=3)
     for d, res in zip(mats, sweep.results):
-        one = permanova(d, cov, permutations=199, seed=3)
+        one = permanova(d, cov, n_permutations=199, seed=3)
         assert res.table.loc["group", "pseudo_F"] == one.table.loc["group", "pseudo_F"]
     assert sweep.best == 1 and sweep.p_values[1] == pytest.approx(1 / 200)
     assert sweep.p_family <= 3 / 200 and "min-P" in sweep.summary()
@@ -65,8 +65,8 @@ def test_permanova_sweep_equals_permanova_per_matrix_and_finds_the_informative_s
 def test_knn_sweep_one_matrix_is_the_plain_test(rng):
     y, labels = _population(rng, effect=1.0)
     d = _euclid(y)
-    sweep = knn_sweep([d], labels, n_neighbors=3, permutations=99, seed=1)
-    plain = knn_loo_accuracy(d, labels, n_neighbors=3, permutations=99, seed=1)
+    sweep = knn_sweep([d], labels, n_neighbors=3, n_permutations=99, seed=1)
+    plain = knn_loo_accuracy(d, labels, n_neighbors=3, n_permutations=99, seed=1)
     assert sweep.statistic[0] == plain.accuracy and sweep.p_values[0] == pytest.approx(plain.p_value)
     assert sweep.p_family == pytest.approx(plain.p_value)
 

@@ -10,7 +10,7 @@ def test_translation_gives_a_constant_flow(rng):
     theta = rng.normal(size=(5, 2))
     c = np.array([0.7, -0.3])
     axes = [np.linspace(-4, 4, 30), np.linspace(-4, 4, 30)]
-    flow = likelihood_flow(theta, np.tile(c, (5, 1)), 0.5, axes, lam=1e-2)
+    flow = likelihood_flow(theta, np.tile(c, (5, 1)), sigma2=0.5, axes=axes, lam=1e-2)
     assert np.allclose(flow[..., 0], c[0], atol=1e-6) and np.allclose(flow[..., 1], c[1], atol=1e-6)
 
 

@@ -41,7 +41,7 @@ def main(argv=None) -> Path:
     grid = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
     fig, axes = plt.subplots(1, TIMES, figsize=(2.0 * TIMES, 2.0), layout="constrained")
     for ax, k in zip(axes, steps):
-        density = sl.gmm_density(grid, r.path[k], SIGMA2).reshape(len(ys), len(xs))
+        density = sl.gmm_density(grid, r.path[k], sigma2=SIGMA2).reshape(len(ys), len(xs))
         ax.imshow(density, origin="lower", extent=(lo[0], hi[0], lo[1], hi[1]), cmap="magma")
         ax.plot(r.path[k, :, 0], r.path[k, :, 1], ".", color="white", ms=2.5)
         ax.set_title(f"t = {k / (len(r.path) - 1):.2g}", fontsize=9)

@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from scipy.interpolate import RegularGridInterpolator
 from scipy.sparse.linalg import spsolve
 
-from .._validate import as_shape, check_positive
+from .._validate import as_shape, check_positive, keeps_old_calls
 from ..solver.geodesic import GeodesicResult
 
 __all__ = ["likelihood_flow", "extrinsic_warp"]
@@ -51,7 +51,8 @@ def _laplacian(nx, ny, hx, hy):
     return sp.kron(d2(nx, hx), sp.identity(ny)) + sp.kron(sp.identity(nx), d2(ny, hy))
 
 
-def likelihood_flow(theta, velocity, sigma2, axes, *, lam: float):
+@keeps_old_calls(keyword_only=("sigma2", "axes"))
+def likelihood_flow(theta, velocity, *, sigma2, axes, lam: float):
     r"""The flow (u, v) of eq. (26) on a grid for a shape moving with given landmark velocities.
 
     Minimises, over the grid values of the flow, the discretised energy of [1]_
@@ -195,7 +196,7 @@ def extrinsic_warp(points, geodesic_result: GeodesicResult, *, lam: float = 1e-3
     out = [x.copy()]
     for t in range(n):
         axes = _axes(np.vstack([path[t], path[t + 1], x]), int(grid_size), margin)
-        flow = likelihood_flow(0.5 * (path[t] + path[t + 1]), n * (path[t + 1] - path[t]), s2, axes, lam=lam)
+        flow = likelihood_flow(0.5 * (path[t] + path[t + 1]), n * (path[t + 1] - path[t]), sigma2=s2, axes=axes, lam=lam)
         interp = [RegularGridInterpolator(axes, flow[..., i]) for i in range(2)]
         mid = x + 0.5 / n * np.column_stack([f(x) for f in interp])  # midpoint rule in time
         mid = np.clip(mid, [axes[0][0], axes[1][0]], [axes[0][-1], axes[1][-1]])

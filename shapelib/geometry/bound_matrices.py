@@ -1,30 +1,20 @@
-r"""The closed-form lower bounds of a whole population as matrix products.
+"""The closed-form lower bounds of a whole population as matrix products.
 
 Both lower bounds the library certifies geodesic distances with are inner products of functions
 of one shape each, so the N × N matrix of a population is a handful of matrix products instead
 of N(N − 1)/2 separate pairs.
 
-α-order bound (eq. 22's metric is the pull-back of L²; :func:`shapelib.l2_distance`)
-    With the closed-form overlap :math:`g(z) = \exp(-|z|^2/4\sigma^2)`,
-
-    .. math::
-
-        \|p_i - p_j\|^2 = \langle p_i, p_i\rangle + \langle p_j, p_j\rangle - 2\langle p_i, p_j\rangle,
-        \qquad \langle p_i, p_j\rangle = \frac{(4\pi\sigma^2)^{-d/2}}{K^2} \sum_{a,b} g(x_{ia} - x_{jb}).
-
-    The self
+α-order bound (eq. 22's metric is the pull-back of L²; :func:`shapelib.geometry.gmm.l2_distance`)
+    ``‖p_i − p_j‖² = ⟨p_i, p_i⟩ + ⟨p_j, p_j⟩ − 2⟨p_i, p_j⟩`` with the closed-form overlap
+    ``⟨p_i, p_j⟩ = (4πσ²)^{-d/2} / K² · Σ_ab g(x_ia − x_jb)``, ``g(z) = exp(−|z|²/4σ²)``. The self
     terms are one per shape, so a pair costs its K² cross Gaussians. Shapes of a population are
     close, though, and that difference cancels: at the study's scale the squared distance is
     typically 10⁻³ of ``⟨p_i, p_i⟩`` and down to 10⁻⁸ (:mod:`shapelib.geometry.gmm`, "Near
     shapes"). So the overlaps are taken around a reference shape ``m`` (the mean landmarks):
-    with :math:`q = p - p_m` and offsets :math:`\delta = x - m`,
-    :math:`\|p_i - p_j\|^2 = \|q_i\|^2 + \|q_j\|^2 - 2\langle q_i, q_j\rangle`, where
+    with ``q = p − p_m`` and offsets ``δ = x − m``,
+    ``‖p_i − p_j‖² = ‖q_i‖² + ‖q_j‖² − 2⟨q_i, q_j⟩``, where
 
-    .. math::
-
-        K^2 (4\pi\sigma^2)^{d/2} \langle q_i, q_j\rangle = \sum_{a,b} A_{i,ab} B_{j,ab}
-        - \sum_{a,b} g(x_{ia} - x_{jb})\,
-        \operatorname{expm1}\!\left(-\frac{\delta_{ia} \cdot \delta_{jb}}{2\sigma^2}\right)
+        (K² (4πσ²)^{d/2}) ⟨q_i, q_j⟩ = Σ_ab A_i,ab B_j,ab − Σ_ab g(x_ia − x_jb) expm1(−δ_ia·δ_jb / 2σ²)
 
     is the sum of the mixed second differences of ``g`` around ``r = m_a − m_b`` (``A``, ``B``:
     ``√g(r)`` times ``expm1`` of per-shape exponents; :func:`_alpha_factors`). The first sum is one
@@ -35,22 +25,17 @@ of N(N − 1)/2 separate pairs.
     count (``benchmarks/bench_pairwise.py`` measures both). Now the difference cancels only as far
     as two shapes are closer to each other than to ``m``: the pairs where it has cancelled more
     than one digit (:data:`ALPHA_NEAR_CENTRED`) are recomputed pair by pair without any
-    cancellation, exactly as :func:`~shapelib.l2_distance` does. The expansion needs
+    cancellation, exactly as :func:`~shapelib.geometry.gmm.l2_distance` does. The expansion needs
     every landmark within √2 σ of ``m`` (beyond, the two sums grow like ``exp(|δ|²/2σ²)`` and
     cancel each other); pairs with a shape further out — at small σ, most of them — use the plain
     overlaps, which at such σ barely cancel (:data:`ALPHA_NEAR_PLAIN`). Either way the result
-    agrees with :func:`~shapelib.l2_distance` to ~1e-13 relative
+    agrees with :func:`~shapelib.geometry.gmm.l2_distance` to ~1e-13 relative
     (``tests/test_bound_matrices.py`` asks 1e-12).
 
-Fisher–Rao bound (``2√p`` on the sphere of radius 2; :func:`shapelib.fisher_rao_lower_bound`)
-    .. math::
-
-        d_{ij} = 4 \arcsin\frac{\|\psi_i - \psi_j\|}{4}, \qquad \psi = 2\sqrt{p},
-
-    by the trapezoid rule on one grid covering every shape
-    (:func:`shapelib.geometry.quadrature.make_grid`): with ``S`` the N × M matrix of ψ at the
-    M nodes and ``w`` the node weight,
-    :math:`\|\psi_i - \psi_j\|^2 = w (S S^\top)_{ii} + w (S S^\top)_{jj} - 2 w (S S^\top)_{ij}`.
+Fisher–Rao bound (``2√p`` on the sphere of radius 2; :func:`shapelib.solver.geodesic.fisher_rao_lower_bound`)
+    ``4 arcsin(‖ψ_i − ψ_j‖ / 4)``, ``ψ = 2√p``, by the trapezoid rule on one grid covering every
+    shape (:func:`shapelib.geometry.quadrature.make_grid`): with ``S`` the N × M matrix of ψ at the
+    M nodes and ``w`` the node weight, ``‖ψ_i − ψ_j‖² = w (S Sᵀ)_ii + w (S Sᵀ)_jj − 2 w (S Sᵀ)_ij``.
     On the tensor grid each shape's density is a product of per-axis factors, so a row of ``S``
     is itself one matrix product ``F_x F_yᵀ`` (2-D; 3-D: ``(F_x ⊙ F_y) F_zᵀ``), and ``S Sᵀ`` is one
     symmetric rank-M update (BLAS ``syrk``), accumulated over chunks of nodes so the memory stays
@@ -80,6 +65,18 @@ Fisher–Rao bound (``2√p`` on the sphere of radius 2; :func:`shapelib.fisher_
     the Fisher–Rao grid scales with σ (step ``grid_spacing · σ``), so nothing carries over and
     each value is one :func:`fisher_rao_bound_matrix` (its cost grows like σ^{-d}: the small-σ
     end dominates a sweep).
+
+Where each bound lives
+    One implementation per bound and scale. One pair: the α bound is
+    :func:`shapelib.geometry.gmm.l2_distance` (:func:`shapelib.solver.geodesic.alpha_lower_bound`
+    adds the entry checks of a geodesic), the Fisher–Rao bound
+    :meth:`shapelib.solver.path_metric.FisherRaoPathMetric.lower_bound`
+    (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`); :func:`shapelib.solver.bracket.lower_bound`
+    picks one by metric name. Many pairs: :func:`alpha_bound_block` and :func:`fisher_rao_bound_block`
+    here (``cols=None``: the symmetric matrix, which :func:`alpha_bound_matrix` and
+    :func:`fisher_rao_bound_matrix` name), the ``block`` function of the ``"alpha_bound"`` and
+    ``"fisher_rao_bound"`` records of :mod:`shapelib.distances` (:data:`BLOCKS`, which
+    :func:`bound_block` dispatches on); :func:`bound_matrix_sweep` for many σ².
 
 Threads. ``n_threads`` (default: every core this process may use) runs blocks of rows on a
 thread pool — ``numpy.exp`` and BLAS release the GIL — with BLAS on one thread inside each, so
@@ -392,7 +389,7 @@ def alpha_bound_matrix(shapes, *, sigma2, n_threads: int | None = None) -> np.nd
     return _alpha_matrices(x, None, np.array([check_sigma2(sigma2)]), n_threads=_threads(n_threads))[0]
 
 
-def alpha_bound_block(rows, cols, *, sigma2, n_threads: int | None = None) -> np.ndarray:
+def alpha_bound_block(rows, cols=None, *, sigma2, n_threads: int | None = None) -> np.ndarray:
     r"""The ``(R, C)`` block of α bounds ``‖p_i − p_j‖`` between two sets of shapes.
 
     A block of :func:`~shapelib.alpha_bound_matrix` (blocks assemble to the
@@ -407,7 +404,8 @@ def alpha_bound_block(rows, cols, *, sigma2, n_threads: int | None = None) -> np
     ----------
     rows : array_like, shape (R, K, d)
         Shapes of the block's rows.
-    cols : array_like, shape (C, K, d)
+    cols : array_like, shape (C, K, d), optional
+        (default None: ``rows`` with itself, the symmetric matrix with a zero diagonal)
         Shapes of its columns (same K and d).
     sigma2 : float, keyword-only
         σ² > 0 of eq. (5).
@@ -446,7 +444,8 @@ def alpha_bound_block(rows, cols, *, sigma2, n_threads: int | None = None) -> np
     ((1, 2), True)
     """
     x, y = _pair_of_sets(rows, cols)
-    return _alpha_matrices(x, y, np.array([check_sigma2(sigma2)]), n_threads=_threads(n_threads))[0]
+    return _alpha_matrices(x, None if cols is None else y, np.array([check_sigma2(sigma2)]),
+                           n_threads=_threads(n_threads))[0]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -490,7 +489,7 @@ def _psi_chunks(x, grid, s2):
 
 def _fr_grid(x, y, s2, spacing, margin):
     points = x if y is None else np.concatenate([x, y])
-    return make_grid(points, s2, spacing=spacing, margin=margin)
+    return make_grid(points, sigma2=s2, grid_spacing=spacing, grid_margin=margin)
 
 
 def _fr_matrix(x, y, s2, *, spacing, margin, n_threads):
@@ -616,7 +615,7 @@ def fisher_rao_bound_matrix(shapes, *, sigma2, grid_spacing: float = DEFAULT_SPA
                       n_threads=_threads(n_threads))
 
 
-def fisher_rao_bound_block(rows, cols, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
+def fisher_rao_bound_block(rows, cols=None, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
                            grid_margin: float = DEFAULT_MARGIN, n_threads: int | None = None) -> np.ndarray:
     r"""The ``(R, C)`` block of Fisher–Rao bounds between two sets of shapes, on one grid covering both.
 
@@ -631,7 +630,8 @@ def fisher_rao_bound_block(rows, cols, *, sigma2, grid_spacing: float = DEFAULT_
     ----------
     rows : array_like, shape (R, K, d)
         Shapes of the block's rows.
-    cols : array_like, shape (C, K, d)
+    cols : array_like, shape (C, K, d), optional
+        (default None: ``rows`` with itself, the symmetric matrix with a zero diagonal)
         Shapes of its columns (same K and d).
     sigma2 : float, keyword-only
         σ² > 0 of eq. (5).
@@ -676,7 +676,8 @@ def fisher_rao_bound_block(rows, cols, *, sigma2, grid_spacing: float = DEFAULT_
     """
     x, y = _pair_of_sets(rows, cols)
     spacing, margin = _check_grid_options(grid_spacing, grid_margin)
-    return _fr_matrix(x, y, check_sigma2(sigma2), spacing=spacing, margin=margin, n_threads=_threads(n_threads))
+    return _fr_matrix(x, None if cols is None else y, check_sigma2(sigma2), spacing=spacing, margin=margin,
+                      n_threads=_threads(n_threads))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -736,15 +737,11 @@ def bound_block(metric: str, rows, cols=None, *, n_threads: int | None = None, *
     ...                     sl.alpha_bound_matrix(shapes, sigma2=0.5)))
     True
     """
-    if metric == "alpha_bound":
-        if cols is None:
-            return alpha_bound_matrix(rows, n_threads=n_threads, **params)
-        return alpha_bound_block(rows, cols, n_threads=n_threads, **params)
-    if metric == "fisher_rao_bound":
-        if cols is None:
-            return fisher_rao_bound_matrix(rows, n_threads=n_threads, **params)
-        return fisher_rao_bound_block(rows, cols, n_threads=n_threads, **params)
-    raise ValueError(f"metric must be one of {BOUND_METRICS}; got {metric!r}")
+    try:
+        block = BLOCKS[metric]
+    except (KeyError, TypeError):
+        raise ValueError(f"metric must be one of {BOUND_METRICS}; got {metric!r}") from None
+    return block(rows, cols, n_threads=n_threads, **params)
 
 
 def bound_matrix_sweep(shapes, *, metric: str, sigma2s, grid_spacing: float = DEFAULT_SPACING,
@@ -818,3 +815,7 @@ def bound_matrix_sweep(shapes, *, metric: str, sigma2s, grid_spacing: float = DE
         return np.stack([_fr_matrix(x, None, s2, spacing=spacing, margin=margin, n_threads=n_threads)
                          for s2 in s2s])
     raise ValueError(f"metric must be one of {BOUND_METRICS}; got {metric!r}")
+
+
+#: the block function of each closed-form bound (what its :class:`shapelib.distances.MetricInfo` carries)
+BLOCKS = {"alpha_bound": alpha_bound_block, "fisher_rao_bound": fisher_rao_bound_block}

@@ -50,7 +50,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import logsumexp
 
-from .._validate import as_shape, as_shape_pair, check_sigma2
+from .._validate import as_shape, as_shape_pair, check_sigma2, keeps_old_calls
 
 __all__ = [
     "gmm_density",
@@ -83,7 +83,8 @@ def _point_sets(a, b, names):
     return a, b
 
 
-def gmm_log_density(x, theta, sigma2) -> np.ndarray:
+@keeps_old_calls(keyword_only=("sigma2",))
+def gmm_log_density(x, theta, *, sigma2) -> np.ndarray:
     r"""Log of the GMM shape density of eq. (5), computed stably (log-sum-exp).
 
     The logarithm of the shape density of [1]_, without leaving log space:
@@ -142,7 +143,8 @@ def gmm_log_density(x, theta, sigma2) -> np.ndarray:
     return logsumexp(log_n, axis=1) - np.log(k)
 
 
-def gmm_density(x, theta, sigma2) -> np.ndarray:
+@keeps_old_calls(keyword_only=("sigma2",))
+def gmm_density(x, theta, *, sigma2) -> np.ndarray:
     r"""The GMM shape density of eq. (5).
 
     A shape of K landmarks is the equal-weight mixture of K isotropic Gaussians centred on its
@@ -197,10 +199,11 @@ def gmm_density(x, theta, sigma2) -> np.ndarray:
     >>> sl.gmm_density([[0.0, 0.0], [5.0, 5.0]], theta, 0.5).round(4)
     array([0.1842, 0.    ])
     """
-    return np.exp(gmm_log_density(x, theta, sigma2))
+    return np.exp(gmm_log_density(x, theta, sigma2=sigma2))
 
 
-def gaussian_overlap(a, b, sigma2) -> np.ndarray:
+@keeps_old_calls(keyword_only=("sigma2",))
+def gaussian_overlap(a, b, *, sigma2) -> np.ndarray:
     r"""Matrix of overlaps of two sets of isotropic Gaussians of variance σ².
 
     .. math::
@@ -257,7 +260,8 @@ def gaussian_overlap(a, b, sigma2) -> np.ndarray:
     return np.exp(-_sqdist(a, b) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2)
 
 
-def l2_inner(u, v, sigma2) -> float:
+@keeps_old_calls(keyword_only=("sigma2",))
+def l2_inner(u, v, *, sigma2) -> float:
     r"""Closed-form L² inner product of the GMM densities (eq. 5) of two shapes.
 
     .. math::
@@ -305,10 +309,11 @@ def l2_inner(u, v, sigma2) -> float:
     >>> round(l2_inner(u, u, 0.5), 4)
     0.1278
     """
-    return float(gaussian_overlap(u, v, sigma2).mean())
+    return float(gaussian_overlap(u, v, sigma2=sigma2).mean())
 
 
-def l2_distance(u, v, sigma2) -> float:
+@keeps_old_calls(keyword_only=("sigma2",))
+def l2_distance(u, v, *, sigma2) -> float:
     r"""Closed-form L² distance between the GMM densities (eq. 5) of two shapes.
 
     .. math::
@@ -364,8 +369,8 @@ def l2_distance(u, v, sigma2) -> float:
     """
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
-    uu, vv = l2_inner(u, u, s2), l2_inner(v, v, s2)
-    sq = uu + vv - 2 * l2_inner(u, v, s2)
+    uu, vv = l2_inner(u, u, sigma2=s2), l2_inner(v, v, sigma2=s2)
+    sq = uu + vv - 2 * l2_inner(u, v, sigma2=s2)
     if sq <= L2_NEAR * (uu + vv) and _small_displacement(u[None], v[None], s2)[0]:
         sq = float(_l2_sq_near(u[None], v[None], s2)[0])
     return float(np.sqrt(max(sq, 0.0)))

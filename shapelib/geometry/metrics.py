@@ -50,7 +50,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernels
-from .._validate import as_shape, check_sigma2
+from .._validate import as_shape, check_sigma2, keeps_old_calls
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, Grid, make_grid
 
 __all__ = [
@@ -90,7 +90,8 @@ def _alpha_metric_blocks(c, delta, s2: float) -> np.ndarray:
     return out
 
 
-def alpha_metric(theta, sigma2) -> np.ndarray:
+@keeps_old_calls(keyword_only=("sigma2",))
+def alpha_metric(theta, *, sigma2) -> np.ndarray:
     r"""The α-order (α = 2) entropy metric tensor of eq. (22), in closed form.
 
     The Havrda–Charvát entropy with α = 2 turns the φ-entropy metric of Burbea and Rao (eq. 19) into
@@ -178,7 +179,8 @@ def _alpha_qform(theta: np.ndarray, vel: np.ndarray, s2: float) -> np.ndarray:
     return np.einsum("mab,mab->m", c, vv / (2 * s2) - dva * dvb / (4 * s2 * s2))
 
 
-def alpha_quadratic_form(theta, velocity, sigma2) -> float:
+@keeps_old_calls(keyword_only=("sigma2",))
+def alpha_quadratic_form(theta, velocity, *, sigma2) -> float:
     r"""The α-order metric's quadratic form :math:`\dot\theta^\top g^\alpha(\theta)\, \dot\theta`, without the matrix.
 
     The integrand of the path energy (eq. 8) under the metric of eq. (22) [1]_: for a shape ``theta``
@@ -249,15 +251,61 @@ def alpha_quadratic_form(theta, velocity, sigma2) -> float:
 
 
 def psi_coef(theta: np.ndarray, s2: float, grid: Grid):
-    """``ψ = 2√p`` at the grid nodes (M,) and ``coef_ma = N_a(x_m) / (K σ² √p(x_m))`` (M, K).
+    r"""The Fisher–Rao integrands' building blocks at the grid nodes: ψ = 2√p and the coefficients of ∂ψ/∂φ.
 
-    ``∂ψ/∂φ_a (x_m) = coef_ma r_ma`` with ``r_ma = x_m − φ_a``. On a tensor grid the Gaussians
-    factorise over coordinates, ``exp(−|x − φ_a|²/2σ²) = Π_i exp(−(x_i − φ_ai)²/2σ²)``, so only
-    ``Σ_i n_i K`` exponentials are needed instead of ``M K`` (each factor scaled by its largest
-    value per node coordinate, so it lies in (0, 1]); the products, ``ψ`` and ``coef`` are one
-    compiled pass over the nodes (:func:`shapelib.geometry._kernels.psi_coef_grid`). Nodes where the
-    product underflows (far from every landmark) are recomputed in log space by
-    :func:`_psi_coef_nodes`.
+    With :math:`N_a(x) = \mathcal{N}(x; \phi_a, \sigma^2 I)` and :math:`r_{ma} = x_m - \phi_a`,
+
+    .. math::
+
+        \psi(x_m) = 2\sqrt{p(x_m)}, \qquad
+        \frac{\partial \psi}{\partial \phi_a}(x_m) = c_{ma}\, r_{ma}, \qquad
+        c_{ma} = \frac{N_a(x_m)}{K \sigma^2 \sqrt{p(x_m)}},
+
+    the integrand of eq. (6) of [1]_ in its stable form :math:`\int \partial_i\psi\, \partial_j\psi`.
+    On a tensor grid the Gaussians factorise over coordinates, so only :math:`\sum_i n_i K`
+    exponentials are needed instead of :math:`M K` (each factor scaled by its largest value per
+    node coordinate, so it lies in (0, 1]); the products, ψ and ``coef`` are one compiled pass over
+    the nodes (``shapelib.geometry._kernels.psi_coef_grid``). Nodes where the product underflows
+    (far from every landmark) are recomputed in log space.
+
+    Parameters
+    ----------
+    theta : ndarray, shape (K, d)
+        Landmarks (not checked).
+    s2 : float
+        σ² of eq. (5).
+    grid : Grid
+        The quadrature grid (:func:`~shapelib.geometry.quadrature.make_grid`).
+
+    Returns
+    -------
+    psi : ndarray, shape (M,)
+        :math:`\psi` at the nodes.
+    coef : ndarray, shape (M, K)
+        :math:`c_{ma}`.
+
+    See Also
+    --------
+    shapelib.fisher_rao_metric : The Gram matrix of these derivatives.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    :math:`\int \psi^2 = 4 \int p = 4`:
+
+    >>> import numpy as np
+    >>> from shapelib.geometry.metrics import psi_coef
+    >>> from shapelib.geometry.quadrature import make_grid
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> grid = make_grid(theta, 0.5)
+    >>> psi, coef = psi_coef(theta, 0.5, grid)
+    >>> coef.shape, round(float(grid.integrate(psi ** 2)), 6)
+    ((1681, 3), 4.0)
     """
     k, d = theta.shape
     if len(grid.axes) != d:
@@ -332,7 +380,8 @@ def _fr_gram(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     return out.reshape(k * d, k * d)
 
 
-def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin: float = DEFAULT_MARGIN) -> np.ndarray:
+@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
+def fisher_rao_metric(theta, *, sigma2, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN) -> np.ndarray:
     r"""The Fisher–Rao metric tensor of eq. (6) for the GMM of eq. (5), by quadrature.
 
     The Fisher information of the landmark coordinates, a Riemannian metric on the shapes [1]_ [2]_:
@@ -345,7 +394,7 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
         \qquad \psi = 2\sqrt{p} \qquad \text{(eq. 6)}
 
     It has no closed form for a mixture: the right-hand form (numerically stable in the tails) is
-    integrated by the trapezoid rule on a grid of step ``spacing·σ`` reaching ``margin·σ`` beyond the
+    integrated by the trapezoid rule on a grid of step ``grid_spacing·σ`` reaching ``grid_margin·σ`` beyond the
     landmarks (see :mod:`shapelib.geometry.quadrature` for its accuracy).
 
     Parameters
@@ -354,10 +403,11 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
         Landmarks (GMM means).
     sigma2 : float
         σ² > 0 of eq. (5).
-    spacing : float, default 0.35
-        Grid step in units of σ.
-    margin : float, default 6.0
-        Grid margin beyond the landmarks, in units of σ.
+    grid_spacing : float, default 0.35
+        Grid step in units of σ (formerly ``spacing``: still accepted for one release, with a
+        :class:`DeprecationWarning`).
+    grid_margin : float, default 6.0
+        Grid margin beyond the landmarks, in units of σ (formerly ``margin``, likewise).
 
     Returns
     -------
@@ -402,7 +452,7 @@ def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin
     """
     theta = as_shape(theta, name="theta")
     s2 = check_sigma2(sigma2)
-    grid = make_grid(theta, s2, spacing=spacing, margin=margin)
+    grid = make_grid(theta, sigma2=s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     g = grid.weight * _fr_gram(theta, s2, grid)
     return 0.5 * (g + g.T)
 
@@ -420,8 +470,9 @@ def _fr_qform(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.n
     return np.array([grid.integrate(_fr_psidot(t, w, s2, grid)[3] ** 2) for t, w in zip(theta, vel)])
 
 
-def fisher_rao_quadratic_form(theta, velocity, sigma2, *, spacing: float = DEFAULT_SPACING,
-                              margin: float = DEFAULT_MARGIN) -> float:
+@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
+def fisher_rao_quadratic_form(theta, velocity, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
+                              grid_margin: float = DEFAULT_MARGIN) -> float:
     r"""The Fisher–Rao quadratic form :math:`\dot\theta^\top g(\theta)\, \dot\theta`, by quadrature, no matrix.
 
     The integrand of the path energy (eq. 8) under the metric of eq. (6) [1]_:
@@ -441,10 +492,11 @@ def fisher_rao_quadratic_form(theta, velocity, sigma2, *, spacing: float = DEFAU
         Landmark velocities :math:`\dot\theta`, in the layout of ``theta``.
     sigma2 : float
         σ² > 0 of eq. (5).
-    spacing : float, default 0.35
-        Grid step in units of σ.
-    margin : float, default 6.0
-        Grid margin beyond the landmarks, in units of σ.
+    grid_spacing : float, default 0.35
+        Grid step in units of σ (formerly ``spacing``: still accepted for one release, with a
+        :class:`DeprecationWarning`).
+    grid_margin : float, default 6.0
+        Grid margin beyond the landmarks, in units of σ (formerly ``margin``, likewise).
 
     Returns
     -------
@@ -483,7 +535,7 @@ def fisher_rao_quadratic_form(theta, velocity, sigma2, *, spacing: float = DEFAU
     if vel.shape != theta.shape:
         raise ValueError(f"velocity must have the shape of theta {theta.shape}; got {vel.shape}")
     s2 = check_sigma2(sigma2)
-    grid = make_grid(theta, s2, spacing=spacing, margin=margin)
+    grid = make_grid(theta, sigma2=s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     return float(_fr_qform(theta[None], vel[None], s2, grid)[0])
 
 
@@ -514,21 +566,67 @@ def _alpha_qform_grad(theta: np.ndarray, vel: np.ndarray, s2: float):
 
 
 def alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
-    """Second derivatives of ``Q = vᵀ g_α(θ) v``: ``(Q_θθ, Q_θv, Q_vv)``, each (m, K d, K d).
+    r"""Second derivatives of the α quadratic form ``Q = vᵀ g_α(θ) v``: ``(Q_θθ, Q_θv, Q_vv)``.
 
-    ``Q = Σ_ab f(Δ_ab, V_a, V_b)`` over ordered pairs, with ``f = c(Δ) h``,
-    ``c = exp(−|Δ|²/4σ²)/((4πσ²)^{d/2} K²)``, ``h = V_a·V_b/(2σ²) − (Δ·V_a)(Δ·V_b)/(4σ⁴)`` and
-    ``Δ = φ_a − φ_b``. Each term depends on the positions only through Δ, and the terms (a, b)
-    and (b, a) are the same function, so with ``H_ab = ∂²f/∂Δ²``, ``M_ab = ∂²f/∂Δ∂V_b`` and
-    ``N_ab = ∂²f/∂Δ∂V_a`` (rows Δ, columns V) evaluated at the ordered pair (a, b):
+    :math:`Q = \sum_{ab} f(\Delta_{ab}, V_a, V_b)` over ordered pairs (eq. 22 of [1]_ in closed form),
+    with :math:`f = c(\Delta) h`,
 
-        Q_θθ[a, b] = −2 H_ab,  Q_θθ[a, a] = 2 Σ_{b≠a} H_ab,
-        Q_θv[a, b] = 2 M_ab,   Q_θv[a, a] = 2 Σ_{b≠a} N_ab,   Q_vv = 2 g_α,
+    .. math::
 
-    with ``∇_Δ c = −c Δ/(2σ²)`` and ``∇_Δ h = −((Δ·V_b) V_a + (Δ·V_a) V_b)/(4σ⁴)``. Computed one
-    coordinate pair (i, j) at a time on contiguous (m, K, K) arrays. Used for exact Newton steps
-    on the α path energy; checked against finite differences of :func:`_alpha_qform_grad`.
+        c = \frac{e^{-|\Delta|^2/4\sigma^2}}{(4\pi\sigma^2)^{d/2} K^2}, \qquad
+        h = \frac{V_a \cdot V_b}{2\sigma^2} - \frac{(\Delta \cdot V_a)(\Delta \cdot V_b)}{4\sigma^4},
+        \qquad \Delta = \phi_a - \phi_b.
+
+    Each term depends on the positions only through Δ, and the terms (a, b) and (b, a) are the same
+    function, so with :math:`H_{ab} = \partial^2 f / \partial\Delta^2`,
+    :math:`M_{ab} = \partial^2 f / \partial\Delta\, \partial V_b` and
+    :math:`N_{ab} = \partial^2 f / \partial\Delta\, \partial V_a` (rows Δ, columns V) evaluated at
+    the ordered pair (a, b):
+
+    .. math::
+
+        Q_{\theta\theta}[a, b] = -2 H_{ab}, \quad Q_{\theta\theta}[a, a] = 2 \sum_{b \ne a} H_{ab}, \quad
+        Q_{\theta v}[a, b] = 2 M_{ab}, \quad Q_{\theta v}[a, a] = 2 \sum_{b \ne a} N_{ab}, \quad
+        Q_{vv} = 2 g^\alpha,
+
+    with :math:`\nabla_\Delta c = -c \Delta / (2\sigma^2)` and
+    :math:`\nabla_\Delta h = -((\Delta \cdot V_b) V_a + (\Delta \cdot V_a) V_b) / (4\sigma^4)`.
+    Computed one coordinate pair (i, j) at a time on contiguous (m, K, K) arrays. Used for exact
+    Newton steps on the α path energy; checked against finite differences of the gradient.
     ``Q_θv`` has rows indexed by θ and columns by v.
+
+    Parameters
+    ----------
+    theta, vel : ndarray, shape (m, K, d)
+        Positions and velocities (a batch of m nodes).
+    s2 : float
+        σ² of eq. (5).
+
+    Returns
+    -------
+    q_tt, q_tv, q_vv : ndarray, shape (m, K d, K d)
+        The three second-derivative blocks.
+
+    See Also
+    --------
+    shapelib.alpha_quadratic_form : :math:`Q` itself.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.metrics import alpha_qform_hessian
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
+    >>> q_tt, q_tv, q_vv = alpha_qform_hessian(theta[None], vel[None], 0.5)
+    >>> q_tt.shape, bool(np.allclose(q_vv[0], 2 * sl.alpha_metric(theta, 0.5)))
+    ((1, 6, 6), True)
     """
     m, k, d = theta.shape
     s4 = 4 * s2 * s2
@@ -567,7 +665,46 @@ def alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
 
 
 def alpha_tensor_batch(theta: np.ndarray, s2: float) -> np.ndarray:
-    """α metric tensors for a batch of shapes (m, K, d) -> (m, K d, K d)."""
+    r"""α metric tensors of eq. (22) for a batch of shapes.
+
+    For each shape, the blocks :math:`g^\alpha_{ab} = c_{ab} [I/(2\sigma^2) - \Delta\Delta^\top/(4\sigma^4)]`,
+    :math:`c_{ab} = G(\Delta_{ab})/K^2` (module docstring; [1]_):
+
+    .. math::
+
+        g^\alpha_{ij} = \int \frac{\partial p}{\partial \theta_i} \frac{\partial p}{\partial \theta_j}\, dx.
+
+    Parameters
+    ----------
+    theta : ndarray, shape (m, K, d)
+        The shapes (not checked).
+    s2 : float
+        σ² of eq. (5).
+
+    Returns
+    -------
+    ndarray, shape (m, K d, K d)
+        One tensor per shape.
+
+    See Also
+    --------
+    shapelib.alpha_metric : One checked tensor.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.metrics import alpha_tensor_batch
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> bool(np.allclose(alpha_tensor_batch(theta[None], 0.5)[0], sl.alpha_metric(theta, 0.5)))
+    True
+    """
     m, k, d = theta.shape
     return _alpha_metric_blocks(*_alpha_overlaps(theta, s2), s2).reshape(m, k * d, k * d)
 
@@ -678,7 +815,52 @@ def _fr_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
 # landmark in shapelib._kernels; tests/test_kernels.py checks them against the numpy ones).
 
 def fr_qform_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
-    """:func:`_fr_qform` with ``ψ̇`` fused (:func:`shapelib.geometry._kernels.fr_psidot`)."""
+    r"""Batched Fisher–Rao quadratic form ``vᵀ g_FR(θ) v`` on a common grid, ψ̇ fused in compiled code.
+
+    .. math::
+
+        Q(\theta, v) = \int \frac{(\partial_t p)^2}{p}\, dx = \int \dot\psi^2\, dx, \qquad
+        \dot\psi = \sum_a c_a (r_a \cdot V_a),
+
+    the integrand of eq. (8) under the metric of eq. (6) of [1]_
+    (``shapelib.geometry._kernels.fr_psidot``).
+
+    Parameters
+    ----------
+    theta, vel : ndarray, shape (m, K, d)
+        Positions and velocities.
+    s2 : float
+        σ² of eq. (5).
+    grid : Grid
+        A grid covering every position.
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        :math:`Q` at every node.
+
+    See Also
+    --------
+    shapelib.fisher_rao_quadratic_form : One checked value.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.metrics import fr_qform_compiled
+    >>> from shapelib.geometry.quadrature import make_grid
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
+    >>> q = fr_qform_compiled(theta[None], vel[None], 0.5, make_grid(theta, 0.5))
+    >>> bool(np.isclose(q[0], sl.fisher_rao_quadratic_form(theta, vel, 0.5)))
+    True
+    """
     x = grid.nodes
     out = np.empty(len(theta))
     for n, (t, v) in enumerate(zip(theta, vel)):
@@ -688,7 +870,59 @@ def fr_qform_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
 
 
 def fr_qform_grad_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
-    """:func:`_fr_qform_grad`, fused per node and landmark (:func:`shapelib.geometry._kernels.fr_qform_grad`)."""
+    r"""Batched Fisher–Rao quadratic form and its gradients, fused per node and landmark.
+
+    With :math:`\dot\psi = \sum_a c_a (r_a \cdot V_a)` (:func:`~shapelib.geometry.metrics.psi_coef`),
+
+    .. math::
+
+        \frac{\partial Q}{\partial V_a} = 2 \int \dot\psi\, c_a r_a, \qquad
+        \frac{\partial Q}{\partial \phi_a} = 2 \int \dot\psi\, c_a \left[\frac{(r_a \cdot V_a)\, r_a}{\sigma^2}
+        - V_a\right] - 2 \int \frac{\dot\psi^2 c_a r_a}{\psi},
+
+    the gradient of the integrand of eq. (8) under the metric of eq. (6) of [1]_
+    (``shapelib.geometry._kernels.fr_qform_grad``).
+
+    Parameters
+    ----------
+    theta, vel : ndarray, shape (m, K, d)
+        Positions and velocities.
+    s2 : float
+        σ² of eq. (5).
+    grid : Grid
+        A grid covering every position.
+
+    Returns
+    -------
+    q : ndarray, shape (m,)
+        :math:`Q`.
+    d_theta, d_vel : ndarray, shape (m, K, d)
+        :math:`\partial Q / \partial\theta` and :math:`\partial Q / \partial v`.
+
+    See Also
+    --------
+    shapelib.geometry.metrics.fr_qform_compiled : :math:`Q` alone.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    :math:`\partial Q / \partial v = 2 g v`:
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.metrics import fr_qform_grad_compiled
+    >>> from shapelib.geometry.quadrature import make_grid
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
+    >>> q, d_theta, d_vel = fr_qform_grad_compiled(theta[None], vel[None], 0.5, make_grid(theta, 0.5))
+    >>> bool(np.allclose(d_vel[0].ravel(), 2 * sl.fisher_rao_metric(theta, 0.5) @ vel.ravel(), rtol=1e-6))
+    True
+    """
     m = len(theta)
     q = np.empty(m)
     d_theta = np.empty_like(theta)
@@ -720,8 +954,57 @@ def _fr_hessian_one(theta, vel, s2, grid, psi, coef, q_tt, q_tv, q_vv):
 
 
 def fr_qform_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
-    """:func:`_fr_qform_hessian`: the element-wise work fused (:func:`shapelib.geometry._kernels.fr_hessian_parts`),
-    the Gram product by BLAS."""
+    r"""Second derivatives of the Fisher–Rao quadratic form, ``(Q_θθ, Q_θv, Q_vv)``, each (m, K d, K d).
+
+    Written with :math:`s = \dot p`, responsibilities :math:`\rho_a = N_a/(Kp)`,
+    :math:`\beta = \partial p / p`, :math:`\gamma = \partial s / p` and :math:`u = s/p`:
+
+    .. math::
+
+        Q_{\theta\theta} = 2 \int p (\gamma - u\beta)(\gamma - u\beta)^\top
+        + \int \left[2u\, \partial^2 s - u^2 \partial^2 p\right], \qquad
+        Q_{\theta v} = 2 \int p (\gamma - u\beta) \beta^\top + 2 \int u\, \partial^2 p, \qquad
+        Q_{vv} = 2 g^{FR},
+
+    the element-wise work fused (``shapelib.geometry._kernels.fr_hessian_parts``), the Gram
+    product by BLAS: exact Newton steps on the path energy of eq. (8) under eq. (6) of [1]_.
+
+    Parameters
+    ----------
+    theta, vel : ndarray, shape (m, K, d)
+        Positions and velocities.
+    s2 : float
+        σ² of eq. (5).
+    grid : Grid
+        A grid covering every position.
+
+    Returns
+    -------
+    q_tt, q_tv, q_vv : ndarray, shape (m, K d, K d)
+        The three blocks (``q_tv``: rows θ, columns v).
+
+    See Also
+    --------
+    shapelib.geometry.metrics.fr_qform_grad_compiled : The gradient.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.metrics import fr_qform_hessian_compiled
+    >>> from shapelib.geometry.quadrature import make_grid
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
+    >>> q_tt, q_tv, q_vv = fr_qform_hessian_compiled(theta[None], vel[None], 0.5, make_grid(theta, 0.5))
+    >>> bool(np.allclose(q_vv[0], 2 * sl.fisher_rao_metric(theta, 0.5)))
+    True
+    """
     m, k, d = theta.shape
     q_tt, q_tv, q_vv = np.empty((3, m, k * d, k * d))
     for n in range(m):
@@ -731,8 +1014,58 @@ def fr_qform_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, gri
 
 
 def fr_qform_grad_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid):
-    """:func:`fr_qform_grad_compiled` and :func:`fr_qform_hessian_compiled` together, with one
-    evaluation of ``ψ`` and ``coef`` (:func:`psi_coef`) per shape."""
+    r"""The Fisher–Rao quadratic form, its gradients and second derivatives, ψ computed once per shape.
+
+    :func:`~shapelib.geometry.metrics.fr_qform_grad_compiled` and
+    :func:`~shapelib.geometry.metrics.fr_qform_hessian_compiled` together, with one evaluation of
+    ψ and ``coef`` (:func:`~shapelib.geometry.metrics.psi_coef`) per shape, for
+    :math:`Q = \int \dot p^2 / p` (eq. 6 of [1]_):
+
+    .. math::
+
+        \left(Q,\ \frac{\partial Q}{\partial\theta},\ \frac{\partial Q}{\partial v},\
+        (Q_{\theta\theta}, Q_{\theta v}, Q_{vv})\right).
+
+    Parameters
+    ----------
+    theta, vel : ndarray, shape (m, K, d)
+        Positions and velocities.
+    s2 : float
+        σ² of eq. (5).
+    grid : Grid
+        A grid covering every position.
+
+    Returns
+    -------
+    q : ndarray, shape (m,)
+        :math:`Q`.
+    d_theta, d_vel : ndarray, shape (m, K, d)
+        The gradients.
+    hessian : tuple of ndarray
+        ``(q_tt, q_tv, q_vv)``, each (m, K d, K d).
+
+    See Also
+    --------
+    shapelib.geometry.metrics.fr_qform_grad_compiled, shapelib.geometry.metrics.fr_qform_hessian_compiled
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.geometry.metrics import fr_qform_compiled, fr_qform_grad_hessian_compiled
+    >>> from shapelib.geometry.quadrature import make_grid
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
+    >>> grid = make_grid(theta, 0.5)
+    >>> q, d_theta, d_vel, (q_tt, q_tv, q_vv) = fr_qform_grad_hessian_compiled(theta[None], vel[None], 0.5, grid)
+    >>> bool(np.isclose(q[0], fr_qform_compiled(theta[None], vel[None], 0.5, grid)[0])), q_tt.shape
+    (True, (1, 6, 6))
+    """
     m, k, d = theta.shape
     q = np.empty(m)
     d_theta = np.empty_like(theta)
@@ -746,5 +1079,49 @@ def fr_qform_grad_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float
 
 
 def fr_tensor_batch(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
-    """Fisher–Rao metric tensors for a batch of shapes (m, K, d) on a common grid -> (m, K d, K d)."""
+    r"""Fisher–Rao metric tensors of eq. (6) for a batch of shapes on a common grid.
+
+    .. math::
+
+        g_{ij} = \int \frac{\partial \psi}{\partial \theta_i} \frac{\partial \psi}{\partial \theta_j}\, dx
+        \approx h^d \sum_m \frac{\partial \psi}{\partial \theta_i}(x_m) \frac{\partial \psi}{\partial \theta_j}(x_m),
+        \qquad \psi = 2\sqrt{p}
+
+    (eq. 6 of [1]_; the trapezoid rule of :mod:`shapelib.geometry.quadrature`).
+
+    Parameters
+    ----------
+    theta : ndarray, shape (m, K, d)
+        The shapes.
+    s2 : float
+        σ² of eq. (5).
+    grid : Grid
+        A grid covering every shape.
+
+    Returns
+    -------
+    ndarray, shape (m, K d, K d)
+        One tensor per shape.
+
+    See Also
+    --------
+    shapelib.fisher_rao_metric : One checked tensor on its own grid.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.metrics import fr_tensor_batch
+    >>> from shapelib.geometry.quadrature import make_grid
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> g = fr_tensor_batch(theta[None], 0.5, make_grid(theta, 0.5))
+    >>> bool(np.allclose(g[0], sl.fisher_rao_metric(theta, 0.5)))
+    True
+    """
     return np.stack([grid.weight * _fr_gram(t, s2, grid) for t in theta])

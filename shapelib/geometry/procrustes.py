@@ -182,7 +182,11 @@ def preshape(x) -> np.ndarray:
     >>> bool(np.isclose(np.linalg.norm(z), 1.0)), bool(np.allclose(z.mean(axis=0), 0.0))
     (True, True)
     """
-    c = center(x)
+    return _preshape(as_shape(x, name="x"))
+
+
+def _preshape(x: np.ndarray) -> np.ndarray:
+    c = x - x.mean(axis=0)
     size = np.linalg.norm(c)
     if size == 0 or not np.isfinite(size):
         raise ValueError(f"configuration of shape {c.shape} has zero centroid size (all landmarks coincide)")
@@ -372,10 +376,17 @@ def procrustes_distance(u, v, *, kind: str = "angle") -> float:
     >>> round(sl.procrustes_distance(square, rect, kind="full"), 6)
     0.316228
     """
+    u, v = as_shape_pair(u, v, min_landmarks=2)
+    return procrustes_distance_unchecked(u, v, kind=kind)
+
+
+def procrustes_distance_unchecked(u, v, *, kind: str = "angle") -> float:
+    """:func:`procrustes_distance` of float64 ``(K, d)`` arrays ``u``, ``v`` already checked
+    (:func:`shapelib._validate.as_shape_pair`): the core the pairwise engine calls for every pair
+    of a set it has checked once."""
     if kind not in ("angle", "full", "partial"):
         raise ValueError(f"kind must be 'angle', 'full' or 'partial'; got {kind!r}")
-    u, v = as_shape_pair(u, v, min_landmarks=2)
-    _, s = optimal_rotation(preshape(u), preshape(v))
+    _, s = optimal_rotation(_preshape(u), _preshape(v))
     s = min(max(s, -1.0), 1.0)
     if kind == "angle":
         return float(np.arccos(s))

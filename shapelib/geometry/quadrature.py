@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validate import check_positive
+from .._validate import check_positive, keeps_old_calls
 
 __all__ = ["Grid", "make_grid", "DEFAULT_SPACING", "DEFAULT_MARGIN", "MAX_ENTRIES"]
 
@@ -91,7 +91,6 @@ class Grid:
     axes: tuple = ()  # the 1-D node coordinates per axis (empty: nodes are not a tensor grid)
 
     def integrate(self, values: np.ndarray, axis: int = 0) -> np.ndarray:
-        """``weight · Σ values`` along ``axis``: the trapezoid rule applied to values at the nodes."""
         return self.weight * np.sum(values, axis=axis)
 
 
@@ -114,9 +113,10 @@ def _points(points):
     return pts
 
 
-def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin: float = DEFAULT_MARGIN,
+@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
+def make_grid(points, *, sigma2: float, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN,
               max_entries: int | None = None) -> Grid:
-    r"""Regular grid covering ``points`` plus ``margin·σ``, of step ``spacing·σ``.
+    r"""Regular grid covering ``points`` plus ``grid_margin·σ``, of step ``grid_spacing·σ``.
 
     The Fisher–Rao integrands (eq. 6) are concentrated within a few σ of the landmarks; the grid
     covers the landmarks plus a margin of ``margin·σ`` with step :math:`h = \text{spacing}\cdot\sigma`,
@@ -134,10 +134,11 @@ def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin
         Every landmark position the integrands will see (e.g. all shapes along a path).
     sigma2 : float
         σ² > 0 of eq. (5).
-    spacing : float, default 0.35
-        Grid step in units of σ.
-    margin : float, default 6.0
-        Margin beyond the points in units of σ.
+    grid_spacing : float, default 0.35
+        Grid step in units of σ (formerly ``spacing``: still accepted for one release, with a
+        :class:`DeprecationWarning`).
+    grid_margin : float, default 6.0
+        Margin beyond the points in units of σ (formerly ``margin``, likewise).
     max_entries : int, optional
         Refuse (``ValueError``, before allocating anything) a grid whose nodes × landmarks
         (``points.shape[-2]``) exceed this. The node count grows like (extent / σ)^d, so shapes
@@ -173,8 +174,8 @@ def make_grid(points, sigma2: float, *, spacing: float = DEFAULT_SPACING, margin
     >>> grid.shape, grid.nodes.shape
     ((41, 37), (1517, 2))
     """
-    spacing = check_positive(spacing, name="spacing")
-    margin = check_positive(margin, name="margin")
+    spacing = check_positive(grid_spacing, name="grid_spacing")
+    margin = check_positive(grid_margin, name="grid_margin")
     sigma = np.sqrt(check_positive(sigma2, name="sigma2"))
     pts = _points(points)
     k = pts.shape[-2] if pts.ndim >= 2 else 1

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._validate import as_shape, as_shapes, check_positive, check_sigma2
+from .._validate import as_shape, as_shapes, check_positive, check_sigma2, keeps_old_calls
 from .procrustes import generalized_procrustes, preshape
 from .sigma2 import predictive_sigma2, scatter_sigma2
 
@@ -137,7 +137,8 @@ def landmark_spacing(shapes) -> float:
     return float(np.mean([cKDTree(s).query(s, k=2)[0][:, 1] for s in x]))
 
 
-def sigma_ratio(shapes, sigma2) -> float:
+@keeps_old_calls(keyword_only=("sigma2",))
+def sigma_ratio(shapes, *, sigma2) -> float:
     r"""σ in units of the mean nearest-landmark spacing.
 
     .. math::
@@ -337,7 +338,8 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
 FISHER_RAO_RATIO_MIN = float(1.0 / np.sqrt(8.0 * np.log(1.0 / np.finfo(np.float64).eps)))
 
 
-def check_fisher_rao_scale(shapes, sigma2, *, metric: str = "fisher_rao", ratio: float | None = None) -> None:
+@keeps_old_calls(keyword_only=("sigma2",))
+def check_fisher_rao_scale(shapes, *, sigma2, metric: str = "fisher_rao", ratio: float | None = None) -> None:
     r"""Raise ``ValueError`` before any work when σ is too small for the Fisher–Rao quadrature.
 
     The Fisher–Rao metric (eq. 6 of [1]_) and its bound divide by :math:`\sqrt{p}`; when
@@ -517,10 +519,6 @@ class Sigma2Estimate:
         return self.sigma / self.spacing if self.spacing > 0 else float("inf")
 
     def summary(self) -> str:
-        """What the estimate means, in a few lines: σ² with its standard error, σ against the landmark
-        spacing, how unequal the landmarks are, and advice when the shapes are not aligned or σ is below
-        the spacing's regime.
-        """
         what = {"scatter": "landmark scatter: the maximum-likelihood variance of each landmark around the "
                            "mean shape, per coordinate",
                 "predictive": "held-out prediction: half the variance at which one shape's mixture best "

@@ -3,10 +3,15 @@
 :func:`compute_pairwise` (what :func:`pairwise_distances` calls) cuts the N×N
 matrix into ``block_size × block_size`` blocks — the upper-triangle blocks for symmetric metrics,
 every block (without the diagonal pairs) for the bending energies ``"tps"`` / ``"wendland"`` — and
-computes each block as one task, every pair through :func:`shapelib.distances.pair_record`. The
-closed-form bounds ``"alpha_bound"`` and ``"fisher_rao_bound"`` are the exception: a block of them is
-one batched call (matrix products, :mod:`shapelib.geometry.bound_matrices`), and in this process a
-population of up to :data:`BOUND_BLOCK_MAX` shapes is a single block.
+computes each block as one task. Everything the engine needs to know about a metric is its
+:class:`~shapelib.distances.MetricInfo` record: whether it is symmetric, depends on pose, and
+whether it carries a batched ``block`` function. A block of a metric with one — the closed-form
+bounds ``"alpha_bound"`` and ``"fisher_rao_bound"`` (matrix products,
+:mod:`shapelib.geometry.bound_matrices`), or any metric registered with one — is one call, and in
+this process a population of up to :data:`BOUND_BLOCK_MAX` shapes is a single block; every other
+block goes pair by pair through the record's unchecked :meth:`~shapelib.distances.MetricInfo.record`
+(the shapes and options are checked once, at the door, as :func:`shapelib.distances.pair_record`
+checks them for one pair).
 
 Where the tasks run
     ``client=`` (a :class:`distributed.Client`) or ``scheduler="tcp://host:port"`` runs them on

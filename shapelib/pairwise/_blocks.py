@@ -10,9 +10,8 @@ import warnings
 import numpy as np
 
 from .._executor import in_dask_worker
-from .._validate import set_checked
-from ..distances import is_builtin, metric_info, pair_record
-from ..geometry.bound_matrices import BOUND_METRICS, bound_block
+from .._validate import as_shapes, set_checked
+from ..distances import check_metric_params, metric_info
 from ..geometry.procrustes import PoseWarning
 from ..geometry.scale import ScaleWarning
 from ..solver.geodesic import GeodesicWarning
@@ -38,10 +37,11 @@ ARRAYS = {
 _FIELD = {"matrix": "value"}  # pair_record key of each array (same name otherwise)
 
 
-def _pair_record(x_u, x_v, i, j, **kw):
-    """:func:`~shapelib.distances.pair_record` naming the pair in its input errors."""
+def _pair_record(info, x_u, x_v, i, j, *, rtol, params):
+    """The unchecked :meth:`~shapelib.distances.MetricInfo.record` of one pair of a checked set,
+    naming the pair in the metric's input errors."""
     try:
-        return pair_record(x_u, x_v, **kw)
+        return info.record(x_u, x_v, rtol=rtol, **params)
     except ValueError as exc:
         raise PairError(i, j, exc) from exc
 
@@ -58,11 +58,15 @@ def block_pairs(n: int, block_size: int, *, symmetric: bool) -> list[tuple[int, 
 
 def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, params: dict,
                   offset=(0, 0)) -> dict:
-    """All pairs of one block through :func:`shapelib.distances.pair_record`: ``{array: (bi, bj)}``.
+    """All pairs of one block: ``{array: (bi, bj)}`` (the arrays of :data:`ARRAYS`).
 
     ``metric`` is a name or a :class:`~shapelib.distances.MetricInfo` record: the engine sends
     the record with each task, so a metric registered in the client runs on workers that can
-    import its function's module, registered there or not.
+    import its function's module, registered there or not. A record with a ``block`` function
+    (the closed-form bounds) computes the block in one batched call (without ``rtol``); every
+    other block goes pair by pair through the record's unchecked
+    :meth:`~shapelib.distances.MetricInfo.record`, the options and the block's shapes being
+    checked once here.
 
     ``xi``, ``xj`` are the block's row and column shapes, starting at rows/columns ``offset`` of
     the matrix (used to name a pair in a :class:`PairError`). On a diagonal block only the pairs
@@ -70,10 +74,13 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     zero. Solver warnings are not emitted: convergence is recorded per pair instead; nor are
     scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
+    info = metric_info(metric)
+    check_metric_params(info, params, rtol=rtol)
+    xi = as_shapes(xi, name="rows")
+    xj = xi if xj is xi else as_shapes(xj, name="cols")
     bi, bj = len(xi), len(xj)
-    bound = _batched_bound(metric, rtol)
-    if bound:
-        out = _bound_block(xi, xj, diagonal=diagonal, metric=bound, params=params)
+    if _batched(info, rtol):
+        out = _batched_block(xi, xj, diagonal=diagonal, info=info, params=params)
         if out is not None:
             return out
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
@@ -82,7 +89,7 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
             for b in range(bj):
                 if diagonal and (a == b or (symmetric and b < a)):
                     continue
-                rec = _pair_record(xi[a], xj[b], offset[0] + a, offset[1] + b, metric=metric, rtol=rtol, **params)
+                rec = _pair_record(info, xi[a], xj[b], offset[0] + a, offset[1] + b, rtol=rtol, params=params)
                 for name in ARRAYS:
                     out[name][a, b] = rec[_FIELD.get(name, name)]
     if diagonal:
@@ -97,32 +104,29 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     return out
 
 
-def _batched_bound(metric, rtol) -> str | None:
-    """The bound whose blocks are one batched call, or None: shapelib's own closed-form bounds (not a
-    function registered in their place), without a bracket's ``rtol``. ``metric``: a name or a
-    :class:`~shapelib.distances.MetricInfo` record (what tasks carry)."""
-    info = metric_info(metric)
-    return info.name if rtol is None and info.name in BOUND_METRICS and is_builtin(info) else None
+def _batched(metric, rtol) -> bool:
+    """Whether a block of ``metric`` (a name or a :class:`~shapelib.distances.MetricInfo`) is one
+    batched call: its record carries a ``block`` function, and no bracket's ``rtol`` is asked."""
+    return rtol is None and metric_info(metric).block is not None
 
 
-#: a closed-form bound's matrix in this process is one block of at most this many shapes a side
-#: (one batched call, :mod:`shapelib.geometry.bound_matrices`)
+#: a batched metric's matrix in this process is one block of at most this many shapes a side
+#: (one call of its block function, e.g. :mod:`shapelib.geometry.bound_matrices`)
 BOUND_BLOCK_MAX = 2048
 
 
-def _bound_block(xi, xj, *, diagonal, metric, params):
-    """A block of ``"alpha_bound"`` / ``"fisher_rao_bound"`` as one batched call
-    (:func:`shapelib.geometry.bound_matrices.bound_block`), in :func:`compute_block`'s format (each
-    pair's ``seconds`` is the block's wall time over its pairs). ``None`` when the call rejects
-    the block — a Fisher–Rao grid over all its shapes too large, or an input error — so that
+def _batched_block(xi, xj, *, diagonal, info, params):
+    """A block as one call of the record's ``block`` function, in :func:`compute_block`'s format
+    (each pair's ``seconds`` is the block's wall time over its pairs). ``None`` when the call rejects
+    the block — e.g. a Fisher–Rao grid over all its shapes too large, or an input error — so that
     :func:`compute_block` goes pair by pair, on each pair's own grid, naming a bad pair."""
     t0 = time.perf_counter()
     try:
         with _pair_work():  # one BLAS thread, as every task; all the cores in this process's own run
-            d = bound_block(metric, xi, None if diagonal else xj, n_threads=1 if in_dask_worker() else None,
-                            **params)
+            d = info.block(xi, None if diagonal else xj, n_threads=1 if in_dask_worker() else None, **params)
     except ValueError:
         return None
+    d = np.asarray(d, dtype=np.float64)
     bi, bj = d.shape
     n_pairs = bi * (bi - 1) // 2 if diagonal else bi * bj
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
@@ -170,13 +174,13 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
     bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice (once if the
     first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
     the calls took under ``budget`` seconds, and the fastest call counts."""
-    bound = _batched_bound(metric, rtol)
-    if bound:  # the cost of a pair within a block
+    info = metric_info(metric)
+    if _batched(info, rtol):  # the cost of a pair within a block
         m = min(len(x), 64)
         best = math.inf
         for _ in range(2):  # the first call also pays one-off costs
             t0 = time.perf_counter()
-            out = _bound_block(x[:m], x[:m], diagonal=True, metric=bound, params=params)
+            out = _batched_block(x[:m], x[:m], diagonal=True, info=info, params=params)
             best = min(best, time.perf_counter() - t0)
         if out is not None:
             return best / max(1, m * (m - 1) // 2)
@@ -186,6 +190,6 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
         while not times or (len(times) < 2 and times[0] < 10 * TASK_SECONDS) or (
                 len(times) < 3 and sum(times) < budget):
             t0 = time.perf_counter()
-            _pair_record(x[0], x[1 % len(x)], 0, 1 % len(x), metric=metric, rtol=rtol, **params)
+            _pair_record(info, x[0], x[1 % len(x)], 0, 1 % len(x), rtol=rtol, params=params)
             times.append(time.perf_counter() - t0)
     return min(times)

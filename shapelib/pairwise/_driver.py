@@ -16,7 +16,7 @@ from ..distances import check_metric_params, metric_info, pose_dependent
 from ..geometry.procrustes import check_pose
 from ..geometry.scale import check_fisher_rao_scale, check_scale
 from ..solver.geodesic import GeodesicWarning
-from ._blocks import BOUND_BLOCK_MAX, _batched_bound, _time_one_pair, block_pairs, compute_block, default_block_size
+from ._blocks import BOUND_BLOCK_MAX, _batched, _time_one_pair, block_pairs, compute_block, default_block_size
 from ._results import BlockProgress, PairwiseResult
 from ._store import (_FORMAT, _Store, _block_n_pairs, _check_same, _full_params, _pairs_left, _result, _rows,
                      _stored_seconds_per_pair, _token, shapes_sha256)
@@ -55,9 +55,9 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     n, k, d = x.shape
     if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
         ratio = check_scale(x, params["sigma2"], stacklevel=4)
-        if metric in ("fisher_rao", "fisher_rao_bound"):  # a degenerate quadrature: an error before any work
-            check_fisher_rao_scale(x, params["sigma2"], metric=metric, ratio=ratio)
-    if pose_dependent(metric, params):  # likewise (check_pose: a pair, or a whole set to align)
+        if info.quadrature:  # a degenerate quadrature: an error before any work
+            check_fisher_rao_scale(x, sigma2=params["sigma2"], metric=metric, ratio=ratio)
+    if pose_dependent(info, params):  # likewise (check_pose: a pair, or a whole set to align)
         check_pose(x, metric=metric, stacklevel=4)
     symmetric = info.symmetric
     check_where(n_jobs, client, scheduler)
@@ -90,7 +90,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         b = int(block_size) if block_size is not None else default_block_size(
             seconds_per_pair, n, n_workers=n_workers if local else max(2, cluster_size(client)),
             symmetric=symmetric)
-        if block_size is None and _batched_bound(metric, rtol) and local and n_workers == 1:
+        if block_size is None and _batched(info, rtol) and local and n_workers == 1:
             b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
         st = _Store.create(store, {**want, "block_size": b})
     done = st.task_done()
@@ -143,7 +143,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if not computed.all() and not log["stopped"]:
         raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
     result = _result(st, data, computed, log)
-    words = result.convergence_summary()
+    words = result._nonconverged()
     if words:
         warnings.warn(f"{words}; see PairwiseResult.to_frame() (status, rel_gap)", GeodesicWarning, stacklevel=3)
     return result

@@ -117,7 +117,48 @@ class PairwiseResult:
         bad = "bracket wider than rtol" if self.params.get("rtol") is not None else "solver failed"
         return np.where(self.converged[i, j], "converged", bad)
 
+    @property
+    def value(self) -> np.ndarray:
+        """The distances: :attr:`matrix` (the results' common name for what was computed)."""
+        return self.matrix
+
+    @property
+    def stop_reason(self) -> str:
+        """``"complete"``, ``"stopped"`` (a ``callback`` stopped the run) or ``"partial"`` (a store
+        read before its run finished)."""
+        if self.complete:
+            return "complete"
+        return "stopped" if self.log.get("stopped") else "partial"
+
+    def summary(self) -> str:
+        """One line: the matrix, how many pairs are computed, and the pairs that did not converge
+        in :meth:`status`'s words (with how wide the brackets are).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import shapelib as sl
+        >>> x = np.random.default_rng(0).normal(size=(4, 5, 2))
+        >>> r = sl.pairwise_distances(x, metric="procrustes", n_jobs=1, progress=False, return_result=True)
+        >>> r.summary()
+        '4 × 4 procrustes matrix: 6 of 6 pairs computed, all converged'
+        """
+        i, _ = self._pairs()
+        n = len(self.matrix)
+        total = n * (n - 1) // 2 if (self.metric in SYMMETRIC if self.symmetric is None else self.symmetric) else n * (n - 1)
+        words = self._nonconverged()
+        return f"{n} × {n} {self.metric} matrix: {len(i)} of {total} pairs computed, " + (words or "all converged")
+
     def convergence_summary(self) -> str:
+        """Deprecated: the non-convergence part of :meth:`summary` (``""`` if every computed pair
+        converged)."""
+        import warnings
+
+        warnings.warn("PairwiseResult.convergence_summary() is deprecated, use PairwiseResult.summary() (the old "
+                      "name goes in the next release)", DeprecationWarning, stacklevel=2)
+        return self._nonconverged()
+
+    def _nonconverged(self) -> str:
         """One line on the pairs that did not converge, in :meth:`status`'s words with how wide the
         brackets are; ``""`` if every computed pair converged."""
         i, j = self._pairs()

@@ -148,6 +148,11 @@ class DistanceBracket:
     log: dict = field(default_factory=dict, repr=False)
 
     @property
+    def value(self) -> float:
+        """The distance reported: :attr:`upper`, as :func:`shapelib.distance` with ``rtol`` returns it."""
+        return self.upper
+
+    @property
     def stop_reason(self) -> BracketStopReason:
         """Why the refinement stopped (:class:`~shapelib.BracketStopReason`)."""
         return BracketStopReason(self.stopped_by)
@@ -220,7 +225,7 @@ def lower_bound(u, v, *, metric: str, sigma2, grid_spacing: float = DEFAULT_SPAC
     """
     _check_metric(metric)
     if metric == "alpha":
-        return l2_distance(u, v, sigma2)
+        return l2_distance(u, v, sigma2=sigma2)
     return fisher_rao_lower_bound(u, v, sigma2=sigma2, grid_spacing=grid_spacing, grid_margin=grid_margin)
 
 

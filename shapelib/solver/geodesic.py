@@ -301,7 +301,7 @@ def alpha_lower_bound(u, v, *, sigma2) -> float:
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
     check_entry(u, v, s2, metric="alpha", stacklevel=3, what="alpha_bound")
-    return l2_distance(u, v, s2)
+    return l2_distance(u, v, sigma2=s2)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -379,7 +379,7 @@ def check_entry(u, v, s2, *, metric, stacklevel, what=None):
         return None
     ratio = check_scale(pair, s2, stacklevel=stacklevel + 1)
     if metric == "fisher_rao":  # degenerate quadrature: an error before any work
-        check_fisher_rao_scale(pair, s2, metric=what or metric, ratio=ratio)
+        check_fisher_rao_scale(pair, sigma2=s2, metric=what or metric, ratio=ratio)
     return ratio
 
 

@@ -255,7 +255,7 @@ class AlphaPathMetric(PathMetric):
         return qf, d_theta, d_vel, (diag.reshape(-1, q, q), upper.reshape(-1, q, q))
 
     def lower_bound(self, u, v):
-        return l2_distance(u, v, self.s2)
+        return l2_distance(u, v, sigma2=self.s2)
 
     def settings(self):
         return {}
@@ -320,7 +320,7 @@ class FisherRaoPathMetric(PathMetric):
 
     def prepare(self, points):
         """One quadrature grid covering every shape the path passes through."""
-        return make_grid(points, self.s2, spacing=self.spacing, margin=self.margin)
+        return make_grid(points, sigma2=self.s2, grid_spacing=self.spacing, grid_margin=self.margin)
 
     def qform_grad(self, theta, vel, grid):
         return fr_qform_grad_compiled(theta, vel, self.s2, grid)

@@ -296,6 +296,22 @@ class GeodesicResult:
         return StopReason(self.log["stopped_by"])
 
     @property
+    def value(self) -> float:
+        """The distance computed: :attr:`length` (the results' common name, as in
+        :func:`shapelib.distances.pair_record`)."""
+        return self.length
+
+    @property
+    def lower(self) -> float:
+        """Certified lower end of the distance: :attr:`lower_bound`."""
+        return self.lower_bound
+
+    @property
+    def upper(self) -> float:
+        """Certified upper end of the distance: :attr:`length` (the length of an actual path)."""
+        return self.length
+
+    @property
     def n_steps(self) -> int:
         """Number of path segments ``n`` (``n + 1`` path points)."""
         return len(self.path) - 1

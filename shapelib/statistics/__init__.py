@@ -9,8 +9,9 @@ Intrinsic (shapes out, under the α-order or Fisher–Rao metric, on the log and
 :func:`tangent_pca` and :class:`TangentPCA` (:mod:`~shapelib.statistics.tangent_pca`),
 :func:`geodesic_regression` (:mod:`~shapelib.statistics.regression`), :func:`mean_difference_test`
 (:mod:`~shapelib.statistics.group`). Their log
-maps run on any executor (:mod:`~shapelib.statistics.population_logs`); ``shapelib.frechet_mean``
-etc. (:mod:`shapelib.population`) add ``n_jobs`` / ``client`` / ``scheduler``.
+maps run on any executor (:mod:`~shapelib.statistics.population_logs`), or where ``n_jobs`` /
+``client`` / ``scheduler`` say, as for :func:`shapelib.pairwise_distances`: ``shapelib.frechet_mean``
+is this :func:`frechet_mean`.
 
 Across a sweep of distance matrices (one per σ²), with a family-wise test over the sweep:
 :func:`permanova_sweep`, :func:`knn_sweep` (:mod:`shapelib.statistics.sweep`).

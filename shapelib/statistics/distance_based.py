@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .._validate import check_positive_int
+from .._validate import check_positive_int, deprecated_alias, keeps_old_calls
 
 __all__ = [
     "as_distance_matrix",
@@ -143,18 +143,20 @@ class PermanovaResult:
         One row per term, then ``Residual`` and ``Total``; columns ``df``, ``sum_of_squares``,
         ``r2`` (``SS / SS_T``), ``pseudo_F``, ``p_value`` (NaN for Residual and Total).
     null : dict
-        ``{term: ndarray (permutations,)}``, the permuted pseudo-F values.
-    permutations, seed : int
+        ``{term: ndarray (n_permutations,)}``, the permuted pseudo-F values.
+    n_permutations, seed : int
     by : {"margin", "terms"}
     permute : {"residuals", "rows"}
     """
 
     table: pd.DataFrame
     null: dict = field(repr=False)
-    permutations: int
+    n_permutations: int
     seed: int | None
     by: str
     permute: str
+
+    permutations = deprecated_alias("permutations", "n_permutations", owner="PermanovaResult")
 
 
 def _term_columns(col: pd.Series, term: str) -> np.ndarray:
@@ -199,8 +201,9 @@ def _quadratic_by_column(e: np.ndarray, q: np.ndarray, perms: np.ndarray, chunk:
     return out
 
 
+@keeps_old_calls(renamed={"permutations": "n_permutations"})
 def permanova(distances, covariates, *, terms=None, by: str = "margin", permute: str = "residuals",
-              permutations: int = 999, seed: int | None = 0) -> PermanovaResult:
+              n_permutations: int = 999, seed: int | None = 0) -> PermanovaResult:
     """Multi-term PERMANOVA on a distance matrix (McArdle & Anderson 2001; R vegan's ``adonis2``).
 
     Parameters
@@ -222,8 +225,8 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
     permute : {"residuals", "rows"}
         ``"residuals"``: Freedman–Lane, permute the residuals of the reduced model (see the module
         docstring); ``"rows"``: permute whole observations (exact only if no term has an effect).
-    permutations : int
-        Number of random permutations (``>= 1``); ``p = (1 + #{F* ≥ F}) / (1 + permutations)``,
+    n_permutations : int
+        Number of random permutations (``>= 1``); ``p = (1 + #{F* ≥ F}) / (1 + n_permutations)``,
         ties counted within :data:`TIE_RTOL`.
     seed : int or None
         Seed of :func:`numpy.random.default_rng`; permutation ``p`` is the ``p``-th call to
@@ -241,7 +244,7 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
         raise ValueError(f"by must be 'margin' or 'terms'; got {by!r}")
     if permute not in ("residuals", "rows"):
         raise ValueError(f"permute must be 'residuals' or 'rows'; got {permute!r}")
-    permutations = check_positive_int(permutations, name="permutations")
+    n_permutations = check_positive_int(n_permutations, name="n_permutations")
     cov = pd.DataFrame(covariates)
     if len(cov) != n:
         raise ValueError(f"covariates have {len(cov)} rows but distances are {n} x {n}")
@@ -274,7 +277,7 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
         raise ValueError("distances are all zero: there is no variation to test")
     ss_res = ss_total - float(np.einsum("nk,nk->", full, g @ full))
     rng = np.random.default_rng(seed)
-    perms = np.stack([rng.permutation(n) for _ in range(permutations)])
+    perms = np.stack([rng.permutation(n) for _ in range(n_permutations)])
 
     rows, null = [], {}
     for t in terms:
@@ -307,7 +310,7 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
         s_t = fixed + cross + c[:, :df_t].sum(axis=1)
         s_res = np.trace(e) - c.sum(axis=1)
         f_null = (s_t / df_t) / (s_res / df_res)
-        p = (1.0 + np.count_nonzero(f_null >= f_obs - TIE_RTOL * abs(f_obs))) / (1.0 + permutations)
+        p = (1.0 + np.count_nonzero(f_null >= f_obs - TIE_RTOL * abs(f_obs))) / (1.0 + n_permutations)
         null[t] = f_null
         rows.append({"term": t, "df": df_t, "sum_of_squares": ss_t, "r2": ss_t / ss_total,
                      "pseudo_F": f_obs, "p_value": p})
@@ -316,7 +319,7 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
     rows.append({"term": "Total", "df": n - 1, "sum_of_squares": ss_total, "r2": 1.0,
                  "pseudo_F": np.nan, "p_value": np.nan})
     table = pd.DataFrame(rows).set_index("term")
-    return PermanovaResult(table=table, null=null, permutations=int(permutations), seed=seed, by=by,
+    return PermanovaResult(table=table, null=null, n_permutations=int(n_permutations), seed=seed, by=by,
                            permute=permute)
 
 
@@ -334,14 +337,14 @@ class KnnResult:
     accuracy : float
         Leave-one-out accuracy of the k-NN classifier.
     p_value : float
-        ``(1 + #{accuracy* ≥ accuracy}) / (1 + permutations)`` over label permutations.
-    null : ndarray, shape (permutations,)
+        ``(1 + #{accuracy* ≥ accuracy}) / (1 + n_permutations)`` over label permutations.
+    null : ndarray, shape (n_permutations,)
         Accuracies with permuted labels.
     majority_rate : float
         Share of the most frequent class (what always guessing it scores).
     predictions : ndarray, shape (N,)
         Leave-one-out predicted label of each object.
-    n_neighbors, permutations : int
+    n_neighbors, n_permutations : int
     """
 
     accuracy: float
@@ -350,16 +353,19 @@ class KnnResult:
     majority_rate: float
     predictions: np.ndarray = field(repr=False)
     n_neighbors: int
-    permutations: int
+    n_permutations: int
+
+    permutations = deprecated_alias("permutations", "n_permutations", owner="KnnResult")
 
 
-def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, permutations: int = 999,
+@keeps_old_calls(renamed={"permutations": "n_permutations"})
+def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, n_permutations: int = 999,
                      seed: int | None = 0) -> KnnResult:
     """Leave-one-out k-nearest-neighbour accuracy on a precomputed distance matrix, with a
     label-permutation p-value.
 
     The statistic is exactly that of ``permutation_test_score(KNeighborsClassifier(n_neighbors,
-    metric="precomputed"), D, labels, cv=LeaveOneOut(), n_permutations=permutations,
+    metric="precomputed"), D, labels, cv=LeaveOneOut(), n_permutations=n_permutations,
     random_state=seed)`` — the same accuracy and the same permuted accuracies, draw for draw
     (``tests/test_stats.py``) — as long as no two distances tie at the k-th neighbour: such ties
     are broken arbitrarily, here once for the whole matrix and by scikit-learn in every fold, so
@@ -378,7 +384,7 @@ def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, permutations: i
         Class of each object (any sortable values).
     n_neighbors : int
         ``k`` (use an odd ``k`` with two classes to avoid tied votes).
-    permutations : int
+    n_permutations : int
         Number of label permutations (``>= 1``).
     seed : int or None
         Seed of :class:`numpy.random.RandomState`, as ``permutation_test_score``'s ``random_state``.
@@ -398,7 +404,7 @@ def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, permutations: i
         raise ValueError(f"labels are missing at row {int(np.flatnonzero(pd.isna(pd.Series(y)))[0])}")
     if int(n_neighbors) != n_neighbors or not 1 <= n_neighbors < n - 1:
         raise ValueError(f"n_neighbors must be an integer in [1, {n - 2}]; got {n_neighbors!r}")
-    permutations = check_positive_int(permutations, name="permutations")
+    n_permutations = check_positive_int(n_permutations, name="n_permutations")
     classes, codes = np.unique(y, return_inverse=True)
     if len(classes) < 2:
         raise ValueError(f"labels have a single class {classes.tolist()}: nothing to classify")
@@ -414,11 +420,11 @@ def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, permutations: i
     acc, pred = accuracies(codes[None])
     rs = np.random.RandomState(seed)
     null = np.concatenate([accuracies(codes[np.stack([rs.permutation(n) for _ in range(m)])])[0]
-                           for m in np.diff(np.r_[0:permutations:256, permutations])])
-    p = (1.0 + np.count_nonzero(null >= acc[0])) / (1.0 + permutations)
+                           for m in np.diff(np.r_[0:n_permutations:256, n_permutations])])
+    p = (1.0 + np.count_nonzero(null >= acc[0])) / (1.0 + n_permutations)
     return KnnResult(accuracy=float(acc[0]), p_value=float(p), null=null,
                      majority_rate=float(np.bincount(codes).max() / n), predictions=classes[pred[0]],
-                     n_neighbors=int(n_neighbors), permutations=int(permutations))
+                     n_neighbors=int(n_neighbors), n_permutations=int(n_permutations))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -465,7 +471,8 @@ def classical_mds(distances, *, n_components: int = 2):
     return coords, eig / total
 
 
-def mantel_test(x, y, *, method: str = "spearman", permutations: int = 999, seed: int | None = 0):
+@keeps_old_calls(renamed={"permutations": "n_permutations"})
+def mantel_test(x, y, *, method: str = "spearman", n_permutations: int = 999, seed: int | None = 0):
     """Mantel correlation between two distance matrices over the same objects (scikit-bio).
 
     Parameters
@@ -474,7 +481,7 @@ def mantel_test(x, y, *, method: str = "spearman", permutations: int = 999, seed
     method : {"spearman", "pearson"}
         Spearman (default) compares the rankings of the pairs, insensitive to monotone
         transformations such as squaring a distance.
-    permutations : int
+    n_permutations : int
     seed : int or None
 
     Returns
@@ -492,11 +499,11 @@ def mantel_test(x, y, *, method: str = "spearman", permutations: int = 999, seed
         raise ValueError(f"x is {a.shape} but y is {b.shape}")
     if method not in ("spearman", "pearson"):
         raise ValueError(f"method must be 'spearman' or 'pearson'; got {method!r}")
-    permutations = check_positive_int(permutations, name="permutations")
+    n_permutations = check_positive_int(n_permutations, name="n_permutations")
     iu = np.triu_indices(len(a), 1)
     for name, m in (("x", a), ("y", b)):
         if np.ptp(m[iu]) == 0:
             raise ValueError(f"{name} has all off-diagonal distances equal ({float(m[iu][0])}): "
                              "its correlation with anything is undefined")
-    r, p, _ = mantel(a, b, method=method, permutations=permutations, alternative="two-sided", seed=seed)
+    r, p, _ = mantel(a, b, method=method, permutations=n_permutations, alternative="two-sided", seed=seed)
     return float(r), float(p)

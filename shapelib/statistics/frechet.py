@@ -47,13 +47,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import (as_shape, as_shapes, check_dimension, check_nonnegative_int, check_positive, set_was_checked)
+from .._validate import (as_shape, as_shapes, check_dimension, check_nonnegative_int, check_positive, deprecated_alias,
+                         keeps_old_calls, set_was_checked)
 from ..geometry.procrustes import centroid_size, check_pose, generalized_procrustes, procrustes_align
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import check_scale
 from ..solver.logexp import (DEFAULT_LOG_STEPS, DEFAULT_RCOND, GeodesicOptions, TangentSpace, exp_path,
                              tangent_space)
 from ..solver.result import GeodesicWarning
+from ._run import MEAN_ROUNDS, where_logs_run
 from .population_logs import population_logs, shifted_paths
 
 __all__ = ["FrechetMeanResult", "frechet_mean", "procrustes_mean", "geodesic_options", "mean_certificate",
@@ -72,7 +74,8 @@ def check_population(x, *, metric, sigma2, stacklevel):
     check_pose(x, metric=metric, stacklevel=stacklevel + 1)
 
 
-def geodesic_options(metric, sigma2, *, n_steps=DEFAULT_LOG_STEPS, log_tol=1e-6, log_max_iter=200,
+@keeps_old_calls(keyword_only=("sigma2",))
+def geodesic_options(metric, *, sigma2, n_steps=DEFAULT_LOG_STEPS, log_tol=1e-6, log_max_iter=200,
                      rcond=DEFAULT_RCOND, grid_spacing=DEFAULT_SPACING, grid_margin=DEFAULT_MARGIN) -> GeodesicOptions:
     """The :class:`~shapelib.solver.logexp.GeodesicOptions` of the statistics' keyword arguments."""
     return GeodesicOptions(metric, sigma2, n_steps=n_steps, tol=log_tol, max_iter=log_max_iter, rcond=rcond,
@@ -138,7 +141,7 @@ class FrechetMeanResult:
         The discrete geodesics from the mean to every shape (warm starts for later work).
     log_converged : ndarray of bool (N,)
         Whether each final path solve converged.
-    history : list of dict
+    log : list of dict
         Per iteration: variance, grad_norm, certificate, step (metric norm), seconds, path-solver
         iterations, backtracks.
     options : GeodesicOptions
@@ -161,12 +164,19 @@ class FrechetMeanResult:
     options: GeodesicOptions
     init: np.ndarray
     tol: float
-    history: list = field(default_factory=list, repr=False)
+    log: list = field(default_factory=list, repr=False)
+
+    history = deprecated_alias("history", "log", owner="FrechetMeanResult")
+
+    @property
+    def stop_reason(self) -> str:
+        """Why the iteration stopped: ``"converged"`` (certificate ≤ tol) or ``"max_iter"``."""
+        return "converged" if self.converged else "max_iter"
 
     @property
     def n_log_maps(self) -> int:
         """Log maps computed in all (every iteration and backtrack)."""
-        return int(sum(h["log_maps"] for h in self.history))
+        return int(sum(h["log_maps"] for h in self.log))
 
     def summary(self) -> str:
         s = (f"Fréchet mean ({self.options.metric}, σ² = {self.options.sigma2:g}, {len(self.logs)} shapes): "
@@ -182,8 +192,14 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, init=None, tol: float
                  n_steps: int = DEFAULT_LOG_STEPS, log_tol: float = 1e-6, log_max_iter: int = 200,
                  rcond: float = DEFAULT_RCOND, grid_spacing: float = DEFAULT_SPACING,
                  grid_margin: float = DEFAULT_MARGIN, executor=None, chunk_size: int | None = None,
-                 warn: bool = True) -> FrechetMeanResult:
+                 warn: bool = True, n_jobs: int | None = None, client=None, scheduler=None) -> FrechetMeanResult:
     """Fréchet (Karcher) mean of ``shapes`` under the α-order (eq. 22) or Fisher–Rao (eq. 6) metric.
+
+    Minimises ``F(m) = (1/N) Σ d²(m, x_i)`` by the Karcher iteration
+    ``m ← exp_m(P (1/N) Σ log_m(x_i))`` until the first-order certificate
+    ``‖(1/N) Σ log_m(x_i)‖_g / √((1/N) Σ ‖log_m(x_i)‖²_g) ≤ tol`` (module docstring). The log maps
+    run in this process, on a local Dask cluster, or on a running one (``n_jobs``, ``client``,
+    ``scheduler``, as for :func:`shapelib.pairwise_distances`), or on any ``executor``.
 
     Parameters
     ----------
@@ -209,20 +225,46 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, init=None, tol: float
     grid_spacing, grid_margin : float
         Fisher–Rao quadrature.
     executor : concurrent.futures.Executor, optional
-        Runs the log maps (:mod:`shapelib.statistics.population_logs`); :func:`shapelib.frechet_mean`
-        builds one from ``n_jobs`` / ``client`` / ``scheduler``.
+        Runs the log maps (:mod:`shapelib.statistics.population_logs`); not with ``n_jobs``,
+        ``client``, ``scheduler``.
     chunk_size : int, optional
-        Shapes per executor task.
+        Shapes per executor task (default: four tasks per worker).
     warn : bool
         Warn (:class:`~shapelib.GeodesicWarning`) when the certificate is not met.
+    n_jobs : int, optional
+        ``1``: in this process; ``k > 1``: a local Dask cluster of ``k`` worker processes for the
+        duration of the call; ``None`` or ``-1``: one log map is timed and the work stays in this
+        process unless the projected serial time exceeds the cluster's start-up cost.
+    client : distributed.Client, optional
+        Run the log maps on this Dask cluster.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``"tcp://host:8786"``).
 
     Returns
     -------
     FrechetMeanResult
+        ``log[-1]`` also says where the log maps ran (``mode``, ``n_workers``).
+
+    See Also
+    --------
+    shapelib.tangent_pca : principal modes at the mean.
+    procrustes_mean : the start of the iteration.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> t = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    >>> rng = np.random.default_rng(0)
+    >>> x = np.stack([np.c_[2 * np.cos(t), np.sin(t)] + 0.05 * rng.normal(size=(8, 2)) for _ in range(5)])
+    >>> x = sl.pose_align(x)[0]  # the metrics depend on pose: align first
+    >>> res = sl.frechet_mean(x, sigma2=0.5, n_jobs=1)
+    >>> bool(res.converged), res.mean.shape
+    (True, (8, 2))
     """
     x = as_shapes(shapes, name="shapes")
     check_dimension(x, name="shapes")
-    opts = geodesic_options(metric, sigma2, n_steps=n_steps, log_tol=log_tol, log_max_iter=log_max_iter, rcond=rcond,
+    opts = geodesic_options(metric, sigma2=sigma2, n_steps=n_steps, log_tol=log_tol, log_max_iter=log_max_iter, rcond=rcond,
                             grid_spacing=grid_spacing, grid_margin=grid_margin)
     tol = check_positive(tol, name="tol")
     max_iter = check_nonnegative_int(max_iter, name="max_iter")
@@ -230,8 +272,12 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, init=None, tol: float
     if m0.shape != x.shape[1:]:
         raise ValueError(f"init must have shape {x.shape[1:]}; got {m0.shape}")
     check_population(x, metric=metric, sigma2=opts.sigma2, stacklevel=3)
-    return karcher_iteration(x, m0, options=opts, tol=tol, max_iter=max_iter, executor=executor,
-                             chunk_size=chunk_size, warn=warn)
+    with where_logs_run(x, opts, base=m0, rounds=MEAN_ROUNDS, executor=executor, n_jobs=n_jobs, client=client,
+                        scheduler=scheduler, chunk_size=chunk_size) as where:
+        res = karcher_iteration(x, m0, options=opts, tol=tol, max_iter=max_iter, executor=where.executor,
+                                chunk_size=where.chunk_size, warn=warn)
+    where.record(res.log)
+    return res
 
 
 def karcher_iteration(x, m0, *, options: GeodesicOptions, tol, max_iter, executor=None, chunk_size=None, warn=True,
@@ -280,4 +326,4 @@ def karcher_iteration(x, m0, *, options: GeodesicOptions, tol, max_iter, executo
         mean=m, logs=v, energies=energies, variance=variance, grad_norm=grad, spread=spread, certificate=cert,
         converged=converged, n_iter=it, tangent=ts, discarded_fraction=ts.discarded_fraction(v),
         paths=[r.path for r in logs], log_converged=np.array([r.converged for r in logs]), options=options,
-        init=np.array(m0, dtype=np.float64), tol=tol, history=history)
+        init=np.array(m0, dtype=np.float64), tol=tol, log=history)

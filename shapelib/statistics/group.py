@@ -33,7 +33,9 @@ from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..solver.geodesic import geodesic
 from ..solver.logexp import DEFAULT_LOG_STEPS, DEFAULT_RCOND
 from ..solver.result import GeodesicResult
-from .frechet import FrechetMeanResult, check_population, frechet_mean, karcher_iteration
+from ._run import MEAN_ROUNDS, where_logs_run
+from .frechet import (FrechetMeanResult, check_population, frechet_mean, geodesic_options, karcher_iteration,
+                      procrustes_mean)
 
 __all__ = ["MeanDifferenceResult", "mean_difference_test", "permutation_statistics", "MIN_PERMUTATIONS"]
 
@@ -112,8 +114,13 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
                          geodesic_steps: int = 16, tol: float = 1e-3, n_steps: int = DEFAULT_LOG_STEPS,
                          rcond: float = DEFAULT_RCOND, grid_spacing: float = DEFAULT_SPACING,
                          grid_margin: float = DEFAULT_MARGIN, executor=None, chunk_size: int | None = None,
+                         n_jobs: int | None = None, client=None, scheduler=None,
                          **mean_options) -> MeanDifferenceResult:
     """Test whether two groups differ in mean shape; their Fréchet means and the geodesic between them.
+
+    The statistic is the metric norm ``T = ‖v̄_A − v̄_B‖_g`` of the difference of the groups' mean
+    log maps at the pooled Fréchet mean; its p-value ``(1 + #{T_π ≥ T}) / (1 + n_permutations)``
+    over random relabellings (module docstring).
 
     Parameters
     ----------
@@ -135,10 +142,30 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
         Segments of the geodesic between the group means.
     tol, n_steps, rcond, grid_spacing, grid_margin, executor, chunk_size, **mean_options
         As in :func:`~shapelib.statistics.frechet.frechet_mean`.
+    n_jobs, client, scheduler
+        Where the log maps run, as for :func:`shapelib.frechet_mean`.
 
     Returns
     -------
     MeanDifferenceResult
+
+    See Also
+    --------
+    shapelib.frechet_mean, shapelib.permanova
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> s = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    >>> rng = np.random.default_rng(1)
+    >>> x = np.stack([np.c_[(2.0 + 0.3 * (i % 2)) * np.cos(s), np.sin(s)] + 0.02 * rng.normal(size=(8, 2))
+    ...               for i in range(12)])
+    >>> x = sl.pose_align(x)[0]
+    >>> test = sl.mean_difference_test(x, np.arange(12) % 2, sigma2=0.5, n_permutations=199, group_means=False,
+    ...                                n_jobs=1)
+    >>> bool(test.p_value < 0.05)
+    True
     """
     x = as_shapes(shapes, name="shapes")
     check_dimension(x, name="shapes")
@@ -158,11 +185,26 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
     if n_permutations < MIN_PERMUTATIONS:
         raise ValueError(f"n_permutations must be at least {MIN_PERMUTATIONS}; got {n_permutations}")
     opts_kw = dict(metric=metric, sigma2=sigma2, n_steps=n_steps, rcond=rcond, grid_spacing=grid_spacing,
-                   grid_margin=grid_margin, executor=executor, chunk_size=chunk_size)
+                   grid_margin=grid_margin)
     check_population(x, metric=metric, sigma2=sigma2, stacklevel=3)
-    with set_checked():  # warned once for the whole population
-        return _test(x, is_b, labels, sizes, n_permutations, seed, pooled, group_means, geodesic_steps, tol, opts_kw,
-                     executor, chunk_size, mean_options)
+    start = {}  # the Procrustes mean, once: the timed log map's base and the pooled mean's start
+
+    def base():
+        if pooled is not None:
+            return pooled.mean
+        if mean_options.get("init") is not None:  # the user's start
+            return np.asarray(mean_options["init"], dtype=np.float64)
+        start.setdefault("init", procrustes_mean(x))
+        return start["init"]
+
+    options = pooled.options if isinstance(pooled, FrechetMeanResult) else geodesic_options(
+        **opts_kw, **{k: mean_options[k] for k in ("log_tol", "log_max_iter") if k in mean_options})
+    rounds = (0.0 if pooled is not None else MEAN_ROUNDS) + (MEAN_ROUNDS if group_means else 0.0)
+    with set_checked(), where_logs_run(x, options, base=base, rounds=rounds, executor=executor, n_jobs=n_jobs,
+                                       client=client, scheduler=scheduler, chunk_size=chunk_size) as where:
+        # warned once for the whole population
+        return _test(x, is_b, labels, sizes, n_permutations, seed, pooled, group_means, geodesic_steps, tol,
+                     {**opts_kw, **where.passed_on, **start}, where.executor, where.chunk_size, mean_options)
 
 
 def _test(x, is_b, labels, sizes, n_permutations, seed, pooled, group_means, geodesic_steps, tol, opts_kw, executor,

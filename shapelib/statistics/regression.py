@@ -49,7 +49,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import as_shapes, check_dimension, check_nonnegative_int, check_positive, check_positive_int, set_checked
+from .._validate import (as_shapes, check_dimension, check_nonnegative_int, check_positive, check_positive_int,
+                         deprecated_alias, set_checked)
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..solver.energy import path_energy
 from ..solver.linalg import block_cholesky, block_solve, one_blas_thread
@@ -57,7 +58,8 @@ from ..solver.logexp import (DEFAULT_LOG_STEPS, DEFAULT_RCOND, GeodesicOptions, 
                              exp_path, tangent_space)
 from ..solver.minimise import minimise_path
 from ..solver.result import GeodesicWarning
-from .frechet import FrechetMeanResult, check_population, frechet_mean, geodesic_options
+from ._run import where_logs_run
+from .frechet import FrechetMeanResult, check_population, frechet_mean, geodesic_options, procrustes_mean
 from .population_logs import population_logs, shifted_paths
 
 __all__ = ["GeodesicRegressionResult", "geodesic_regression", "DEFAULT_PATH_STEPS"]
@@ -101,7 +103,7 @@ class GeodesicRegressionResult:
     n_iter : int
     mean : FrechetMeanResult
         The Fréchet mean of the data (``ȳ`` of ``ss_total``).
-    history : list of dict
+    log : list of dict
     """
 
     path: np.ndarray
@@ -121,7 +123,14 @@ class GeodesicRegressionResult:
     mean: FrechetMeanResult
     options: GeodesicOptions
     tol: float
-    history: list = field(default_factory=list, repr=False)
+    log: list = field(default_factory=list, repr=False)
+
+    history = deprecated_alias("history", "log", owner="GeodesicRegressionResult")
+
+    @property
+    def stop_reason(self) -> str:
+        """Why the iteration stopped: ``"converged"`` (certificate ≤ tol) or ``"max_iter"``."""
+        return "converged" if self.converged else "max_iter"
 
     @property
     def speed(self) -> float:
@@ -202,9 +211,13 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
                         path_steps: int = DEFAULT_PATH_STEPS, n_steps: int = DEFAULT_LOG_STEPS,
                         log_tol: float = 1e-6, log_max_iter: int = 200, rcond: float = DEFAULT_RCOND,
                         grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN, step_rcond: float = DEFAULT_STEP_RCOND,
-                        executor=None,
-                        chunk_size: int | None = None, warn: bool = True) -> GeodesicRegressionResult:
+                        executor=None, chunk_size: int | None = None, warn: bool = True, n_jobs: int | None = None,
+                        client=None, scheduler=None) -> GeodesicRegressionResult:
     """The geodesic ``γ(t) = exp_p((t − t_ref) v)`` that best fits ``shapes`` against ``t``.
+
+    Minimises the sum of squared geodesic residuals ``Σ d²(γ(t_i), x_i)`` over the geodesic's two
+    ends by Gauss–Newton, with ``R² = 1 − Σ d²(γ(t_i), x_i) / Σ d²(x̄, x_i)`` against the Fréchet
+    mean ``x̄`` (module docstring).
 
     Parameters
     ----------
@@ -229,10 +242,27 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
         of the largest (module docstring).
     executor, chunk_size
         Where the residual log maps run (:mod:`shapelib.statistics.population_logs`).
+    n_jobs, client, scheduler
+        Or on the engine, as for :func:`shapelib.frechet_mean` (``log[-1]`` says where).
 
     Returns
     -------
     GeodesicRegressionResult
+
+    See Also
+    --------
+    shapelib.frechet_mean
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> s = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    >>> age = np.linspace(0.0, 1.0, 6)
+    >>> x = np.stack([np.c_[(1.5 + 0.5 * a) * np.cos(s), np.sin(s)] for a in age])
+    >>> fit = sl.geodesic_regression(x, age, sigma2=0.5, n_jobs=1)
+    >>> bool(fit.r2 > 0.99)
+    True
     """
     y = as_shapes(shapes, name="shapes")
     check_dimension(y, name="shapes")
@@ -244,26 +274,37 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
     lo, hi = float(tt.min()), float(tt.max())
     if hi == lo:
         raise ValueError(f"t is constant ({lo!r}): there is nothing to regress on")
-    opts = geodesic_options(metric, sigma2, n_steps=n_steps, log_tol=log_tol, log_max_iter=log_max_iter, rcond=rcond,
+    opts = geodesic_options(metric, sigma2=sigma2, n_steps=n_steps, log_tol=log_tol, log_max_iter=log_max_iter, rcond=rcond,
                             grid_spacing=grid_spacing, grid_margin=grid_margin)
     tol = check_positive(tol, name="tol")
     max_iter = check_nonnegative_int(max_iter, name="max_iter")
     m_steps = check_positive_int(path_steps, name="path_steps")
     t_ref = float(tt.mean()) if t_ref is None else float(t_ref)
     check_population(y, metric=metric, sigma2=opts.sigma2, stacklevel=3)
-    with set_checked():
-        return _fit(y, tt, lo, hi, t_ref, mean, opts, tol=tol, max_iter=max_iter, m_steps=m_steps, step_rcond=step_rcond,
-                    executor=executor, chunk_size=chunk_size, warn=warn)
+    start = {}  # the Procrustes mean, once: the timed log map's base and the Fréchet mean's start
+
+    def base():
+        start.setdefault("init", procrustes_mean(y))
+        return start["init"]
+
+    rounds = 6.0 if mean is None else 4.0  # the mean's rounds and Gauss–Newton's
+    with set_checked(), where_logs_run(y, opts, base=base, rounds=rounds, executor=executor, n_jobs=n_jobs,
+                                       client=client, scheduler=scheduler, chunk_size=chunk_size) as where:
+        res = _fit(y, tt, lo, hi, t_ref, mean, opts, tol=tol, max_iter=max_iter, m_steps=m_steps,
+                   step_rcond=step_rcond, executor=where.executor, chunk_size=where.chunk_size, warn=warn,
+                   mean_kw={**where.passed_on, **start})
+    where.record(res.log)
+    return res
 
 
-def _fit(y, tt, lo, hi, t_ref, mean, opts, *, tol, max_iter, m_steps, step_rcond, executor, chunk_size, warn):
+def _fit(y, tt, lo, hi, t_ref, mean, opts, *, tol, max_iter, m_steps, step_rcond, executor, chunk_size, warn,
+         mean_kw):
     metric, sigma2, n_steps = opts.metric, opts.sigma2, opts.n_steps
     log_tol, log_max_iter, rcond = opts.tol, opts.max_iter, opts.rcond
     grid_spacing, grid_margin = opts.grid_spacing, opts.grid_margin
     if mean is None:
         mean = frechet_mean(y, metric=metric, sigma2=sigma2, n_steps=n_steps, log_tol=log_tol, log_max_iter=log_max_iter,
-                            rcond=rcond, grid_spacing=grid_spacing, grid_margin=grid_margin, executor=executor,
-                            chunk_size=chunk_size, warn=warn)
+                            rcond=rcond, grid_spacing=grid_spacing, grid_margin=grid_margin, warn=warn, **mean_kw)
     elif not isinstance(mean, FrechetMeanResult) or mean.logs.shape != y.shape:
         raise ValueError("mean must be the FrechetMeanResult of these shapes")
     ss_total = float(np.sum(mean.energies))
@@ -336,7 +377,7 @@ def _fit(y, tt, lo, hi, t_ref, mean, opts, *, tol, max_iter, m_steps, step_rcond
         path=state.path, t_range=(lo, hi), t_ref=t_ref, intercept=intercept, velocity=velocity, fitted=state.fitted,
         residuals=np.stack([r.vector for r in state.logs]), residual_energies=np.array([r.energy for r in state.logs]),
         ss_residual=ss_res, ss_total=ss_total, r2=1.0 - ss_res / ss_total if ss_total > 0 else float("nan"),
-        certificate=cert, converged=converged, n_iter=it, mean=mean, options=opts, tol=tol, history=history)
+        certificate=cert, converged=converged, n_iter=it, mean=mean, options=opts, tol=tol, log=history)
 
 
 def _moved_path(prev: _State, a, b):

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from .._validate import deprecated_alias, keeps_old_calls
 from .distance_based import TIE_RTOL, KnnResult, PermanovaResult, knn_loo_accuracy, permanova
 
 __all__ = ["SweepTest", "permanova_sweep", "knn_sweep", "min_p_adjusted"]
@@ -44,7 +45,7 @@ class SweepTest:
         Westfall–Young min-P p-value of the whole sweep: how often the best of the sweep is at
         least this good when the labels carry no information. Report this, not ``p_values[best]``.
     name : str
-    permutations : int
+    n_permutations : int
     """
 
     statistic: np.ndarray
@@ -52,14 +53,16 @@ class SweepTest:
     best: int
     p_family: float
     name: str
-    permutations: int
+    n_permutations: int
     results: list = field(default_factory=list, repr=False)
+
+    permutations = deprecated_alias("permutations", "n_permutations", owner="SweepTest")
 
     def summary(self) -> str:
         b = self.best
         return (f"{self.name}: best at sweep value {b} ({self.statistic[b]:.4g}, plain p = {self.p_values[b]:.3g}); "
                 f"over the whole sweep of {len(self.statistic)} values p = {self.p_family:.3g} "
-                f"(Westfall-Young min-P, {self.permutations} permutations)")
+                f"(Westfall-Young min-P, {self.n_permutations} permutations)")
 
 
 def min_p_adjusted(observed, null, *, rtol: float = 0.0):
@@ -107,7 +110,8 @@ def _best(p, stat):
     return int(order[0])
 
 
-def permanova_sweep(distances, covariates, *, term: str, permutations: int = 999, seed: int | None = 0,
+@keeps_old_calls(renamed={"permutations": "n_permutations"})
+def permanova_sweep(distances, covariates, *, term: str, n_permutations: int = 999, seed: int | None = 0,
                     **kw) -> SweepTest:
     """PERMANOVA (:func:`shapelib.statistics.distance_based.permanova`) at every matrix of a sweep.
 
@@ -119,7 +123,7 @@ def permanova_sweep(distances, covariates, *, term: str, permutations: int = 999
         The model, as for :func:`permanova` (every term in the model at every value).
     term : str
         The term whose pseudo-F is followed across the sweep.
-    permutations, seed
+    n_permutations, seed
         As :func:`permanova`; the same seed gives every matrix the same permutations, which the
         family-wise test needs.
     **kw
@@ -133,17 +137,18 @@ def permanova_sweep(distances, covariates, *, term: str, permutations: int = 999
     cov = pd.DataFrame(covariates)
     if term not in cov.columns:
         raise ValueError(f"term {term!r} is not a column of covariates {list(cov.columns)}")
-    results: list[PermanovaResult] = [permanova(d, cov, permutations=permutations, seed=seed, **kw)
+    results: list[PermanovaResult] = [permanova(d, cov, n_permutations=n_permutations, seed=seed, **kw)
                                       for d in distances]
     if not results:
         raise ValueError("distances: the sweep is empty")
     stat = np.array([r.table.loc[term, "pseudo_F"] for r in results])
     null = np.column_stack([r.null[term] for r in results])
     p, p_family = min_p_adjusted(stat, null, rtol=TIE_RTOL)
-    return SweepTest(stat, p, _best(p, stat), p_family, f"PERMANOVA pseudo-F of {term}", int(permutations), results)
+    return SweepTest(stat, p, _best(p, stat), p_family, f"PERMANOVA pseudo-F of {term}", int(n_permutations), results)
 
 
-def knn_sweep(distances, labels, *, n_neighbors: int = 5, permutations: int = 999, seed: int | None = 0) -> SweepTest:
+@keeps_old_calls(renamed={"permutations": "n_permutations"})
+def knn_sweep(distances, labels, *, n_neighbors: int = 5, n_permutations: int = 999, seed: int | None = 0) -> SweepTest:
     """Leave-one-out k-NN accuracy (:func:`shapelib.statistics.distance_based.knn_loo_accuracy`) at
     every matrix of a sweep, the same label permutations for all, with the family-wise test.
 
@@ -152,7 +157,7 @@ def knn_sweep(distances, labels, *, n_neighbors: int = 5, permutations: int = 99
     SweepTest
         Statistic: the accuracy; ``results``: the :class:`KnnResult` of each matrix.
     """
-    results: list[KnnResult] = [knn_loo_accuracy(d, labels, n_neighbors=n_neighbors, permutations=permutations,
+    results: list[KnnResult] = [knn_loo_accuracy(d, labels, n_neighbors=n_neighbors, n_permutations=n_permutations,
                                                  seed=seed) for d in distances]
     if not results:
         raise ValueError("distances: the sweep is empty")
@@ -160,4 +165,4 @@ def knn_sweep(distances, labels, *, n_neighbors: int = 5, permutations: int = 99
     null = np.column_stack([r.null for r in results])
     p, p_family = min_p_adjusted(stat, null)
     return SweepTest(stat, p, _best(p, stat), p_family, f"{n_neighbors}-NN leave-one-out accuracy",
-                     int(permutations), results)
+                     int(n_permutations), results)

@@ -32,10 +32,12 @@ import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
+from .._executor import check_where
 from .._validate import as_shape, as_shapes, check_positive_int
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..solver.logexp import DEFAULT_LOG_STEPS, DEFAULT_RCOND, TangentSpace, exp_path, tangent_space
 from .frechet import FrechetMeanResult, check_population, frechet_mean, geodesic_options
+from ._run import where_logs_run
 from .population_logs import population_logs
 
 __all__ = ["TangentPCAResult", "TangentPCA", "tangent_pca", "DEFAULT_SD"]
@@ -155,8 +157,13 @@ def _from_logs(mean, logs, ts, options, n_components, frechet=None) -> TangentPC
 def tangent_pca(shapes, *, metric: str = "alpha", sigma2=None, mean=None, n_components: int | None = None,
                 n_steps: int = DEFAULT_LOG_STEPS, rcond: float = DEFAULT_RCOND, modes=(0, 1, 2), sd=DEFAULT_SD,
                 executor=None, chunk_size: int | None = None, grid_spacing: float = DEFAULT_SPACING,
-                grid_margin: float = DEFAULT_MARGIN, **mean_options) -> TangentPCAResult:
+                grid_margin: float = DEFAULT_MARGIN, n_jobs: int | None = None, client=None, scheduler=None,
+                **mean_options) -> TangentPCAResult:
     """Tangent PCA of ``shapes`` (N, K, d) at their Fréchet mean, orthonormal in ``g(mean)``.
+
+    The log maps ``v_i = log_m(x_i)`` at the mean ``m`` are expressed in an orthonormal basis of
+    the retained subspace of ``g(m)`` and their covariance diagonalised: the principal geodesic
+    modes ``exp_m(±sd · √λ_j e_j)``.
 
     Parameters
     ----------
@@ -176,15 +183,36 @@ def tangent_pca(shapes, *, metric: str = "alpha", sigma2=None, mean=None, n_comp
         ``result.mode_shapes``; ``modes=()`` draws none.
     executor, chunk_size
         Where the log maps run (:mod:`shapelib.statistics.population_logs`).
+    n_jobs, client, scheduler
+        Or on the engine, as for :func:`shapelib.frechet_mean` (no log map, so in this process,
+        when ``mean`` is a :class:`FrechetMeanResult`).
 
     Returns
     -------
     TangentPCAResult
+
+    See Also
+    --------
+    shapelib.frechet_mean, TangentPCA
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> t = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    >>> rng = np.random.default_rng(0)
+    >>> x = np.stack([np.c_[2 * np.cos(t), np.sin(t)] + 0.05 * rng.normal(size=(8, 2)) for _ in range(5)])
+    >>> x = sl.pose_align(x)[0]  # the metrics depend on pose: align first
+    >>> pca = sl.tangent_pca(x, sigma2=0.5, modes=(), n_jobs=1)
+    >>> bool(pca.explained_variance_ratio.sum() > 0.999)
+    True
     """
     x = as_shapes(shapes, name="shapes")
     if n_components is not None:
         n_components = check_positive_int(n_components, name="n_components")
+    engine = dict(executor=executor, n_jobs=n_jobs, client=client, scheduler=scheduler, chunk_size=chunk_size)
     if isinstance(mean, FrechetMeanResult):
+        check_where(n_jobs, client, scheduler)
         if mean.logs.shape != x.shape:
             raise ValueError(f"mean: a Fréchet mean of {mean.logs.shape[0]} shapes of shape {mean.logs.shape[1:]}, "
                              f"not of these {x.shape[0]} shapes of shape {x.shape[1:]}")
@@ -193,15 +221,15 @@ def tangent_pca(shapes, *, metric: str = "alpha", sigma2=None, mean=None, n_comp
     else:
         if sigma2 is None:
             raise ValueError("tangent_pca needs sigma2=... unless mean= is a FrechetMeanResult")
-        opts = geodesic_options(metric, sigma2, n_steps=n_steps, rcond=rcond, grid_spacing=grid_spacing,
+        opts = geodesic_options(metric, sigma2=sigma2, n_steps=n_steps, rcond=rcond, grid_spacing=grid_spacing,
                                 grid_margin=grid_margin, **{k: mean_options.pop(k) for k in ("log_tol", "log_max_iter")
                                                             if k in mean_options})
         if mean is not None and mean_options:
             raise ValueError(f"options of the Fréchet mean ({', '.join(sorted(mean_options))}) given with mean=")
         if mean is None:
             fm = frechet_mean(x, metric=metric, sigma2=sigma2, n_steps=n_steps, rcond=rcond, grid_spacing=grid_spacing,
-                              grid_margin=grid_margin, executor=executor, chunk_size=chunk_size,
-                              log_tol=opts.tol, log_max_iter=opts.max_iter, **mean_options)
+                              grid_margin=grid_margin, log_tol=opts.tol, log_max_iter=opts.max_iter, **engine,
+                              **mean_options)
             m, logs, ts = fm.mean, fm.logs, fm.tangent
         else:
             fm = None
@@ -209,8 +237,9 @@ def tangent_pca(shapes, *, metric: str = "alpha", sigma2=None, mean=None, n_comp
             if m.shape != x.shape[1:]:
                 raise ValueError(f"mean must have shape {x.shape[1:]}; got {m.shape}")
             check_population(x, metric=metric, sigma2=opts.sigma2, stacklevel=3)
-            logs = np.stack([r.vector for r in population_logs(m, x, options=opts, executor=executor,
-                                                               chunk_size=chunk_size)])
+            with where_logs_run(x, opts, base=m, rounds=1.0, **engine) as where:
+                logs = np.stack([r.vector for r in population_logs(m, x, options=opts, executor=where.executor,
+                                                                   chunk_size=where.chunk_size)])
             ts = tangent_space(m, options=opts)
     res = _from_logs(m, logs, ts, opts, n_components, frechet=fm)
     res.modes(tuple(j for j in modes if j < res.n_components), sd)
@@ -227,6 +256,9 @@ class TangentPCA(TransformerMixin, BaseEstimator):
     ----------
     metric : {"alpha", "fisher_rao"}
     sigma2 : float
+        σ² of eq. (5): required, as by :func:`tangent_pca` (unless ``mean`` is a
+        :class:`FrechetMeanResult`, which carries its own). Omitting it still fits with σ² = 1
+        for this release, with a :class:`DeprecationWarning`.
     n_components : int, optional
     n_dim : int
         Coordinates per landmark of flattened input (2 or 3).
@@ -235,7 +267,7 @@ class TangentPCA(TransformerMixin, BaseEstimator):
     n_steps, rcond, tol
         Discrete geodesics, retained subspace, Fréchet mean certificate.
     executor : concurrent.futures.Executor, optional
-        Where the log maps of :meth:`fit` and :meth:`transform` run.
+        Where the log maps of :meth:`fit` and :meth:`transform` run (default: in this process).
 
     Attributes
     ----------
@@ -248,7 +280,7 @@ class TangentPCA(TransformerMixin, BaseEstimator):
     result_ : TangentPCAResult
     """
 
-    def __init__(self, metric: str = "alpha", sigma2: float = 1.0, n_components: int | None = None, n_dim: int = 2,
+    def __init__(self, metric: str = "alpha", sigma2: float | None = None, n_components: int | None = None, n_dim: int = 2,
                  mean=None, n_steps: int = DEFAULT_LOG_STEPS, rcond: float = DEFAULT_RCOND, tol: float = 1e-3,
                  executor=None):
         self.metric = metric
@@ -275,9 +307,17 @@ class TangentPCA(TransformerMixin, BaseEstimator):
     def fit(self, X, y=None):
         """Fréchet mean (unless ``mean`` was given), log maps and their PCA."""
         x = self._shapes(X, fitted=False)
-        self.result_ = tangent_pca(x, metric=self.metric, sigma2=self.sigma2, mean=self.mean,
+        sigma2 = self.sigma2
+        if sigma2 is None and not isinstance(self.mean, FrechetMeanResult):
+            import warnings
+
+            warnings.warn("TangentPCA needs sigma2=..., as tangent_pca does; the former default sigma2=1.0 is used "
+                          "for this release and omitting sigma2 will be an error in the next", DeprecationWarning,
+                          stacklevel=2)
+            sigma2 = 1.0
+        self.result_ = tangent_pca(x, metric=self.metric, sigma2=sigma2, mean=self.mean,
                                    n_components=self.n_components, n_steps=self.n_steps, rcond=self.rcond,
-                                   executor=self.executor, modes=(),
+                                   executor=self.executor, n_jobs=None if self.executor is not None else 1, modes=(),
                                    **({"tol": self.tol} if self.mean is None else {}))
         r = self.result_
         self._train_scores = r.scores
