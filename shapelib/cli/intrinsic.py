@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import CLIError, _auto_sigma2, _file_options, _output_path, _read, _write_frame
+from ._common import CLIError, _auto_sigma2, _sigma2_arg, _file_options, _output_path, _read, _write_frame
 
 EXAMPLES = {
     "mean": ("example:\n  shapelib mean wings.tps --size 20 --metric alpha --sigma2 1.2 --jobs 2 -o mean.tps --plot mean.png"),
@@ -23,6 +23,8 @@ def _intrinsic_input(args):
         raise CLIError(f"--metric {args.metric}: means and modes exist for {', '.join(INTRINSIC_METRICS)}")
     for name in ("sigma2", "tol"):
         value = getattr(args, name)
+        if value == "auto":
+            continue
         if not (np.isfinite(value) and value > 0):
             raise CLIError(f"--{name.replace('_', '-')} must be a positive number; got {value}")
     if args.size is not None and not (np.isfinite(args.size) and args.size > 0):
@@ -32,6 +34,9 @@ def _intrinsic_input(args):
     if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
         raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")
     shapes, spec = _read(args)
+    if shapes.shape[1] <= shapes.shape[2]:
+        raise CLIError(f"{args.file}: {shapes.shape[1]} landmarks in {shapes.shape[2]}-D: after alignment every such "
+                       f"configuration is the same shape; a shape needs at least {shapes.shape[2] + 1} landmarks")
     if len(shapes) < 2:
         raise CLIError(f"{args.file}: {len(shapes)} specimen; a mean needs at least two")
     if args.size is not None:
@@ -115,7 +120,9 @@ def cmd_pca(args) -> int:
 
 def _intrinsic_options(p):
     p.add_argument("--metric", required=True, metavar="M", help=", ".join(INTRINSIC_METRICS))
-    p.add_argument("--sigma2", type=float, required=True, metavar="S", help="σ² of the Gaussian mixture (eq. 5)")
+    p.add_argument("--sigma2", type=_sigma2_arg, required=True, metavar="S",
+                   help="σ² of the Gaussian mixture (eq. 5), or 'auto': estimated from the landmarks' scatter around "
+                        "the mean shape, after --size (`shapelib info` shows it)")
     p.add_argument("--size", type=float, metavar="S",
                    help="align the specimens (generalized Procrustes) and scale them to centroid size S first "
                         "(the study uses 20); default: the coordinates as given, already aligned")
