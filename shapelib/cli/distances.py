@@ -195,8 +195,8 @@ def cmd_geodesic(args) -> int:
     params.setdefault("n_steps", 16)
     shapes, spec = _read(args)
     params = _auto_sigma2(args, params, shapes)
-    if (plot or anim) and shapes.shape[2] != 2:
-        raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
+    if anim and shapes.shape[2] != 2:
+        raise CLIError("--animate draws 2-D landmarks; this file is 3-D (--plot draws it in 3-D)")
     links = []
     if args.links is not None:
         if not (plot or anim):

@@ -34,9 +34,10 @@ def _intrinsic_input(args):
     if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
         raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")
     shapes, spec = _read(args)
-    if shapes.shape[1] <= shapes.shape[2]:
-        raise CLIError(f"{args.file}: {shapes.shape[1]} landmarks in {shapes.shape[2]}-D: after alignment every such "
-                       f"configuration is the same shape; a shape needs at least {shapes.shape[2] + 1} landmarks")
+    if shapes.shape[1] < 3:
+        raise CLIError(f"{args.file}: {shapes.shape[1]} landmark(s): after alignment (position, orientation, size) "
+                       "every such configuration is the same shape, so there is no shape variation to average or "
+                       "decompose; a shape needs at least 3 landmarks")
     if len(shapes) < 2:
         raise CLIError(f"{args.file}: {len(shapes)} specimen; a mean needs at least two")
     if args.size is not None:
@@ -44,6 +45,16 @@ def _intrinsic_input(args):
 
         shapes = to_centroid_size(shapes, args.size)
     options = {"tol": args.tol, "n_steps": args.n_steps, "n_jobs": args.jobs, "scheduler": args.scheduler}
+    args.link_pairs = None
+    if args.links is not None:
+        if not args.plot:
+            raise CLIError("--links applies to --plot")
+        from ..plotting import parse_links
+
+        try:
+            args.link_pairs = parse_links(args.links, shapes.shape[1])
+        except ValueError as exc:
+            raise CLIError(f"--{exc}") from None
     return shapes, spec, options
 
 
@@ -61,13 +72,13 @@ def cmd_mean(args) -> int:
     io.write_landmarks(out, res.mean[None], pd.DataFrame({"id": ["frechet_mean"]}))  # reads back as written
     print(f"{res.summary()} -> {out}")
     if plot:
-        _plot_mean(shapes, res, plot, title=f"{args.metric} Fréchet mean of {len(shapes)} specimens "
+        _plot_mean(shapes, res, plot, links=args.link_pairs, title=f"{args.metric} Fréchet mean of {len(shapes)} specimens "
                                             f"(σ² = {sigma2:g})")
         print(f"figure -> {plot}")
     return 0
 
 
-def _plot_mean(shapes, res, path, *, title):
+def _plot_mean(shapes, res, path, *, title, links=None):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -75,7 +86,7 @@ def _plot_mean(shapes, res, path, *, title):
 
     from ..plotting import plot_mean
 
-    fig = plot_mean(shapes, res, title=title)
+    fig = plot_mean(shapes, res, closed=None, links=links, title=title)
     fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
     plt.close(fig)
 
@@ -111,7 +122,8 @@ def cmd_pca(args) -> int:
 
         from ..plotting import plot_modes
 
-        fig = plot_modes(res, components=tuple(range(min(3, res.n_components))), sd=(-2.0, 0.0, 2.0))
+        fig = plot_modes(res, components=tuple(range(min(3, res.n_components))), sd=(-2.0, 0.0, 2.0), closed=None,
+                         links=args.link_pairs)
         fig.savefig(plot, dpi=120, metadata={"Software": None} if plot.suffix == ".png" else None)
         plt.close(fig)
         print(f"figure -> {plot}")
@@ -129,6 +141,9 @@ def _intrinsic_options(p):
     p.add_argument("--tol", type=float, default=1e-3, metavar="T",
                    help="stop when |mean of the log maps| / their spread <= T (default 1e-3)")
     p.add_argument("--n-steps", type=int, default=4, metavar="N", help="segments of the discrete geodesics (default 4)")
+    p.add_argument("--links", metavar="L", help="landmarks to join in --plot: pairs of landmark numbers as in the file, "
+                   "e.g. 1-2,2-3,3-1 (geomorph's and Momocs' links), or 'contour' for a closed outline in landmark "
+                   "order; default: points only")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--jobs", type=int, metavar="N", help="worker processes on this machine (default: chosen "
                        "from the measured cost of one log map)")
