@@ -55,7 +55,7 @@ _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
 _LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population", "tangent_pca": "population",
                    "geodesic_regression": "population", "mean_difference_test": "population",
-                   "TangentPCA": "statistics.tangent_pca"}
+                   "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple"}
 
 
 def __getattr__(name):
@@ -74,6 +74,7 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "holm_adjust",
     "MetricInfo",
     "metric_info",
     "register_metric",

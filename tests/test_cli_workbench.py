@@ -257,3 +257,78 @@ def test_two_landmarks_and_coincident_landmarks_are_flagged(rng, tmp_path):
     dup = io.write_tps(tmp_path / "dup.tps", x, ["a", "b", "c"])
     proc = run("info", dup, check=0)
     assert "specimen 'b' has landmarks 2 and 4 at the same point" in proc.stderr, proc.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# shapelib test and shapelib regress
+# ---------------------------------------------------------------------------------------------
+
+
+def test_holm_adjust_matches_its_closed_form():
+    p = np.array([0.04, 0.001, 0.03, 0.2])
+    # sorted 0.001, 0.03, 0.04, 0.2 -> 4*0.001, max(.., 3*0.03), max(.., 2*0.04), max(.., 1*0.2)
+    np.testing.assert_allclose(sl.holm_adjust(p), [0.09, 0.004, 0.09, 0.2])
+    assert sl.holm_adjust([0.5, 0.6]).tolist() == [1.0, 1.0]
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        sl.holm_adjust([0.1, 1.5])
+
+
+@pytest.fixture(scope="module")
+def adhd_groups(tmp_path_factory):
+    """30 ADHD-200 outlines (aligned) and a covariate table keyed by patient id, rows shuffled."""
+    from shapelib.datasets import load_adhd200
+
+    x, labels = load_adhd200()
+    d = tmp_path_factory.mktemp("groups")
+    lab = labels.iloc[:30].assign(id=labels["patient.id"].astype(str)[:30])
+    lab["site"] = np.array(["a", "b", "c"])[np.arange(30) % 3]
+    raw = io.write_landmarks(d / "raw.tps", x[:30, ::2], pd.DataFrame({"id": lab["id"]}))
+    run("align", raw, "-o", d / "aligned.tps", check=0)
+    lab.sample(frac=1.0, random_state=0)[["id", "site", "age", "gender"]].to_csv(d / "cov.csv", index=False)
+    return d
+
+
+@requires_data
+def test_shapelib_test_is_permanova_of_the_metric_with_holm_adjusted_pairs(adhd_groups):
+    from shapelib.statistics.distance_based import permanova
+
+    d = adhd_groups
+    proc = run("test", d / "aligned.tps", "--covariates", d / "cov.csv", "--by", "site", "--metric", "procrustes",
+               "--permutations", 99, "-o", d / "t.csv", check=0)
+    table = pd.read_csv(d / "t.csv")
+    assert list(table["comparison"]) == ["all groups", "a vs b", "a vs c", "b vs c"]
+    x, spec = io.read_landmarks(d / "aligned.tps")
+    cov = pd.read_csv(d / "cov.csv", dtype={"id": str}).set_index("id").loc[spec["id"].astype(str)]
+    dist = sl.pairwise_distances(x, metric="procrustes", n_jobs=1, progress=False)
+    want = permanova(dist, {"site": cov["site"].to_numpy()}, permutations=99, seed=0).table.loc["site"]
+    assert table.loc[0, "pseudo_F"] == pytest.approx(want["pseudo_F"], rel=1e-12)
+    assert table.loc[0, "p_value"] == want["p_value"]
+    np.testing.assert_allclose(table["p_holm"][1:], sl.holm_adjust(table["p_value"][1:]))
+    assert "pairwise (Holm-adjusted over 3 comparisons)" in proc.stdout
+    # ids absent from the covariates are named
+    pd.read_csv(d / "cov.csv").iloc[1:].to_csv(d / "short.csv", index=False)
+    one_line_error(run("test", d / "aligned.tps", "--covariates", d / "short.csv", "--by", "site", "--metric",
+                       "procrustes"), "short.csv", "no row for specimen")
+
+
+@requires_data
+def test_shapelib_regress_is_distance_based_regression_with_a_permutation_p(adhd_groups):
+    from shapelib.statistics.distance_based import permanova
+
+    d = adhd_groups
+    proc = run("regress", d / "aligned.tps", "--covariates", d / "cov.csv", "--by", "age", "--log", "--metric",
+               "procrustes", "--permutations", 99, "-o", d / "r.csv", check=0)
+    x, spec = io.read_landmarks(d / "aligned.tps")
+    age = pd.read_csv(d / "cov.csv", dtype={"id": str}).set_index("id").loc[spec["id"].astype(str), "age"]
+    dist = sl.pairwise_distances(x, metric="procrustes", n_jobs=1, progress=False)
+    want = permanova(dist, {"age": np.log(age.to_numpy())}, permutations=99, seed=0).table.loc["age"]
+    got = pd.read_csv(d / "r.csv").set_index("term").loc["age"]
+    assert got["r2"] == pytest.approx(want["r2"], rel=1e-12) and got["p_value"] == want["p_value"]
+    # R² of one centred numeric term: the squared-distance share of a linear fit of the coordinates
+    y = x.reshape(len(x), -1) - x.reshape(len(x), -1).mean(axis=0)
+    c = np.log(age.to_numpy()) - np.log(age.to_numpy()).mean()
+    beta = c @ y / (c @ c)
+    assert want["r2"] == pytest.approx(np.sum(np.outer(c, beta) ** 2) / np.sum(y ** 2), rel=0.05)
+    assert "R² = " in proc.stdout and "log age" in proc.stdout
+    one_line_error(run("regress", d / "aligned.tps", "--covariates", d / "cov.csv", "--by", "site", "--metric",
+                       "procrustes"), "--by site", "not a number")

@@ -9,6 +9,8 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
     shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S|auto -o path.csv [--plot P.png] [--animate A.gif]
     shapelib mean FILE --metric M --sigma2 S [--size S] [--jobs N | --scheduler ADDRESS] -o mean.tps [--plot P.png]
     shapelib pca FILE --metric M --sigma2 S [--size S] [--n-components K] -o scores.csv [--plot modes.png]
+    shapelib test FILE --covariates C.csv --by GROUP --metric M [--sigma2 S|auto] [--permutations P] [-o T.csv]
+    shapelib regress FILE --covariates C.csv --by COLUMN [--log] --metric M [--sigma2 S|auto] [-o T.csv]
     shapelib study [run_all.py options: --quick, --only NAME, -p NAME=VALUE, -j N, --force, --list, ...]
 
 Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
@@ -44,6 +46,7 @@ COMMAND_MODULES = (
     "info",        # info, align
     "distances",   # distances, geodesic
     "intrinsic",   # mean, pca
+    "effects",     # test, regress
     "study",       # study (run_all.py)
 )
 
