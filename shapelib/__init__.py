@@ -55,7 +55,9 @@ _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
 _LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population", "tangent_pca": "population",
                    "geodesic_regression": "population", "mean_difference_test": "population",
-                   "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple"}
+                   "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple",
+                   "shape_lm": "statistics.linear_model", "ShapeLinearModel": "statistics.linear_model",
+                   "procrustes_coordinates": "statistics.linear_model"}
 
 
 def __getattr__(name):
@@ -75,6 +77,9 @@ def __dir__():
 
 __all__ = [
     "holm_adjust",
+    "shape_lm",
+    "ShapeLinearModel",
+    "procrustes_coordinates",
     "MetricInfo",
     "metric_info",
     "register_metric",
