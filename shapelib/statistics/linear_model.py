@@ -51,7 +51,7 @@ class ShapeLinearModel:
     ----------
     table : pandas.DataFrame
         One row per term, then ``Residual`` and ``Total``: ``df``, ``sum_of_squares``, ``r2``,
-        ``F``, ``p_value``, ``z`` (the effect size ``(F − mean F*) / sd F*``), ``ss_type`` and
+        ``F``, ``p_value``, ``z`` (the effect size ``(log F − mean log F*) / sd log F*``, as RRPP), ``ss_type`` and
         ``reduced_model`` (the model whose residuals are permuted for the term).
     formula : str
     ss_type : {"I", "II", "III"}
