@@ -57,7 +57,8 @@ _LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population
                    "geodesic_regression": "population", "mean_difference_test": "population",
                    "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple",
                    "shape_lm": "statistics.linear_model", "ShapeLinearModel": "statistics.linear_model",
-                   "procrustes_coordinates": "statistics.linear_model"}
+                   "procrustes_coordinates": "statistics.linear_model", "allometry": "statistics.allometry",
+                   "AllometryResult": "statistics.allometry"}
 
 
 def __getattr__(name):
@@ -80,6 +81,8 @@ __all__ = [
     "shape_lm",
     "ShapeLinearModel",
     "procrustes_coordinates",
+    "allometry",
+    "AllometryResult",
     "MetricInfo",
     "metric_info",
     "register_metric",

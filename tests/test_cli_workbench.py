@@ -332,3 +332,17 @@ def test_shapelib_regress_is_distance_based_regression_with_a_permutation_p(adhd
     assert "R² = " in proc.stdout and "log age" in proc.stdout
     one_line_error(run("regress", d / "aligned.tps", "--covariates", d / "cov.csv", "--by", "site", "--metric",
                        "procrustes"), "--by site", "not a number")
+
+
+def test_align_keeps_the_centroid_sizes_for_an_allometry_regression(rng, tmp_path):
+    from shapelib.geometry.procrustes import centroid_size
+
+    x = rng.uniform(10, 50, size=(6, 5, 2)) * rng.uniform(1, 3, size=(6, 1, 1))
+    src = io.write_tps(tmp_path / "raw.tps", x, [f"s{i}" for i in range(6)])
+    proc = run("align", src, "-o", tmp_path / "a.tps", "--sizes", tmp_path / "sizes.csv", check=0)
+    sizes = pd.read_csv(tmp_path / "sizes.csv")
+    assert list(sizes["id"]) == [f"s{i}" for i in range(6)] and "--by centroid_size --log" in proc.stdout
+    np.testing.assert_allclose(sizes["centroid_size"], [centroid_size(s) for s in x], rtol=1e-12)
+    proc = run("regress", tmp_path / "a.tps", "--covariates", tmp_path / "sizes.csv", "--by", "centroid_size",
+               "--log", "--metric", "procrustes", "--permutations", 19, "--jobs", 1, check=0)
+    assert "shape on log centroid_size" in proc.stdout

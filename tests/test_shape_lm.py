@@ -76,3 +76,27 @@ def test_bad_formulas_and_data_are_value_errors(balanced):
     with pytest.raises(ValueError, match="ss_type"):
         shape_lm("~ genus", data, x, ss_type="IV")
     assert sl.shape_lm is shape_lm
+
+
+def test_allometry_recovers_a_known_allometric_vector_and_corrects_for_size(rng):
+    from shapelib.statistics.allometry import allometry
+
+    base = ellipse_population(rng, 1, k=7, noise=0.0)[0]
+    direction = np.zeros_like(base)
+    direction[0] = [0.2, 0.1]  # landmark 1 moves out as log size grows
+    log_size = rng.uniform(0.0, 1.5, 40)
+    shapes = np.stack([np.exp(s) * (base + s * direction) for s in log_size])
+    shapes = shapes + rng.normal(scale=0.002, size=shapes.shape) * np.exp(log_size)[:, None, None]
+    res = allometry(shapes, permutations=99)
+    np.testing.assert_allclose(res.centroid_size, [sl.geometry.procrustes.centroid_size(s) for s in shapes])
+    assert res.r2 > 0.9 and res.p_value == pytest.approx(0.01)
+    # the slope's direction is the known one, seen in the unit-size Procrustes frame: compare by
+    # regressing the aligned coordinates on log size directly
+    y = procrustes_coordinates(shapes)
+    c = np.log(res.centroid_size) - np.log(res.centroid_size).mean()
+    np.testing.assert_allclose(res.slope.ravel(), c @ (y - y.mean(axis=0)) / (c @ c), atol=1e-12)
+    # size-corrected shapes no longer depend on size
+    corr = res.corrected.reshape(len(shapes), -1)
+    assert np.abs(c @ (corr - corr.mean(axis=0))).max() < 1e-10
+    with pytest.raises(ValueError, match="same centroid size"):
+        allometry(sl.to_centroid_size(shapes, 1.0))
