@@ -44,6 +44,7 @@ from .geometry.scale import Sigma2Estimate, estimate_sigma2
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
+from .comparison.missing import MissingEstimate, estimate_missing, tps_map
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -77,6 +78,9 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "estimate_missing",
+    "MissingEstimate",
+    "tps_map",
     "holm_adjust",
     "shape_lm",
     "ShapeLinearModel",

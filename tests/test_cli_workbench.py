@@ -346,3 +346,19 @@ def test_align_keeps_the_centroid_sizes_for_an_allometry_regression(rng, tmp_pat
     proc = run("regress", tmp_path / "a.tps", "--covariates", tmp_path / "sizes.csv", "--by", "centroid_size",
                "--log", "--metric", "procrustes", "--permutations", 19, "--jobs", 1, check=0)
     assert "shape on log centroid_size" in proc.stdout
+
+
+def test_align_estimates_missing_landmarks_when_asked(rng, tmp_path):
+    t = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    x = np.stack([np.c_[100 + 30 * np.cos(t), 100 + (20 + 3 * rng.normal()) * np.sin(t)] for _ in range(8)])
+    gone = x.copy()
+    gone[0, 2] = np.nan
+    src = tmp_path / "gone.csv"
+    frame = pd.DataFrame(gone.reshape(8, -1), columns=[f"{a}{j + 1}" for j in range(8) for a in "xy"])
+    frame.insert(0, "id", [f"s{i}" for i in range(8)])
+    frame.to_csv(src, index=False, na_rep="NA")
+    one_line_error(run("align", src, "-o", tmp_path / "a.csv"), "missing")
+    proc = run("align", src, "-o", tmp_path / "a.csv", "--estimate-missing", "tps", check=0)
+    assert "1 missing landmark(s) in 1 specimen(s) estimated" in proc.stderr and "s0: landmark(s) 3" in proc.stderr
+    aligned, _ = io.read_landmarks(tmp_path / "a.csv")
+    assert np.isfinite(aligned).all()

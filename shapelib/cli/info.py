@@ -96,7 +96,21 @@ def cmd_align(args) -> int:
         raise CLIError(f"--size must be a positive number; got {args.size}")
     if args.sizes:
         _output_path(args.sizes, suffixes=(".csv",), option="--sizes")
-    shapes, spec = _read(args)
+    shapes, spec = _read(args, missing="nan" if args.estimate_missing else "error")
+    if args.estimate_missing:
+        from ..comparison.missing import estimate_missing
+
+        try:
+            est = estimate_missing(shapes, method=args.estimate_missing)
+        except ValueError as exc:
+            raise CLIError(f"--estimate-missing {args.estimate_missing}: {args.file}: {exc}") from None
+        shapes = est.shapes
+        if est.estimated.any():
+            rows = np.flatnonzero(est.estimated.any(axis=1))
+            listed = "; ".join(f"{spec['id'].iloc[r]}: landmark(s) "
+                               f"{', '.join(str(j + 1) for j in np.flatnonzero(est.estimated[r]))}" for r in rows[:5])
+            print(f"{PROG}: note: {est.summary()} ({listed}{'; …' if len(rows) > 5 else ''}); the aligned file holds "
+                  "the estimates", file=sys.stderr)
     aligned, _ = generalized_procrustes(shapes, scaling=args.scaling)
     aligned = aligned * (1.0 if args.size is None else args.size)
     spec = spec.copy()
@@ -140,6 +154,9 @@ def register(add) -> None:
     p.add_argument("--size", type=float, metavar="S",
                    help="centroid size of the aligned shapes (default 1; the paper's study uses 20)")
     p.add_argument("--scaling", action="store_true", help="full GPA: fit per-shape scales instead of unit size")
+    p.add_argument("--estimate-missing", choices=("tps", "regression"), metavar="METHOD",
+                   help="estimate missing landmarks (NA, or tpsDig's negative coordinates) from the complete specimens "
+                        "first: 'tps' (thin-plate spline from their mean) or 'regression'; a note lists them")
     p.add_argument("--sizes", metavar="SIZES.csv", help="also write each specimen's centroid size as read (id, "
                    "centroid_size), the size that alignment removes: a covariate for `shapelib regress --log`")
     p.set_defaults(func=cmd_align)
