@@ -45,6 +45,7 @@ from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
 from .comparison.missing import MissingEstimate, estimate_missing, tps_map
+from .geometry.semilandmarks import SlideResult, bending_energy_matrix, curve_sliders, slide_semilandmarks
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -78,6 +79,10 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "slide_semilandmarks",
+    "SlideResult",
+    "curve_sliders",
+    "bending_energy_matrix",
     "estimate_missing",
     "MissingEstimate",
     "tps_map",
