@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["plot_trajectories", "plot_metric_panels", "plot_geodesic", "animate_geodesic", "outline", "parse_links",
-           "plot_shapes_along", "deformation_grid", "plot_deformation", "plot_mean", "plot_modes", "plot_mean_difference"]
+           "plot_shapes_along", "deformation_grid", "plot_deformation", "plot_mean", "plot_modes", "plot_mean_difference", "plot_scores"]
 
 
 def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
@@ -383,4 +383,60 @@ def plot_mean_difference(test, *, mag: float = 3.0, closed: bool | None = True, 
         axes[1].set_title(f"{a} → {b}, magnified {mag:g}×", fontsize=9)
     fig.suptitle(f"{test.pooled.options.metric}: distance {test.distance:.3g}, permutation p = {test.p_value:.3g}",
                  fontsize=10)
+    return fig
+
+
+def plot_scores(scores, groups=None, *, components=(0, 1), hulls: bool = True, labels=None, explained=None,
+                ax=None, title: str = ""):
+    """A scatter of PC scores (N, ≥ 2) — tangent PCA, Procrustes PCA, MDS — coloured by group, each
+    group's convex hull drawn (``hulls``), a legend with the group sizes; ``explained`` (the
+    variance ratios) labels the axes with their shares. Returns the figure.
+
+    Examples
+    --------
+    >>> import numpy as np, matplotlib
+    >>> matplotlib.use("Agg")
+    >>> from shapelib.plotting import plot_scores
+    >>> rng = np.random.default_rng(0)
+    >>> fig = plot_scores(rng.normal(size=(20, 3)), np.repeat(["a", "b"], 10))
+    >>> sorted(t.get_text() for t in fig.axes[0].get_legend().get_texts())
+    ['a (n = 10)', 'b (n = 10)']
+    """
+    import matplotlib.pyplot as plt
+    from scipy.spatial import ConvexHull, QhullError
+
+    s = np.asarray(scores, dtype=np.float64)
+    if s.ndim != 2 or s.shape[1] <= max(components):
+        raise ValueError(f"scores must be (N, >{max(components)}) for components {components}; got shape {s.shape}")
+    a, b = components
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(5.5, 4.5), layout="constrained")
+    else:
+        fig = ax.figure
+    g = np.asarray(groups if groups is not None else np.repeat("specimens", len(s)), dtype=object)
+    if len(g) != len(s):
+        raise ValueError(f"groups has {len(g)} labels for {len(s)} rows of scores")
+    levels = sorted(set(g.tolist()), key=str)
+    colours = plt.get_cmap("tab10")(np.arange(len(levels)) % 10)
+    for colour, level in zip(colours, levels):
+        pts = s[g == level][:, [a, b]]
+        ax.plot(pts[:, 0], pts[:, 1], "o", ms=4, color=colour, label=f"{level} (n = {len(pts)})", alpha=0.85)
+        if hulls and len(pts) >= 3:
+            try:
+                hull = ConvexHull(pts)
+            except QhullError:  # collinear points: no hull to draw
+                continue
+            ring = np.r_[hull.vertices, hull.vertices[:1]]
+            ax.fill(pts[ring, 0], pts[ring, 1], color=colour, alpha=0.12, lw=0)
+            ax.plot(pts[ring, 0], pts[ring, 1], "-", color=colour, lw=0.8)
+    if labels is not None:
+        for (x, y), text in zip(s[:, [a, b]], labels):
+            ax.annotate(str(text), (x, y), fontsize=6, xytext=(2, 2), textcoords="offset points")
+    share = (lambda j: f" ({100 * explained[j]:.1f} %)") if explained is not None else (lambda j: "")
+    ax.set_xlabel(f"PC{a + 1}{share(a)}")
+    ax.set_ylabel(f"PC{b + 1}{share(b)}")
+    ax.axhline(0, color="0.85", lw=0.6, zorder=0)
+    ax.axvline(0, color="0.85", lw=0.6, zorder=0)
+    ax.legend(fontsize=8, frameon=False)
+    ax.set_title(title, fontsize=9)
     return fig

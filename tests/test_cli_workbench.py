@@ -362,3 +362,30 @@ def test_align_estimates_missing_landmarks_when_asked(rng, tmp_path):
     assert "1 missing landmark(s) in 1 specimen(s) estimated" in proc.stderr and "s0: landmark(s) 3" in proc.stderr
     aligned, _ = io.read_landmarks(tmp_path / "a.csv")
     assert np.isfinite(aligned).all()
+
+
+def test_pc_score_scatter_with_groups_and_hulls(rng, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from scipy.spatial import ConvexHull
+
+    from shapelib.plotting import plot_scores
+
+    scores = rng.normal(size=(30, 3))
+    groups = np.repeat(["a", "b", "c"], 10)
+    fig = plot_scores(scores, groups, explained=[0.5, 0.3, 0.2])
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "PC1 (50.0 %)"
+    assert sorted(t.get_text() for t in ax.get_legend().get_texts()) == ["a (n = 10)", "b (n = 10)", "c (n = 10)"]
+    rings = [ln for ln in ax.lines if ln.get_linestyle() == "-" and len(ln.get_xdata()) > 2]
+    want = sorted(len(ConvexHull(scores[groups == g][:, :2]).vertices) + 1 for g in "abc")
+    assert sorted(len(r.get_xdata()) for r in rings) == want  # one closed hull per group
+    # on the command line, from the pca command with groups from a CSV file
+    x = _turned(rng, n=6, k=6)
+    src = io.write_tps(tmp_path / "s.tps", x, [f"s{i}" for i in range(6)])
+    pd.DataFrame({"id": [f"s{i}" for i in range(6)], "g": list("aaabbb")}).to_csv(tmp_path / "g.csv", index=False)
+    proc = run("pca", src, "--size", 1, "--metric", "alpha", "--sigma2", "auto", "--n-steps", 2, "--jobs", 1,
+               "-o", tmp_path / "scores.csv", "--scores-plot", tmp_path / "sc.png", "--covariates", tmp_path / "g.csv",
+               "--by", "g")
+    assert proc.returncode == 0 and (tmp_path / "sc.png").stat().st_size > 0, proc.stderr

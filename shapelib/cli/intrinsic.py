@@ -98,6 +98,14 @@ def cmd_pca(args) -> int:
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     plot = _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot") if args.plot else None
+    scores_plot = (_output_path(args.scores_plot, suffixes=(".png", ".pdf", ".svg"), option="--scores-plot")
+                   if args.scores_plot else None)
+    if bool(args.by) != bool(args.covariates):
+        raise CLIError("--by and --covariates go together: the column, and the CSV file that holds it")
+    if args.by and not scores_plot:
+        raise CLIError("--by colours --scores-plot; give --scores-plot FILE.png")
+    if scores_plot is not None and args.n_components is not None and args.n_components < 2:
+        raise CLIError("--scores-plot draws PC1 against PC2: --n-components must be at least 2")
     if args.n_components is not None and args.n_components < 1:
         raise CLIError(f"--n-components must be >= 1; got {args.n_components}")
     shapes, spec, options = _intrinsic_input(args)
@@ -114,6 +122,20 @@ def cmd_pca(args) -> int:
     for j in range(min(res.n_components, 10)):
         print(f"{names[j]:<9}  {res.explained_variance[j]:.6g}  {100 * res.explained_variance_ratio[j]:6.2f} %  "
               f"{100 * cum[j]:6.2f} %")
+    if scores_plot:
+        from ..plotting import plot_scores
+        from ._common import save_figure, use_agg
+
+        use_agg()
+        groups = None
+        if args.by:
+            from .effects import _covariates
+
+            groups = _covariates(args.covariates, spec, args.by, None).astype(str).to_numpy()
+        save_figure(plot_scores(res.scores, groups, explained=res.explained_variance_ratio,
+                                title=f"{args.metric} tangent PCA" + (f" by {args.by}" if args.by else "")),
+                    scores_plot)
+        print(f"figure -> {scores_plot}")
     if plot:
         import matplotlib
 
@@ -164,4 +186,7 @@ def register(add) -> None:
     p.add_argument("--n-components", type=int, metavar="K", help="components kept (default all)")
     p.add_argument("-o", "--output", required=True, metavar="scores.csv", help="scores: one row per specimen")
     p.add_argument("--plot", metavar="modes.png", help="shapes at -2, 0, +2 SD along the first three modes")
+    p.add_argument("--scores-plot", metavar="scores.png", help="PC1 against PC2, coloured by --by with convex hulls")
+    p.add_argument("--covariates", metavar="C.csv", help="CSV file with the specimens' groups (an id column first)")
+    p.add_argument("--by", metavar="COLUMN", help="the column of --covariates that colours --scores-plot")
     p.set_defaults(func=cmd_pca)
