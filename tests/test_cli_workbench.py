@@ -389,3 +389,14 @@ def test_pc_score_scatter_with_groups_and_hulls(rng, tmp_path):
                "-o", tmp_path / "scores.csv", "--scores-plot", tmp_path / "sc.png", "--covariates", tmp_path / "g.csv",
                "--by", "g")
     assert proc.returncode == 0 and (tmp_path / "sc.png").stat().st_size > 0, proc.stderr
+
+
+def test_an_n_d_k_array_is_not_silently_read_as_p_k_n(rng, tmp_path):
+    x = rng.normal(size=(13, 28, 2))
+    path = tmp_path / "ndk.npy"
+    np.save(path, np.swapaxes(x, 1, 2))  # (N, d, K): looks like geomorph's (K, d, N)
+    line = one_line_error(run("info", path), "--pkn", "numpy.swapaxes(array, 1, 2)")
+    assert "(N, d, K)" in line
+    proc = run("info", path, "--pkn", check=0)
+    note = [ln for ln in proc.stderr.splitlines() if "p x k x n" in ln]
+    assert len(note) == 1 and "28 specimens of 13 landmarks" in note[0] and "13 specimens of 28 landmarks" in note[0]

@@ -57,6 +57,12 @@ def _read(args, *, missing="error"):
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     _warn_coincident(shapes, spec, args.file)
+    if kw.get("layout") == "pkn":
+        n, k, d = shapes.shape
+        # (K, d, N) and (N, d, K) arrays have the same look: say how the file was read
+        print(f"{PROG}: note: read {args.file} as geomorph's p x k x n array: {n} specimens of {k} landmarks in {d}-D "
+              f"(if it is (N, d, K) instead, {k} specimens of {n} landmarks, save it as (N, K, d): "
+              "numpy.swapaxes(array, 1, 2), and read it without --pkn)", file=sys.stderr)
     return shapes, spec
 
 
@@ -83,7 +89,8 @@ def _warn_coincident(shapes, spec, path) -> None:
 CLI_WORDS = {
     "keep_missing": "estimate or drop the missing landmarks first",
     "scale": "--scale",
-    "pkn": "read it with --pkn",
+    "pkn": ("read it with --pkn if it is geomorph's p x k x n array (the command says how it read it), or, if it "
+            "is (N, d, K), save it as (N, K, d) with numpy.swapaxes(array, 1, 2)"),
     "sigma2": "--sigma2",
 }
 
