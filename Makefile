@@ -14,7 +14,7 @@ ARGS   ?=
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[study,dev]'
+	$(PY) -m pip install --quiet -e '.[study,dev,models]'
 	touch $@
 
 $(VENV)/.docs-installed: $(VENV)/.installed pyproject.toml

@@ -44,6 +44,8 @@ from .geometry.scale import Sigma2Estimate, estimate_sigma2
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
+from .comparison.missing import MissingEstimate, estimate_missing, tps_map
+from .geometry.semilandmarks import SlideResult, bending_energy_matrix, curve_sliders, slide_semilandmarks
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -55,7 +57,10 @@ _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
 _LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "statistics", "tangent_pca": "statistics",
                    "geodesic_regression": "statistics", "mean_difference_test": "statistics",
-                   "TangentPCA": "statistics.tangent_pca"}
+                   "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple",
+                   "shape_lm": "statistics.linear_model", "ShapeLinearModel": "statistics.linear_model",
+                   "procrustes_coordinates": "statistics.linear_model", "allometry": "statistics.allometry",
+                   "AllometryResult": "statistics.allometry"}
 
 
 def __getattr__(name):
@@ -74,6 +79,19 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "slide_semilandmarks",
+    "SlideResult",
+    "curve_sliders",
+    "bending_energy_matrix",
+    "estimate_missing",
+    "MissingEstimate",
+    "tps_map",
+    "holm_adjust",
+    "shape_lm",
+    "ShapeLinearModel",
+    "procrustes_coordinates",
+    "allometry",
+    "AllometryResult",
     "MetricInfo",
     "metric_info",
     "register_metric",

@@ -541,6 +541,14 @@ def _cell(value, path, line, specimen, landmark, column):
                          f"non-numeric value {value!r} in column {column!r}") from None
 
 
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def read_csv(path, *, layout: str = "auto", missing: str = "error", id_column: str | None = None):
     """Read landmarks from a CSV file, wide (one row per specimen) or long (one row per landmark).
 
@@ -589,6 +597,13 @@ def read_csv(path, *, layout: str = "auto", missing: str = "error", id_column: s
     rest = text.split("\n", nonblank[0] - 1)[-1]      # from the header line on
     header = next(csv.reader(_io.StringIO(rest), skipinitialspace=True), [])
     names = [c.strip() for c in header if c.strip()]
+    if len(names) == 1 and text.count(";") >= text.count("\n"):
+        raise ValueError(f"{path}: line {nonblank[0]}: the columns are separated by ';', not ','; shapelib reads "
+                         "comma-separated files: save it with ',' as the delimiter (and '.' as the decimal mark)")
+    if names and all(_is_number(c) for c in names):
+        raise ValueError(f"{path}: line {nonblank[0]}: the first line holds numbers ({', '.join(names[:4])}"
+                         f"{', …' if len(names) > 4 else ''}), not column names: add a header row naming the columns "
+                         "(id, x1, y1, x2, y2, … for one specimen per row)")
     repeated = [c for c, n in Counter(names).items() if n > 1]
     if not repeated and len(set(df.columns)) != len(df.columns):
         repeated = df.columns[df.columns.duplicated()].tolist()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["plot_trajectories", "plot_metric_panels", "plot_geodesic", "animate_geodesic", "outline", "parse_links",
-           "plot_shapes_along", "deformation_grid", "plot_deformation", "plot_mean", "plot_modes", "plot_mean_difference"]
+           "plot_shapes_along", "deformation_grid", "plot_deformation", "plot_mean", "plot_modes", "plot_mean_difference", "plot_scores"]
 
 
 def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
@@ -315,6 +315,8 @@ def plot_geodesic(result, *, links=(), title: str = "", long_side: float = 6.0):
     from matplotlib.lines import Line2D
 
     path = np.asarray(result.path)
+    if path.shape[2] == 3:
+        return _plot_geodesic_3d(result, links=links, title=title, long_side=long_side)
     fig, ax = plt.subplots(figsize=_fitted_size(path, long_side=long_side, legend=True), layout="constrained")
     if links:
         _draw_links(ax, path[0], links, ls="--", color="0.55", lw=0.9)
@@ -330,6 +332,33 @@ def plot_geodesic(result, *, links=(), title: str = "", long_side: float = 6.0):
         handles += [Line2D([], [], ls="--", color="0.55", lw=0.9), Line2D([], [], ls="-", color="0.55", lw=0.9)]
         labels += ["start shape (links)", "end shape (links)"]
     fig.legend(handles, labels, loc="outside lower center", ncol=min(3, len(labels)), fontsize=8, frameon=False)
+    return fig
+
+
+def _plot_geodesic_3d(result, *, links, title, long_side):
+    """:func:`plot_geodesic` for 3-D landmarks: the same trajectories, ends and links on a 3-D axes."""
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    path = np.asarray(result.path)
+    init = np.linspace(path[0], path[-1], len(path))
+    fig = plt.figure(figsize=(long_side, long_side), layout="constrained")
+    ax = fig.add_subplot(1, 1, 1, projection="3d")
+    for j in range(path.shape[1]):
+        ax.plot(*init[:, j].T, "--", color="0.6", lw=0.8)
+        ax.plot(*path[:, j].T, "-", color="k", lw=1.0)
+    ax.plot(*path[0].T, "o", mfc="white", mec="k", ms=5, ls="none")
+    ax.plot(*path[-1].T, "s", color="k", ms=4, ls="none")
+    for a, b in links or ():
+        ax.plot(*path[0, [a, b]].T, "--", color="0.55", lw=0.9)
+        ax.plot(*path[-1, [a, b]].T, "-", color="0.55", lw=0.9)
+    _axes_3d_labels(ax)
+    ax.set_title(title)
+    handles = [Line2D([], [], color="k", lw=1.0), Line2D([], [], ls="--", color="0.6", lw=0.8),
+               Line2D([], [], ls="", marker="o", mfc="white", mec="k", ms=5),
+               Line2D([], [], ls="", marker="s", color="k", ms=4)]
+    fig.legend(handles, ["landmark trajectory", "straight line (initial path)", "start landmarks", "end landmarks"],
+               loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     return fig
 
 
@@ -398,20 +427,38 @@ def outline(shape, closed: bool = True) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 
 
-def _draw_shape(ax, shape, *, closed, **kw):
-    """One shape: an outline through the landmarks in order (closed or not), or, with
-    ``closed=None`` (anatomical landmarks with no order), the landmarks alone."""
+def _draw_shape(ax, shape, *, closed, links=None, label=None, **kw):
+    """One shape: the landmarks joined by ``links`` (0-based pairs, :func:`parse_links`) with the
+    landmarks as points, or without links an outline through the landmarks in order (``closed``
+    True/False), or, with ``closed=None`` (anatomical landmarks with no order), the landmarks alone.
+    Returns the artists; the first carries ``label``."""
     shape = np.asarray(shape)
+    three = shape.shape[1] == 3
+    if links:
+        style = {k: v for k, v in kw.items() if k not in ("marker", "ms")}
+        out = [ax.plot(*shape[[a, b]].T, **style)[0] for a, b in links]
+        pts = ax.plot(*shape.T, ls="none", marker=kw.get("marker") or "o", ms=kw.get("ms", 2.5),
+                      color=kw.get("color"))
+        out[0].set_label(label)
+        return out + pts
     if closed is None:
         kw.update(ls="none", marker=kw.get("marker") or "o", ms=kw.get("ms", 3))
     pts = outline(shape, bool(closed))
-    if shape.shape[1] == 3:
-        return ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], **kw)
-    return ax.plot(pts[:, 0], pts[:, 1], **kw)
+    if three:
+        return ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], label=label, **kw)
+    return ax.plot(pts[:, 0], pts[:, 1], label=label, **kw)
+
+
+def _axes_3d_labels(ax) -> None:
+    """x, y, z labels on a 3-D axes (its ticks stay: they are how the eye reads depth)."""
+    ax.set_xlabel("x", fontsize=7)
+    ax.set_ylabel("y", fontsize=7)
+    ax.set_zlabel("z", fontsize=7)
+    ax.tick_params(labelsize=6)
 
 
 def plot_shapes_along(ax, path, *, closed: bool | None = True, cmap: str = "viridis", every: int = 1, lw: float = 1.0,
-                      landmarks: bool = True):
+                      landmarks: bool = True, links=None):
     """The shapes along a path as outlines coloured from start to end.
 
     A geodesic (eq. 8 of [1]_), a mode of variation: every ``every``-th shape and always the ends,
@@ -425,6 +472,9 @@ def plot_shapes_along(ax, path, *, closed: bool | None = True, cmap: str = "viri
         The shapes.
     closed : bool or None, default True
         Closed outlines; False: open; None: landmarks only (no order).
+    links : array_like of int pairs or "contour", optional
+        Pairs of 0-based landmark indices to join (:func:`parse_links`); when given, ``closed`` is
+        not used. Default: ``closed`` decides (``None``: points only).
     cmap : str, default "viridis"
         Colour map from start to end.
     every : int, default 1
@@ -469,7 +519,7 @@ def plot_shapes_along(ax, path, *, closed: bool | None = True, cmap: str = "viri
     colours = plt.get_cmap(cmap)(np.linspace(0.0, 1.0, len(idx)))
     for c, i in zip(colours, idx):
         end = i in (0, len(path) - 1)
-        _draw_shape(ax, path[i], closed=closed, color=c, lw=lw * (1.6 if end else 0.8),
+        _draw_shape(ax, path[i], closed=closed, links=links, color=c, lw=lw * (1.6 if end else 0.8),
                     marker="o" if landmarks and end else None, ms=2.5)
     if path.shape[2] == 2:
         ax.set_aspect("equal")
@@ -563,7 +613,7 @@ def deformation_grid(result, *, mag: float = 1.0, n_lines: int = 15, margin: flo
 
 
 def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed: bool | None = True, lw: float = 0.6,
-                     **grid_kw):
+                     links=None, **grid_kw):
     r"""The deformed grid of a geodesic with its start and (magnified) end shapes.
 
     The grid of :func:`~shapelib.plotting.deformation_grid` (the extrinsic warp of eq. 26 of [1]_),
@@ -587,6 +637,9 @@ def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed:
         Vertical grid lines.
     closed : bool or None, default True
         How to draw the shapes (None: landmarks only).
+    links : array_like of int pairs or "contour", optional
+        Pairs of 0-based landmark indices to join (:func:`parse_links`); when given, ``closed`` is
+        not used. Default: ``closed`` decides (``None``: points only).
     lw : float, default 0.6
         Line width of the grid.
     **grid_kw
@@ -625,15 +678,15 @@ def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed:
     grid, warped, end = deformation_grid(result, mag=mag, n_lines=n_lines, **grid_kw)
     for line in warped:
         ax.plot(line[:, 0], line[:, 1], "-", color="0.55", lw=lw)
-    _draw_shape(ax, result.path[0], closed=closed, color="0.5", ls="--", lw=1.0)
-    _draw_shape(ax, end, closed=closed, color="k", lw=1.4, marker="o", ms=2.5)
+    _draw_shape(ax, result.path[0], closed=closed, links=links, color="0.5", ls="--", lw=1.0)
+    _draw_shape(ax, end, closed=closed, links=links, color="k", lw=1.4, marker="o", ms=2.5)
     ax.set_aspect("equal")
     ax.set_xticks([])
     ax.set_yticks([])
     return grid, warped, end
 
 
-def plot_mean(shapes, result, *, closed: bool | None = True, title: str = "", figsize=(5, 5)):
+def plot_mean(shapes, result, *, closed: bool | None = True, links=None, title: str = "", figsize=(5, 5)):
     r"""The Fréchet mean over the shapes it summarises, with the Procrustes mean it started from.
 
     The Fréchet mean of the metric of eq. (22) or (6) of [1]_,
@@ -652,6 +705,9 @@ def plot_mean(shapes, result, *, closed: bool | None = True, title: str = "", fi
         From :func:`shapelib.frechet_mean` (its ``mean`` and ``init``).
     closed : bool or None, default True
         How to draw the shapes (None: landmarks only).
+    links : array_like of int pairs or "contour", optional
+        Pairs of 0-based landmark indices to join (:func:`parse_links`); when given, ``closed`` is
+        not used. Default: ``closed`` decides (``None``: points only).
     title : str
         The axes' title.
     figsize : tuple, default (5, 5)
@@ -691,18 +747,24 @@ def plot_mean(shapes, result, *, closed: bool | None = True, title: str = "", fi
     d = np.asarray(result.mean).shape[1]
     fig = plt.figure(figsize=figsize)
     ax = fig.add_subplot(1, 1, 1, **({"projection": "3d"} if d == 3 else {}))
-    for x in shapes:
-        _draw_shape(ax, x, closed=closed, color="0.8", lw=0.5)
-    _draw_shape(ax, result.init, closed=closed, color="tab:blue", ls="--", lw=1.0, label="Procrustes mean (start)")
-    _draw_shape(ax, result.mean, closed=closed, color="k", lw=1.4, marker="o", ms=2.5, label="Fréchet mean")
+    for n, x in enumerate(shapes):
+        _draw_shape(ax, x, closed=closed, links=links, color="0.8", lw=0.5, ms=1.5,
+                    label=f"specimens ({len(shapes)})" if n == 0 else None)
+    _draw_shape(ax, result.init, closed=closed, links=links, color="tab:blue", ls="--", lw=1.0, ms=2,
+                label="Procrustes mean (start)")
+    _draw_shape(ax, result.mean, closed=closed, links=links, color="k", lw=1.4, marker="o", ms=2.5,
+                label="Fréchet mean")
     if d == 2:
         ax.set_aspect("equal")
+    else:
+        _axes_3d_labels(ax)
     ax.legend(loc="lower center", fontsize=8, frameon=False)
     ax.set_title(title, fontsize=9)
     return fig
 
 
-def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | None = True, figscale: float = 2.6):
+def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | None = True, links=None,
+               figscale: float = 2.6):
     r"""Shapes along the tangent-PCA modes: one row per component, one column per standard deviation.
 
     Each mode is the geodesic :math:`\exp_{\bar\theta}(s\, \sqrt{\lambda_j}\, e_j)` from the mean
@@ -720,6 +782,9 @@ def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | No
         Standard deviations along each mode.
     closed : bool or None, default True
         How to draw the shapes.
+    links : array_like of int pairs or "contour", optional
+        Pairs of 0-based landmark indices to join (:func:`parse_links`); when given, ``closed`` is
+        not used. Default: ``closed`` decides (``None``: points only).
     figscale : float, default 2.6
         Inches per panel.
 
@@ -753,9 +818,10 @@ def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | No
     >>> plt.close(fig)
     """
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     d = pca.mean.shape[1]
-    fig = plt.figure(figsize=(figscale * len(sd), figscale * len(components)), layout="constrained")
+    fig = plt.figure(figsize=(figscale * len(sd), figscale * len(components) + 0.4), layout="constrained")
     sub = {"projection": "3d"} if d == 3 else {}
     for r, j in enumerate(components):
         shapes = pca.mode_shapes.get(j)
@@ -763,18 +829,24 @@ def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | No
             shapes = pca.modes((j,), sd)[j]
         for c, (s, shape) in enumerate(zip(sd, shapes)):
             ax = fig.add_subplot(len(components), len(sd), r * len(sd) + c + 1, **sub)
-            _draw_shape(ax, pca.mean, closed=closed, color="0.6", ls="--", lw=0.8)
-            _draw_shape(ax, shape, closed=closed, color="k", lw=1.2, marker="o", ms=2)
+            _draw_shape(ax, pca.mean, closed=closed, links=links, color="0.6", ls="--", lw=0.8, ms=1.5)
+            _draw_shape(ax, shape, closed=closed, links=links, color="k", lw=1.2, marker="o", ms=2)
             if d == 2:
                 ax.set_aspect("equal")
-            ax.set_xticks([])
-            ax.set_yticks([])
+                ax.set_xticks([])
+                ax.set_yticks([])
+            else:
+                _axes_3d_labels(ax)
             ax.set_title(f"PC{j + 1} ({100 * pca.explained_variance_ratio[j]:.1f} %), {s:+g} SD", fontsize=8)
+    handles = [Line2D([], [], color="0.6", ls="--", lw=0.8, marker="o", ms=1.5),
+               Line2D([], [], color="k", lw=1.2, marker="o", ms=2)]
+    fig.legend(handles, ["Fréchet mean (reference)", "shape along the mode"], loc="outside lower center", ncol=2,
+               fontsize=8, frameon=False)
     return fig
 
 
-def plot_mean_difference(test, *, mag: float = 3.0, closed: bool | None = True, every: int = 2, n_lines: int = 15,
-                         figsize=(9, 4), **grid_kw):
+def plot_mean_difference(test, *, mag: float = 3.0, closed: bool | None = True, links=None, every: int = 2,
+                         n_lines: int = 15, figsize=(9, 4), **grid_kw):
     """Two panels for a test of a difference in mean shape.
 
     For a :class:`~shapelib.statistics.group.MeanDifferenceResult`: the shapes along the geodesic
@@ -789,6 +861,9 @@ def plot_mean_difference(test, *, mag: float = 3.0, closed: bool | None = True, 
         Magnification of the geodesic in the grid panel.
     closed : bool or None, default True
         How to draw the shapes.
+    links : array_like of int pairs or "contour", optional
+        Pairs of 0-based landmark indices to join (:func:`parse_links`); when given, ``closed`` is
+        not used. Default: ``closed`` decides (``None``: points only).
     every : int, default 2
         Draw every ``every``-th shape along the geodesic.
     n_lines : int, default 15
@@ -837,12 +912,85 @@ def plot_mean_difference(test, *, mag: float = 3.0, closed: bool | None = True, 
 
     if test.geodesic is None:
         raise ValueError("the test was run with group_means=False: there is no geodesic between the means")
-    fig, axes = plt.subplots(1, 2, figsize=figsize, layout="constrained")
     a, b = test.labels
-    plot_shapes_along(axes[0], test.geodesic.path, closed=closed, every=every)
-    axes[0].set_title(f"geodesic from the {a} mean to the {b} mean", fontsize=9)
-    plot_deformation(axes[1], test.geodesic, mag=mag, n_lines=n_lines, closed=closed, **grid_kw)
-    axes[1].set_title(f"{a} → {b}, magnified {mag:g}×", fontsize=9)
+    path = np.asarray(test.geodesic.path)
+    if path.shape[2] == 3:
+        from .solver.logexp import magnify
+
+        fig = plt.figure(figsize=figsize, layout="constrained")
+        ax0 = fig.add_subplot(1, 2, 1, projection="3d")
+        plot_shapes_along(ax0, path, closed=closed, every=every, links=links)
+        ax0.set_title(f"geodesic from the {a} mean to the {b} mean", fontsize=9)
+        ax1 = fig.add_subplot(1, 2, 2, projection="3d")
+        end = magnify(test.geodesic, mag).path[-1]
+        _draw_shape(ax1, path[0], closed=closed, links=links, color="0.5", ls="--", lw=1.0, label=f"{a} mean")
+        _draw_shape(ax1, end, closed=closed, links=links, color="k", lw=1.4, marker="o", ms=2.5,
+                    label=f"{b} mean, difference magnified {mag:g}×")
+        ax1.legend(loc="lower center", fontsize=7, frameon=False)
+        for ax in (ax0, ax1):
+            _axes_3d_labels(ax)
+    else:
+        fig, axes = plt.subplots(1, 2, figsize=figsize, layout="constrained")
+        plot_shapes_along(axes[0], path, closed=closed, every=every, links=links)
+        axes[0].set_title(f"geodesic from the {a} mean to the {b} mean", fontsize=9)
+        plot_deformation(axes[1], test.geodesic, mag=mag, n_lines=n_lines, closed=closed, links=links, **grid_kw)
+        axes[1].set_title(f"{a} → {b}, magnified {mag:g}×", fontsize=9)
     fig.suptitle(f"{test.pooled.options.metric}: distance {test.distance:.3g}, permutation p = {test.p_value:.3g}",
                  fontsize=10)
+    return fig
+
+
+def plot_scores(scores, groups=None, *, components=(0, 1), hulls: bool = True, labels=None, explained=None,
+                ax=None, title: str = ""):
+    """A scatter of PC scores (N, ≥ 2) — tangent PCA, Procrustes PCA, MDS — coloured by group, each
+    group's convex hull drawn (``hulls``), a legend with the group sizes; ``explained`` (the
+    variance ratios) labels the axes with their shares. Returns the figure.
+
+    Examples
+    --------
+    >>> import numpy as np, matplotlib
+    >>> matplotlib.use("Agg")
+    >>> from shapelib.plotting import plot_scores
+    >>> rng = np.random.default_rng(0)
+    >>> fig = plot_scores(rng.normal(size=(20, 3)), np.repeat(["a", "b"], 10))
+    >>> sorted(t.get_text() for t in fig.axes[0].get_legend().get_texts())
+    ['a (n = 10)', 'b (n = 10)']
+    """
+    import matplotlib.pyplot as plt
+    from scipy.spatial import ConvexHull, QhullError
+
+    s = np.asarray(scores, dtype=np.float64)
+    if s.ndim != 2 or s.shape[1] <= max(components):
+        raise ValueError(f"scores must be (N, >{max(components)}) for components {components}; got shape {s.shape}")
+    a, b = components
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(5.5, 4.5), layout="constrained")
+    else:
+        fig = ax.figure
+    g = np.asarray(groups if groups is not None else np.repeat("specimens", len(s)), dtype=object)
+    if len(g) != len(s):
+        raise ValueError(f"groups has {len(g)} labels for {len(s)} rows of scores")
+    levels = sorted(set(g.tolist()), key=str)
+    colours = plt.get_cmap("tab10")(np.arange(len(levels)) % 10)
+    for colour, level in zip(colours, levels):
+        pts = s[g == level][:, [a, b]]
+        ax.plot(pts[:, 0], pts[:, 1], "o", ms=4, color=colour, label=f"{level} (n = {len(pts)})", alpha=0.85)
+        if hulls and len(pts) >= 3:
+            try:
+                hull = ConvexHull(pts)
+            except QhullError:  # collinear points: no hull to draw
+                continue
+            ring = np.r_[hull.vertices, hull.vertices[:1]]
+            ax.fill(pts[ring, 0], pts[ring, 1], color=colour, alpha=0.12, lw=0)
+            ax.plot(pts[ring, 0], pts[ring, 1], "-", color=colour, lw=0.8)
+    if labels is not None:
+        for (x, y), text in zip(s[:, [a, b]], labels):
+            ax.annotate(str(text), (x, y), fontsize=6, xytext=(2, 2), textcoords="offset points")
+    share = (lambda j: f" ({100 * explained[j]:.1f} %)") if explained is not None else (lambda j: "")
+    ax.set_xlabel(f"PC{a + 1}{share(a)}")
+    ax.set_ylabel(f"PC{b + 1}{share(b)}")
+    ax.axhline(0, color="0.85", lw=0.6, zorder=0)
+    ax.axvline(0, color="0.85", lw=0.6, zorder=0)
+    ax.legend(fontsize=8, frameon=False)
+    ax.set_title(title, fontsize=9)
     return fig

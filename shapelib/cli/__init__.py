@@ -9,6 +9,8 @@ Subcommands (``shapelib <command> --help`` shows an example for each)::
     shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S|auto -o path.csv [--plot P.png] [--animate A.gif]
     shapelib mean FILE --metric M --sigma2 S [--size S] [--jobs N | --scheduler ADDRESS] -o mean.tps [--plot P.png]
     shapelib pca FILE --metric M --sigma2 S [--size S] [--n-components K] -o scores.csv [--plot modes.png]
+    shapelib test FILE --covariates C.csv --by GROUP --metric M [--sigma2 S|auto] [--permutations P] [-o T.csv]
+    shapelib regress FILE --covariates C.csv --by COLUMN [--log] --metric M [--sigma2 S|auto] [-o T.csv]
     shapelib study [run_all.py options: --quick, --only NAME, -p NAME=VALUE, -j N, --force, --list, ...]
 
 Files are read by :func:`shapelib.io.read_landmarks` (``.tps``, ``.csv``, ``.npy``, ``.npz``). Bad
@@ -32,7 +34,7 @@ import os
 import sys
 import warnings
 
-from ._common import (EXIT_STOPPED, EXIT_UNCONVERGED, PROG, CLIError, parse_assignment)
+from ._common import EXIT_STOPPED, EXIT_UNCONVERGED, PROG, CLIError, parse_assignment, scale_warning_in_cli_words
 from .study import cmd_study, find_run_all
 
 __all__ = ["main", "build_parser", "parse_assignment", "CLIError", "EXIT_STOPPED", "EXIT_UNCONVERGED", "PROG",
@@ -44,6 +46,7 @@ COMMAND_MODULES = (
     "info",        # info, align
     "distances",   # distances, geodesic
     "intrinsic",   # mean, pca
+    "effects",     # test, regress
     "study",       # study (run_all.py)
 )
 
@@ -71,13 +74,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _one_line_warnings(message, category, filename, lineno, file=None, line=None):
-    text = " ".join(str(message).split())
-    from ..geometry.procrustes import PoseWarning
+def _warning_printer(args=None):
+    """``warnings.showwarning`` for a command: one line ``shapelib: warning: …``, remedies in the
+    command line's options (those of the command that runs)."""
+    pose_remedy = (" Drop --no-align to align them (rotations and translations, sizes kept)."
+                   if args is None or hasattr(args, "no_align") else
+                   " Align them first: `shapelib align FILE -o aligned.tps`, or --size S here (generalized Procrustes, "
+                   "then centroid size S).")
 
-    if issubclass(category, PoseWarning):  # only --no-align gets here: say it in command-line terms
-        text = text.split(" Align them first")[0] + " Drop --no-align to align them (rotations and translations, sizes kept)."
-    print(f"{PROG}: warning: {text}", file=sys.stderr)
+    def show(message, category, filename, lineno, file=None, line=None):
+        from ..geometry.procrustes import PoseWarning
+        from ..geometry.scale import ScaleWarning
+
+        text = " ".join(str(message).split())
+        if isinstance(message, ScaleWarning) and getattr(message, "facts", None):
+            text = scale_warning_in_cli_words(message)
+        if issubclass(category, PoseWarning):  # say it in command-line terms
+            text = text.split(" Align them first")[0] + pose_remedy
+        print(f"{PROG}: warning: {text}", file=sys.stderr)
+
+    return show
+
+
+#: the one-line form of every warning (``--no-align``'s remedy for a pose warning)
+_one_line_warnings = _warning_printer()
 
 
 def _interrupted(exc: BaseException) -> bool:
@@ -93,6 +113,7 @@ def _interrupted(exc: BaseException) -> bool:
 def main(argv=None) -> int:
     """Entry point of the ``shapelib`` console script and ``python -m shapelib``."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    args = None
     if argv[:1] == ["study"]:  # run_all.py parses its own options
         run = lambda: cmd_study(argv[1:])  # noqa: E731
     else:
@@ -100,7 +121,12 @@ def main(argv=None) -> int:
         if extra:
             args.subparser.error(f"unrecognized arguments: {' '.join(extra)}")
         run = lambda: args.func(args)  # noqa: E731
-    warnings.showwarning = _one_line_warnings
+    with warnings.catch_warnings():  # a command's filters and the one-line form end with it
+        warnings.showwarning = _warning_printer(args)
+        return _run(run)
+
+
+def _run(run) -> int:
     try:
         return int(run() or 0)
     except KeyboardInterrupt:

@@ -51,18 +51,46 @@ def _read(args, *, missing="error"):
     elif args.pkn:
         raise CLIError(f"--pkn applies to .npy/.npz files only; {args.file} is {fmt}")
     try:
-        return io.read_landmarks(args.file, **kw)
+        shapes, spec = io.read_landmarks(args.file, **kw)
     except InputError as exc:
         raise CLIError(_in_cli_words(exc)) from None
     except ValueError as exc:
         raise CLIError(str(exc)) from None
+    _warn_coincident(shapes, spec, args.file)
+    if kw.get("layout") == "pkn":
+        n, k, d = shapes.shape
+        # (K, d, N) and (N, d, K) arrays have the same look: say how the file was read
+        print(f"{PROG}: note: read {args.file} as geomorph's p x k x n array: {n} specimens of {k} landmarks in {d}-D "
+              f"(if it is (N, d, K) instead, {k} specimens of {n} landmarks, save it as (N, K, d): "
+              "numpy.swapaxes(array, 1, 2), and read it without --pkn)", file=sys.stderr)
+    return shapes, spec
+
+
+def _warn_coincident(shapes, spec, path) -> None:
+    """Warn about landmarks that coincide within a specimen (digitised twice?), naming them."""
+    if shapes.shape[1] < 2:
+        return
+    diff = shapes[:, :, None, :] - shapes[:, None, :, :]
+    with np.errstate(invalid="ignore"):
+        same = np.all(diff == 0, axis=-1)
+    k = shapes.shape[1]
+    same[:, np.arange(k), np.arange(k)] = False
+    rows = np.flatnonzero(same.any(axis=(1, 2)))
+    if len(rows):
+        r = rows[0]
+        a, b = np.argwhere(np.triu(same[r]))[0]
+        more = f" (and {len(rows) - 1} more specimens)" if len(rows) > 1 else ""
+        warnings.warn(f"{path}: specimen {spec['id'].iloc[r]!r} has landmarks {a + 1} and {b + 1} at the same point "
+                      f"{tuple(float(v) for v in shapes[r, a])}{more}: digitised twice? Each landmark should be its own "
+                      "point (the thin-plate spline and the missing-landmark estimates cannot use coincident ones)")
 
 
 #: the remedies an :class:`~shapelib._validate.InputError` names, in the command line's options
 CLI_WORDS = {
     "keep_missing": "estimate or drop the missing landmarks first",
     "scale": "--scale",
-    "pkn": "read it with --pkn",
+    "pkn": ("read it with --pkn if it is geomorph's p x k x n array (the command says how it read it), or, if it "
+            "is (N, d, K), save it as (N, K, d) with numpy.swapaxes(array, 1, 2)"),
     "sigma2": "--sigma2",
 }
 
@@ -178,7 +206,34 @@ def _auto_sigma2(args, params, shapes):
     if est.pose_share > 0.1:
         warnings.warn(f"--sigma2 auto: {est.pose_share:.0%} of the landmarks' scatter in {args.file} is position and "
                       "orientation; the distances see the shapes as given: align them first (shapelib align)")
+    from ..geometry.scale import SIGMA_RATIO_MIN, ScaleWarning
+
+    if est.sigma_over_spacing < SIGMA_RATIO_MIN:
+        # said once here, in the command line's words; the shapes are at the scale σ² was estimated
+        # for, so the library's per-pair advice to rescale them does not apply
+        print(f"{PROG}: note: at this sigma ({est.sigma_over_spacing:.2g} landmark spacings, below {SIGMA_RATIO_MIN:g}) "
+              "the Gaussians of neighbouring landmarks barely overlap: the landmarks vary less than they are apart, "
+              "geodesics are nearly straight lines and the closed-form lower bounds are loose (wide brackets); "
+              f"the metric sees the outline from --sigma2 {(SIGMA_RATIO_MIN * est.spacing) ** 2:.3g} (0.2 spacings) up",
+              file=sys.stderr)
+        warnings.filterwarnings("ignore", category=ScaleWarning)  # main() restores the filters
     return {**params, "sigma2": float(f"{est.sigma2:.6g}")}
+
+
+def scale_warning_in_cli_words(warning) -> str:
+    """A :class:`~shapelib.ScaleWarning` worded with the command line's options."""
+    f = warning.facts
+    est = f.get("estimate")
+    auto = (f", or --sigma2 auto ({est:.3g} for these shapes: the landmarks' scatter around their mean)"
+            if est is not None else "")
+    if f.get("kind") == "small":
+        return (f"--sigma2 {f['sigma2']:.3g} puts sigma at {f['ratio']:.3g} times the mean nearest-landmark spacing "
+                f"{f['spacing']:.3g}: the Gaussians of neighbouring landmarks do not overlap, so the metric sees "
+                "isolated points, not a shape, and geodesics are straight lines. Use a larger --sigma2 "
+                f"({f['spacing'] ** 2:.3g} puts sigma at one spacing){auto}; `shapelib info` shows both.")
+    return (f"--sigma2 {f['sigma2']:.3g}: sigma exceeds the largest extent of the shapes, so each shape is a single "
+            f"blob and distances between shapes nearly vanish. Use a smaller --sigma2{auto}; `shapelib info` "
+            "shows it.")
 
 
 def _index_of(specimens, ident, option):

@@ -94,7 +94,23 @@ def cmd_align(args) -> int:
     _output_path(out, suffixes=(f".{fmt}",), option="-o")
     if args.size is not None and not (np.isfinite(args.size) and args.size > 0):
         raise CLIError(f"--size must be a positive number; got {args.size}")
-    shapes, spec = _read(args)
+    if args.sizes:
+        _output_path(args.sizes, suffixes=(".csv",), option="--sizes")
+    shapes, spec = _read(args, missing="nan" if args.estimate_missing else "error")
+    if args.estimate_missing:
+        from ..comparison.missing import estimate_missing
+
+        try:
+            est = estimate_missing(shapes, method=args.estimate_missing)
+        except ValueError as exc:
+            raise CLIError(f"--estimate-missing {args.estimate_missing}: {args.file}: {exc}") from None
+        shapes = est.shapes
+        if est.estimated.any():
+            rows = np.flatnonzero(est.estimated.any(axis=1))
+            listed = "; ".join(f"{spec['id'].iloc[r]}: landmark(s) "
+                               f"{', '.join(str(j + 1) for j in np.flatnonzero(est.estimated[r]))}" for r in rows[:5])
+            print(f"{PROG}: note: {est.summary()} ({listed}{'; …' if len(rows) > 5 else ''}); the aligned file holds "
+                  "the estimates", file=sys.stderr)
     aligned, _ = generalized_procrustes(shapes, scaling=args.scaling)
     aligned = aligned * (1.0 if args.size is None else args.size)
     spec = spec.copy()
@@ -106,6 +122,17 @@ def cmd_align(args) -> int:
     if fmt == "csv" and spec.attrs.get("landmarks"):
         kw["landmarks"] = spec.attrs["landmarks"]
     io.write_landmarks(out, aligned, spec, **kw)
+    if args.sizes:
+        import pandas as pd
+
+        from .._files import write_text_atomic
+        from ..geometry.procrustes import centroid_size
+
+        sizes = pd.DataFrame({"id": spec["id"].astype(str), "centroid_size": [centroid_size(s) for s in shapes]})
+        write_text_atomic(Path(args.sizes), sizes.to_csv(index=False, lineterminator="\n",
+                                                         float_format=lambda v: repr(float(v))))
+        print(f"centroid sizes of the specimens as read -> {args.sizes} (shapelib regress ALIGNED --covariates "
+              f"{Path(args.sizes).name} --by centroid_size --log: allometry)")
     print(f"aligned {len(aligned)} specimen{'s' if len(aligned) != 1 else ''} (generalized Procrustes, {'full' if args.scaling else 'unit-size'} "
           f"scaling, centroid size {args.size or 1:g}) -> {out}")
     if fmt == "tps" and (aligned < 0).any():
@@ -127,4 +154,9 @@ def register(add) -> None:
     p.add_argument("--size", type=float, metavar="S",
                    help="centroid size of the aligned shapes (default 1; the paper's study uses 20)")
     p.add_argument("--scaling", action="store_true", help="full GPA: fit per-shape scales instead of unit size")
+    p.add_argument("--estimate-missing", choices=("tps", "regression"), metavar="METHOD",
+                   help="estimate missing landmarks (NA, or tpsDig's negative coordinates) from the complete specimens "
+                        "first: 'tps' (thin-plate spline from their mean) or 'regression'; a note lists them")
+    p.add_argument("--sizes", metavar="SIZES.csv", help="also write each specimen's centroid size as read (id, "
+                   "centroid_size), the size that alignment removes: a covariate for `shapelib regress --log`")
     p.set_defaults(func=cmd_align)

@@ -135,7 +135,9 @@ def centroid_size(x) -> float:
     >>> sl.centroid_size([[0.0, 0.0], [3.0, 0.0], [0.0, 4.0], [3.0, 4.0]])
     5.0
     """
-    return float(np.linalg.norm(center(x)))
+    c = center(x)
+    top = float(np.abs(c).max()) if c.size else 0.0
+    return top * float(np.linalg.norm(c / top)) if top > 0 and np.isfinite(top) else float(np.linalg.norm(c))
 
 
 def preshape(x) -> np.ndarray:
@@ -187,10 +189,14 @@ def preshape(x) -> np.ndarray:
 
 def _preshape(x: np.ndarray) -> np.ndarray:
     c = x - x.mean(axis=0)
-    size = np.linalg.norm(c)
-    if size == 0 or not np.isfinite(size):
+    if not np.isfinite(c).all():
+        raise ValueError(f"configuration of shape {c.shape} has coordinates too large to centre in double precision "
+                         f"(largest {np.nanmax(np.abs(x)):.3g}): rescale them")
+    top = float(np.abs(c).max()) if c.size else 0.0
+    if top == 0:
         raise ValueError(f"configuration of shape {c.shape} has zero centroid size (all landmarks coincide)")
-    return c / size
+    u = c / top  # scaled first: the sum of squares of coordinates near 1e200 overflows
+    return u / np.linalg.norm(u)
 
 
 def optimal_rotation(x, y, *, reflection: bool = False):

@@ -81,7 +81,19 @@ class ScaleWarning(UserWarning):
     ...     _ = sl.distance(u, 1.1 * u, metric="alpha_bound", sigma2=0.5)
     >>> any(issubclass(w.category, sl.ScaleWarning) for w in caught)
     True
+
+    Attributes
+    ----------
+    facts : dict
+        What the message says, for callers that word it their own way (the command line names its
+        options): ``kind`` (``"small"``: σ below ``SIGMA_RATIO_MIN`` spacings; ``"large"``: σ above
+        the shapes' extent), ``sigma2``, ``ratio`` (σ / spacing), ``spacing`` and ``estimate``
+        (:func:`shapelib.estimate_sigma2`'s σ² for the shapes, or None).
     """
+
+    def __init__(self, message, facts=None):
+        super().__init__(message)
+        self.facts = dict(facts or {})
 
 
 def _as_collection(shapes) -> np.ndarray:
@@ -312,22 +324,32 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
     spacing = landmark_spacing(x)
     ratio = sigma / spacing if spacing > 0 else float("inf")
     extent = float(np.max(np.ptp(x, axis=1)))
+    small, large = ratio < SIGMA_RATIO_MIN, extent > 0 and sigma > extent
+    if not (small or large):
+        return ratio
+    est = _estimate_or_none(x)
+    facts = {"kind": "small" if small else "large", "sigma2": sigma2, "ratio": ratio, "spacing": spacing,
+             "estimate": None if est is None else est.sigma2}
+    if small and est is not None and abs(sigma2 / est.sigma2 - 1.0) <= OWN_ESTIMATE_RTOL:
+        # σ² is the shapes' own scatter (estimate_sigma2): no other scale of the shapes fits it
+        # better (σ / spacing does not change with the scale); the estimate's summary says what it means
+        return ratio
     fix = ("Bring the shapes to a scale that fits sigma2, e.g. shapelib.to_centroid_size(shapes) "
            "(the study's centroid size 20, where the paper's sigma2 = 0.1-1.5 give sigma = 1.1-4.5 "
            "spacings), or estimate sigma2 from the data")
-    if ratio < SIGMA_RATIO_MIN:
-        warnings.warn(
+    if small:
+        warnings.warn(ScaleWarning(
             f"sigma = {sigma:.3g} (sigma2 = {sigma2:.3g}) is {ratio:.3g} times the mean nearest-landmark "
             f"spacing {spacing:.3g}: the Gaussians of neighbouring landmarks do not overlap, so the "
             f"metric sees isolated points, not a shape, and energies and gradients underflow. {fix}"
-            f"{_advice(x, spacing)}",
-            ScaleWarning, stacklevel=stacklevel)
-    elif extent > 0 and sigma > extent:
-        warnings.warn(
+            f"{_advice(est, spacing)}", facts),
+            stacklevel=stacklevel)
+    else:
+        warnings.warn(ScaleWarning(
             f"sigma = {sigma:.3g} (sigma2 = {sigma2:.3g}) exceeds the largest extent of the shapes "
             f"({extent:.3g}): each shape is a single blob and distances between shapes nearly vanish. "
-            f"{fix}{_advice(x, spacing)}",
-            ScaleWarning, stacklevel=stacklevel)
+            f"{fix}{_advice(est, spacing)}", facts),
+            stacklevel=stacklevel)
     return ratio
 
 
@@ -412,13 +434,24 @@ def check_fisher_rao_scale(shapes, *, sigma2, metric: str = "fisher_rao", ratio:
             f"{spacing ** 2:.3g}), or bring the shapes to a scale that fits sigma2 (shapelib.to_centroid_size)")
 
 
-def _advice(x, spacing) -> str:
-    """The tail of a :class:`ScaleWarning`: what :func:`estimate_sigma2` gives for these shapes."""
+#: a σ² within this relative distance of :func:`estimate_sigma2`'s value for the same shapes is
+#: taken as that estimate (printed to 6 digits by ``--sigma2 auto``): :func:`check_scale` does not
+#: advise rescaling shapes that are already at the scale their σ² was estimated for
+OWN_ESTIMATE_RTOL = 1e-3
+
+
+def _estimate_or_none(x):
     if len(x) < 2:
-        return "."
+        return None
     try:
-        est = estimate_sigma2(x)
+        return estimate_sigma2(x)
     except ValueError:
+        return None
+
+
+def _advice(est, spacing) -> str:
+    """The tail of a :class:`ScaleWarning`: what :func:`estimate_sigma2` gives for these shapes."""
+    if est is None:
         return "."
     text = (f": shapelib.estimate_sigma2(shapes) gives sigma2 = {est.sigma2:.3g} here (the landmarks' scatter "
             f"around their mean, sigma = {est.sigma_over_spacing:.2g} spacings)")

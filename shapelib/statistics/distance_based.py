@@ -141,7 +141,14 @@ class PermanovaResult:
     ----------
     table : pandas.DataFrame
         One row per term, then ``Residual`` and ``Total``; columns ``df``, ``sum_of_squares``,
-        ``r2`` (``SS / SS_T``), ``pseudo_F``, ``p_value`` (NaN for Residual and Total).
+        ``r2`` (``SS / SS_T``), ``pseudo_F``, ``p_value`` (NaN for Residual and Total), ``ss_type``
+        (``"I (sequential)"`` or ``"III (marginal)"``: what the sum of squares and F measure) and
+        ``p_tests`` (the null hypothesis the permutations give ``p_value`` for, and how they are
+        made).
+    notes : list of str
+        Terms whose sequential F and p answer different questions (``by="terms"``): the term shares
+        most of its sequential sum of squares with later terms, so F is large while ``p``, which
+        tests the term given all the others, is not. :meth:`summary` prints them under the table.
     null : dict
         ``{term: ndarray (n_permutations,)}``, the permuted pseudo-F values.
     n_permutations, seed : int
@@ -155,6 +162,18 @@ class PermanovaResult:
     seed: int | None
     by: str
     permute: str
+    notes: list = field(default_factory=list)
+
+    def summary(self) -> str:
+        """The table, the permutation scheme, and the :attr:`notes`, as text."""
+        scheme = ("Freedman-Lane: residuals of the model without the term permuted" if self.permute == "residuals"
+                  else "rows permuted")
+        kind = "sequential (type I)" if self.by == "terms" else "marginal (type III)"
+        head = f"PERMANOVA, {self.n_permutations} permutations ({scheme}); sums of squares {kind}"
+        body = self.table.drop(columns=["p_tests"]).to_string(float_format=lambda v: f"{v:.4g}")
+        tests = "\n".join(f"p of {t}: {self.table.loc[t, 'p_tests']}" for t in self.table.index
+                          if isinstance(self.table.loc[t, "p_tests"], str))
+        return "\n".join([head, body, tests, *[f"note: {n}" for n in self.notes]])
 
     permutations = deprecated_alias("permutations", "n_permutations", owner="PermanovaResult")
 
@@ -279,7 +298,7 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
     rng = np.random.default_rng(seed)
     perms = np.stack([rng.permutation(n) for _ in range(n_permutations)])
 
-    rows, null = [], {}
+    rows, null, notes = [], {}, []
     for t in terms:
         # Z: all the other terms (the Freedman–Lane reduced model, for both kinds of test)
         qz = one
@@ -312,15 +331,31 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
         f_null = (s_t / df_t) / (s_res / df_res)
         p = (1.0 + np.count_nonzero(f_null >= f_obs - TIE_RTOL * abs(f_obs))) / (1.0 + n_permutations)
         null[t] = f_null
+        others = [s for s in terms if s != t]
+        given = f"given {' + '.join(others)}" if others else "(no other terms)"
+        tests = (f"no effect of {t} {given} (residuals of the model without {t} permuted)" if permute == "residuals"
+                 else "no effect of any term (whole rows permuted)")
         rows.append({"term": t, "df": df_t, "sum_of_squares": ss_t, "r2": ss_t / ss_total,
-                     "pseudo_F": f_obs, "p_value": p})
+                     "pseudo_F": f_obs, "p_value": p,
+                     "ss_type": "I (sequential)" if by == "terms" else "III (marginal)", "p_tests": tests})
+        later = terms[terms.index(t) + 1:]
+        if by == "terms" and permute == "residuals" and later and ss_t > 0:
+            qm = _extend_basis(qz, blocks[t], t)  # the term given all the others
+            ss_own = float(np.einsum("nk,nk->", qm, g @ qm))
+            if ss_own < 0.5 * ss_t:
+                notes.append(
+                    f"{t}: F = {f_obs:.4g} is {t} given the terms before it, p = {p:.3g} tests {t} given all the "
+                    f"others; {1 - ss_own / ss_t:.0%} of its sequential sum of squares is shared with "
+                    f"{' + '.join(later)}, which is why they disagree: a large F with a large p means the effect is "
+                    f"not {t}'s own (by='margin' gives F and p of the same question; permute='rows' tests no effect "
+                    f"of any term)")
     rows.append({"term": "Residual", "df": df_res, "sum_of_squares": ss_res, "r2": ss_res / ss_total,
-                 "pseudo_F": np.nan, "p_value": np.nan})
+                 "pseudo_F": np.nan, "p_value": np.nan, "ss_type": None, "p_tests": None})
     rows.append({"term": "Total", "df": n - 1, "sum_of_squares": ss_total, "r2": 1.0,
-                 "pseudo_F": np.nan, "p_value": np.nan})
+                 "pseudo_F": np.nan, "p_value": np.nan, "ss_type": None, "p_tests": None})
     table = pd.DataFrame(rows).set_index("term")
     return PermanovaResult(table=table, null=null, n_permutations=int(n_permutations), seed=seed, by=by,
-                           permute=permute)
+                           permute=permute, notes=notes)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -39,6 +39,9 @@ from .frechet import (FrechetMeanResult, check_population, frechet_mean, geodesi
 
 __all__ = ["MeanDifferenceResult", "mean_difference_test", "permutation_statistics", "MIN_PERMUTATIONS"]
 
+#: a group smaller than this draws a warning (its mean is barely estimated, its permutations few)
+SMALL_GROUP = 3
+
 #: fewest permutations accepted (the smallest attainable p-value is 1 / (1 + n_permutations))
 MIN_PERMUTATIONS = 19
 
@@ -88,9 +91,28 @@ class MeanDifferenceResult:
         s = (f"{a} (n = {self.sizes[0]}) vs {b} (n = {self.sizes[1]}), {self.pooled.options.metric}: tangent distance "
              f"between the group means {self.statistic:.4g}, permutation p = {self.p_value:.4g} "
              f"({self.n_permutations} permutations)")
+        if not self.pooled.converged:
+            s += (f" [the pooled mean did not converge in {self.pooled.n_iter} iterations: the tangent distance is "
+                  "measured at its last iterate]")
         if self.distance is not None:
             s += f"; geodesic distance between the Fréchet means {self.distance:.4g}"
+            late = [f"{lab} (after {m.n_iter} iterations)" for lab, m in zip(self.labels, self.means or ())
+                    if not m.converged]
+            if late:
+                s += (f" [not converged: the Fréchet mean of {' and '.join(late)}; the distance is between the last "
+                      "iterates, not the means]")
+            elif self.geodesic is not None and not self.geodesic.converged:
+                s += (f" [the geodesic between the means did not converge: the distance is the length of the path it "
+                      f"had, an upper bound; lower bound {self.geodesic.lower_bound:.4g}]")
         return s
+
+    @property
+    def converged(self) -> bool:
+        """Whether the pooled mean, the group means and the geodesic between them all converged."""
+        parts = [self.pooled.converged, *(m.converged for m in self.means or ())]
+        if self.geodesic is not None:
+            parts.append(self.geodesic.converged)
+        return bool(all(parts))
 
 
 def permutation_statistics(gram, labels, n_permutations, rng):
@@ -181,6 +203,14 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
     sizes = (int((~is_b).sum()), int(is_b.sum()))
     if min(sizes) < 1:
         raise ValueError(f"both groups need shapes; sizes {dict(zip(labels, sizes))}")
+    if min(sizes) < SMALL_GROUP:
+        import math
+        import warnings
+
+        small = labels[int(np.argmin(sizes))]
+        warnings.warn(f"group {small!r} has {min(sizes)} shape(s) against {max(sizes)}: its mean is barely estimated "
+                      f"and the permutation test has only {math.comb(sum(sizes), min(sizes))} distinct relabellings "
+                      f"(smallest possible p {1 / math.comb(sum(sizes), min(sizes)):.3g})", UserWarning, stacklevel=2)
     n_permutations = check_positive_int(n_permutations, name="n_permutations")
     if n_permutations < MIN_PERMUTATIONS:
         raise ValueError(f"n_permutations must be at least {MIN_PERMUTATIONS}; got {n_permutations}")

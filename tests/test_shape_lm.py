@@ -1,0 +1,102 @@
+"""Linear models on shape (shape_lm): closed forms — one factor is PERMANOVA (Goodall's F), type I
+sums of squares add up to the model's, a balanced orthogonal design gives type I = type II — and
+residual randomisation that keeps its size and finds a real effect."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.spatial.distance import cdist
+
+import shapelib as sl
+from shapelib.statistics.distance_based import permanova
+from shapelib.statistics.linear_model import procrustes_coordinates, shape_lm
+from tests.conftest import ellipse_population
+
+
+@pytest.fixture
+def balanced(rng):
+    """24 shapes, genus × sex balanced (6 per cell), genus moves one landmark, size a covariate."""
+    x = ellipse_population(rng, 24, k=8, noise=0.03)
+    data = pd.DataFrame({"genus": np.repeat(["a", "b", "c"], 8), "sex": np.tile(["f", "m"], 12),
+                         "size": rng.uniform(1, 2, 24)})
+    x[data["genus"].to_numpy() == "b", 0, 0] += 1.0
+    return x, data
+
+
+def test_one_factor_is_permanova_on_the_procrustes_coordinates(balanced):
+    x, data = balanced
+    fit = shape_lm("~ genus", data, x, n_permutations=99, seed=4)
+    y = procrustes_coordinates(x)
+    perm = permanova(cdist(y, y), {"genus": data["genus"]}, permute="rows", n_permutations=99, seed=4).table
+    assert fit.table.loc["genus", "F"] == pytest.approx(perm.loc["genus", "pseudo_F"], rel=1e-10)
+    assert fit.table.loc["genus", "sum_of_squares"] == pytest.approx(perm.loc["genus", "sum_of_squares"], rel=1e-10)
+    assert fit.table.loc["genus", "p_value"] == perm.loc["genus", "p_value"]  # same draws: RRPP permutes rows here
+    assert fit.table.loc["genus", "p_value"] <= 0.05
+
+
+def test_type_one_sums_add_up_and_balanced_orthogonal_designs_give_type_one_equal_type_two(balanced):
+    x, data = balanced
+    one = shape_lm("~ genus * sex", data, x, ss_type="I", n_permutations=19).table
+    two = shape_lm("~ genus * sex", data, x, ss_type="II", n_permutations=19).table
+    terms = ["genus", "sex", "genus:sex"]
+    assert one.loc[terms, "sum_of_squares"].sum() + one.loc["Residual", "sum_of_squares"] == \
+        pytest.approx(one.loc["Total", "sum_of_squares"], rel=1e-12)
+    np.testing.assert_allclose(one.loc[terms, "sum_of_squares"], two.loc[terms, "sum_of_squares"], rtol=1e-9)
+    assert list(one["ss_type"][:3]) == ["I (sequential)"] * 3 and two.loc["genus", "reduced_model"] == "sex"
+    # an unbalanced covariate makes them differ, as it must
+    one = shape_lm("~ size + genus", data, x, ss_type="I", n_permutations=19).table
+    three = shape_lm("~ size + genus", data, x, ss_type="III", n_permutations=19).table
+    assert one.loc["size", "sum_of_squares"] != pytest.approx(three.loc["size", "sum_of_squares"], rel=1e-6)
+    assert one.loc["genus", "sum_of_squares"] == pytest.approx(three.loc["genus", "sum_of_squares"], rel=1e-10)
+
+
+def test_gram_input_equals_coordinates_and_a_null_term_keeps_its_size(rng):
+    x = ellipse_population(rng, 20, k=6, noise=0.05)
+    y = procrustes_coordinates(x)
+    yc = y - y.mean(axis=0)
+    data = pd.DataFrame({"g": np.tile(["p", "q"], 10), "c": rng.normal(size=20)})
+    a = shape_lm("~ g + c", data, x, n_permutations=49).table
+    b = shape_lm("~ g + c", data, gram=yc @ yc.T, n_permutations=49).table
+    pd.testing.assert_frame_equal(a, b, rtol=1e-8)
+    rejections = 0
+    for seed in range(30):  # no effect: p below 0.1 in about a tenth of the data sets
+        r = np.random.default_rng(100 + seed)
+        xs = ellipse_population(r, 16, k=6, noise=0.05)
+        d = pd.DataFrame({"g": np.tile(["p", "q"], 8), "c": r.normal(size=16)})
+        rejections += shape_lm("~ c + g", d, xs, n_permutations=39, seed=seed).table.loc["g", "p_value"] <= 0.1
+    assert rejections <= 8
+
+
+def test_bad_formulas_and_data_are_value_errors(balanced):
+    x, data = balanced
+    with pytest.raises(ValueError, match="no residual degrees of freedom"):
+        shape_lm("~ genus * sex", data.iloc[[0, 1, 8, 9, 16, 17]], x[[0, 1, 8, 9, 16, 17]], n_permutations=19)
+    with pytest.raises(ValueError, match="formula"):
+        shape_lm("~ nope", data, x, n_permutations=19)
+    with pytest.raises(ValueError, match="ss_type"):
+        shape_lm("~ genus", data, x, ss_type="IV")
+    assert sl.shape_lm is shape_lm
+
+
+def test_allometry_recovers_a_known_allometric_vector_and_corrects_for_size(rng):
+    from shapelib.statistics.allometry import allometry
+
+    base = ellipse_population(rng, 1, k=7, noise=0.0)[0]
+    direction = np.zeros_like(base)
+    direction[0] = [0.2, 0.1]  # landmark 1 moves out as log size grows
+    log_size = rng.uniform(0.0, 1.5, 40)
+    shapes = np.stack([np.exp(s) * (base + s * direction) for s in log_size])
+    shapes = shapes + rng.normal(scale=0.002, size=shapes.shape) * np.exp(log_size)[:, None, None]
+    res = allometry(shapes, n_permutations=99)
+    np.testing.assert_allclose(res.centroid_size, [sl.geometry.procrustes.centroid_size(s) for s in shapes])
+    assert res.r2 > 0.9 and res.p_value == pytest.approx(0.01)
+    # the slope's direction is the known one, seen in the unit-size Procrustes frame: compare by
+    # regressing the aligned coordinates on log size directly
+    y = procrustes_coordinates(shapes)
+    c = np.log(res.centroid_size) - np.log(res.centroid_size).mean()
+    np.testing.assert_allclose(res.slope.ravel(), c @ (y - y.mean(axis=0)) / (c @ c), atol=1e-12)
+    # size-corrected shapes no longer depend on size
+    corr = res.corrected.reshape(len(shapes), -1)
+    assert np.abs(c @ (corr - corr.mean(axis=0))).max() < 1e-10
+    with pytest.raises(ValueError, match="same centroid size"):
+        allometry(sl.to_centroid_size(shapes, 1.0))
