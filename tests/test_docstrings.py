@@ -19,7 +19,7 @@ MATH_MODULES = (
     "shapelib.solver.result", "shapelib.solver.path_metric", "shapelib.solver.geodesic", "shapelib.solver.bracket",
     "shapelib.solver.logexp", "shapelib.solver.energy", "shapelib.solver.minimise", "shapelib.solver.linalg",
     "shapelib.comparison.diffeomorphism", "shapelib.comparison.hausdorff", "shapelib.comparison.splines",
-    "shapelib.comparison.warp",
+    "shapelib.comparison.warp", "shapelib.comparison.missing", "shapelib.geometry.semilandmarks",
     "shapelib.distances",
 )
 MODULES = MATH_MODULES + ("shapelib.datasets", "shapelib.plotting")
