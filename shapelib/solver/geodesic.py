@@ -74,6 +74,7 @@ from ..geometry.procrustes import check_pose
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import SIGMA_RATIO_MIN, check_fisher_rao_scale, check_scale
 from .energy import metric_length
+from .batched import batched_geodesics, check_backend
 from .minimise import minimise_path
 from .path_metric import METRICS, FisherRaoPathMetric, path_metric
 from .result import GeodesicResult, GeodesicWarning, StopReason
@@ -186,7 +187,8 @@ def _underflow(result, ratio):
 
 def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: float = 1e-6,
              max_iter: int = 500, window: int = 5, init=None, grid_spacing: float = DEFAULT_SPACING,
-             grid_margin: float = DEFAULT_MARGIN, hessian: str = "exact", warn: bool = True) -> GeodesicResult:
+             grid_margin: float = DEFAULT_MARGIN, hessian: str = "exact", warn: bool = True,
+             backend: str = "cpu", device: str | None = None) -> GeodesicResult:
     """Geodesic between two landmark shapes under the α-order or Fisher–Rao metric (eqs. 8–12).
 
     Parameters
@@ -221,19 +223,49 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
         ``n_steps = 16`` — but many more iterations, and it only stops on the energy window).
     warn : bool
         Emit a :class:`GeodesicWarning` when the solver stops before converging.
+    backend : {"cpu", "jax"}
+        ``"cpu"``: the compiled Levenberg–Marquardt solver above. ``"jax"``: the same discrete
+        energy (same path, time rule and grid) in JAX with its gradient by ``jax.grad``, minimised
+        by L-BFGS on the device (:mod:`shapelib.solver.batched`; ``max_iter`` then counts L-BFGS
+        iterations, ``hessian`` is not used, and the stop is the energy window: no Newton
+        certificate). The bounds are certified as on the CPU. Needs ``pip install "shapelib[gpu]"``
+        (CUDA 12) or ``"shapelib[jax]"`` (CPU).
+    device : {None, "cpu", "gpu"}
+        With ``backend="jax"``: JAX's default device (None: a GPU when JAX sees one), the CPU, or a
+        GPU — refused with a one-line ``RuntimeError`` when JAX sees none (never a silent CPU fallback).
 
     Returns
     -------
     GeodesicResult
         ``path``, ``length``, ``energy``, ``lower_bound``, ``converged``, ``n_iter``,
         ``grad_norm`` and a ``log``. The geodesic distance lies in ``[lower_bound, length]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib import geodesic
+    >>> u = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.5]]); v = u + [[0.3, -0.2], [0.0, 0.1], [-0.2, 0.0]]
+    >>> r = geodesic(u, v, metric="alpha", sigma2=0.5, n_steps=8)
+    >>> bool(r.converged and r.lower_bound <= r.length)
+    True
     """
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
+    backend, device = check_backend(backend, device)
     ratio = check_entry(u, v, s2, metric=metric, stacklevel=3)
-    model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
-    result = minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
-                           warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
+    if backend == "jax":
+        if hessian not in ("exact", "model"):
+            raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")
+        result = batched_geodesics(u[None], v[None], metric=metric, sigma2=s2, n_steps=n_steps, tol=tol,
+                                   max_iter=max_iter, window=window, init=None if init is None else np.asarray(init)[None],
+                                   grid_spacing=grid_spacing, grid_margin=grid_margin, device=device, warn=False)[0]
+        if not result.converged and warn:
+            warnings.warn(f"{metric} geodesic did not converge in {result.n_iter} L-BFGS iterations "
+                          f"({result.summary()})", GeodesicWarning, stacklevel=2)
+    else:
+        model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
+        result = minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
+                               warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
     reason = _underflow(result, ratio)
     if reason is not None:
         result.converged = False
