@@ -77,13 +77,16 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, n_jobs: int | None = 
     Every option of :func:`shapelib.statistics.frechet.frechet_mean` (``tol``, ``max_iter``,
     ``n_steps``, ``init``, ``rcond``, …) is accepted; ``n_jobs``, ``client``, ``scheduler`` say
     where the log maps run (:func:`shapelib.pairwise_distances`). The result's ``history[-1]``
-    gains ``mode`` and ``n_workers``.
+    gains ``mode`` and ``n_workers``. With ``backend="jax"`` (``device=``) each iteration's log maps
+    are one batch on a JAX device, from this process.
 
     Returns
     -------
     FrechetMeanResult
     """
     x = as_shapes(shapes, name="shapes")
+    if options.get("backend") == "jax" and n_jobs is None and client is None and scheduler is None:
+        n_jobs = 1  # the log maps go to the device as one batch from this process
     with _where(x, metric, sigma2, options, n_jobs, client, scheduler) as (ex, workers, mode):
         options.setdefault("chunk_size", _chunk_size(len(x), workers))
         res = _frechet.frechet_mean(x, metric=metric, sigma2=sigma2, executor=ex, **options)

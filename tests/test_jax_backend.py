@@ -3,6 +3,7 @@ the L-BFGS geodesics and brackets agree with the CPU solver and are certified th
 equal single solves; the errors for a missing extra and a missing GPU. Run on JAX's CPU backend."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -15,6 +16,8 @@ import shapelib
 from shapelib.solver.energy import path_energy
 from shapelib.solver.path_metric import path_metric
 
+if "jax" not in sys.modules:  # compile time dominates these small problems: XLA's cheapest code generation
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
 jax = pytest.importorskip("jax")
 
 from shapelib.geometry import _jax_kernels as jk  # noqa: E402
@@ -27,11 +30,26 @@ def _shape(rng, k, d):
     return rng.normal(size=(k, d)) * 1.6
 
 
+def _pair(rng, k, d, scale):
+    """Two shapes in correspondence, ``v`` aligned to ``u`` (no pose warning)."""
+    u = _shape(rng, k, d)
+    return u, shapelib.procrustes_align(u, u + rng.normal(size=u.shape) * scale, scaling=False)
+
+
 @pytest.fixture(scope="module")
 def pair2():
-    rng = np.random.default_rng(7)
-    u = _shape(rng, 5, 2)
-    return u, u + rng.normal(size=u.shape) * 0.35
+    return _pair(np.random.default_rng(7), 5, 2, 0.35)
+
+
+def _case(metric, d):
+    """A wiggly path (4 segments, 4 landmarks) and its Fisher–Rao grid as the CPU solver builds it."""
+    rng = np.random.default_rng(d)
+    u, v = _pair(rng, 4, d, 0.5)
+    path = _wiggly_path(rng, u, v, 4)
+    nodes = weights = None
+    if metric == "fisher_rao":
+        nodes, weights = batched.stack_grids([path_metric(metric, S2).prepare(path)], d)  # padded: zero weights
+    return path, nodes, weights
 
 
 def _wiggly_path(rng, u, v, n):
@@ -43,34 +61,26 @@ def _wiggly_path(rng, u, v, n):
 @pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
 @pytest.mark.parametrize("d", [2, 3])
 def test_energy_and_gradient_equal_the_compiled_kernels(metric, d):
-    rng = np.random.default_rng(d)
-    u = _shape(rng, 4, d)
-    v = u + rng.normal(size=u.shape) * 0.5
-    path = _wiggly_path(rng, u, v, 4)
-    model = path_metric(metric, S2)
-    e_cpu, g_cpu, _ = path_energy(model, path)
-    nodes = weights = None
-    if metric == "fisher_rao":
-        nodes, weights = batched.stack_grids([model.prepare(path)], d)  # padded: zero weights add nothing
+    path, nodes, weights = _case(metric, d)
+    e_cpu, g_cpu, _ = path_energy(path_metric(metric, S2), path)
     e, g = jk.batched_value_and_grad(path[None], S2, nodes, weights, metric=metric)
     assert e[0] == pytest.approx(e_cpu, rel=1e-11)
     np.testing.assert_allclose(g[0], g_cpu, rtol=0, atol=1e-10 * np.abs(g_cpu).max())
 
 
-def test_gradient_is_the_derivative_of_the_energy(pair2):
-    """Central differences of the JAX energy along random directions (Fisher–Rao, 2-D)."""
-    u, v = pair2
+@pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
+def test_gradient_is_the_derivative_of_the_energy(metric):
+    """Central differences of the JAX energy along random directions (2-D)."""
+    path, nodes, weights = _case(metric, 2)
     rng = np.random.default_rng(3)
-    path = _wiggly_path(rng, u, v, 4)
-    nodes, weights = batched.stack_grids([path_metric("fisher_rao", S2).prepare(path)], 2)
-    _, g = jk.batched_value_and_grad(path[None], S2, nodes, weights, metric="fisher_rao")
+    _, g = jk.batched_value_and_grad(path[None], S2, nodes, weights, metric=metric)
     h = 1e-5
     for _ in range(3):
         direction = np.zeros_like(path)
         direction[1:-1] = rng.normal(size=path[1:-1].shape)
-        e = jk.batched_value_and_grad(np.stack([path + h * direction, path - h * direction]), S2,
-                                      np.repeat(nodes, 2, 0), np.repeat(weights, 2, 0), metric="fisher_rao")[0]
-        assert (e[0] - e[1]) / (2 * h) == pytest.approx(np.sum(g[0] * direction[1:-1]), rel=1e-6)
+        plus, minus = (jk.batched_value_and_grad((path + s * h * direction)[None], S2, nodes, weights, metric=metric)[0][0]
+                       for s in (1, -1))
+        assert (plus - minus) / (2 * h) == pytest.approx(np.sum(g[0] * direction[1:-1]), rel=1e-6)
 
 
 @pytest.fixture(scope="module")
@@ -101,8 +111,7 @@ def test_converged_geodesic_matches_the_cpu_solver_and_is_certified_the_same_way
 
 def test_batched_geodesics_equal_one_by_one(pair2, fr_geodesics):
     u, v = pair2
-    rng = np.random.default_rng(11)
-    v2 = u + rng.normal(size=u.shape) * 0.3
+    v2 = _pair(np.random.default_rng(11), 5, 2, 0.3)[1] * 0.2 + 0.8 * v
     res = batched.batched_geodesics(np.stack([u, u, v]), np.stack([v, v2, v]), metric="fisher_rao", sigma2=S2,
                                     n_steps=6, tol=1e-8, max_iter=2000, device="cpu")
     one = fr_geodesics[1]
@@ -115,18 +124,22 @@ def test_batched_geodesics_equal_one_by_one(pair2, fr_geodesics):
     assert res[1].length == pytest.approx(single.length, rel=1e-10)
 
 
-def test_bracket_contains_the_cpu_value_in_2d_and_3d():
-    rng = np.random.default_rng(5)
-    for d, metric in ((2, "fisher_rao"), (3, "alpha")):
-        u = _shape(rng, 4, d)
-        v = u + rng.normal(size=u.shape) * 0.2
-        b = shapelib.distance_bracket(u, v, metric=metric, sigma2=S2, rtol=1e-2, n_steps=4, max_n_steps=4,
-                                      backend="jax", device="cpu", warn=False)
-        cpu = shapelib.geodesic(u, v, metric=metric, sigma2=S2, n_steps=16, tol=1e-9)
-        assert b.stopped_by in ("rtol", "max_n_steps") and b.log["backend"] == "jax"
-        assert b.lower == pytest.approx(cpu.lower_bound, rel=1e-12)
-        assert b.lower <= cpu.length <= b.upper
-        assert b.upper == pytest.approx(shapelib.path_length(b.path, metric=metric, sigma2=S2), rel=1e-11)
+@pytest.mark.parametrize("metric, d", [("fisher_rao", 2), ("alpha", 3)])
+def test_bracket_contains_the_cpu_value(pair2, fr_geodesics, metric, d):
+    """Same closed-form lower end; the CPU solver's converged length lies inside; the upper end is
+    the returned path's length by the CPU quadrature."""
+    if d == 2:  # the pair of the geodesic tests: same programs
+        (u, v), n, cpu = pair2, 6, fr_geodesics[0]
+    else:
+        path = _case(metric, d)[0]
+        u, v, n = path[0], path[-1], 4
+        cpu = shapelib.geodesic(u, v, metric=metric, sigma2=S2, n_steps=n, tol=1e-9)
+    b = shapelib.distance_bracket(u, v, metric=metric, sigma2=S2, rtol=1e-2, n_steps=n, max_n_steps=n,
+                                  grid_spacing=0.35, backend="jax", device="cpu", warn=False)
+    assert b.stopped_by in ("rtol", "max_n_steps") and b.log["backend"] == "jax"
+    assert b.lower == pytest.approx(cpu.lower_bound, rel=1e-12)
+    assert b.lower <= cpu.length <= b.upper * (1 + 1e-6)
+    assert b.upper == pytest.approx(shapelib.path_length(b.path, metric=metric, sigma2=S2), rel=1e-11)
 
 
 def test_backend_and_device_are_checked():

@@ -55,6 +55,8 @@ MAX_REGRIDS = 3
 LBFGS_HISTORY = 10
 #: the first L-BFGS step moves no landmark by more than this (in σ)
 FIRST_STEP = 0.1
+#: shortest energy trace of a device solve (longer for larger ``max_iter``, rounded by :func:`bucket`)
+TRACE_MIN = 1024
 #: step halvings of the backtracking (Armijo) line search before "no_decrease"
 MAX_HALVINGS = 40
 
@@ -159,22 +161,23 @@ def _covers(grid, path, s2, spacing, margin):
 
 
 @functools.lru_cache(maxsize=None)
-def _compiled_solver(metric, max_iter, window, history):
-    """jit(vmap(one pair's L-BFGS)) for static ``metric``, ``max_iter``, ``window``, ``history``."""
+def _compiled_solver(metric, trace, history):
+    """jit(vmap(one pair's L-BFGS)) for static ``metric``, energy-trace length ``trace`` (> max_iter)
+    and ``history``; ``max_iter`` and ``window`` are arguments, so one program serves them all."""
     import jax
     import jax.numpy as jnp
     from jax import lax
 
     value_and_grad = jax.value_and_grad(functools.partial(jk._interior_energy, metric=metric))
 
-    def solve_one(x0, ends, s2, nodes, weights, tol, target, step0, f, g):
+    def solve_one(x0, ends, s2, nodes, weights, tol, target, step0, f, g, max_iter, window):
         # the start's energy and gradient come in (jk._compiled): one copy of the energy in this program
         shape = x0.shape
         fg = lambda x: value_and_grad(x.reshape(shape), ends, s2, nodes, weights)  # noqa: E731
         x = x0.reshape(-1)
         g = g.reshape(-1)
         p = x.size
-        energies = jnp.full(max_iter + 1, jnp.nan).at[0].set(f)
+        energies = jnp.full(trace, jnp.nan).at[0].set(f)
         status = jnp.where(f <= target, _TARGET, _RUNNING)
         state = dict(x=x, f=f, g=g, s=jnp.zeros((history, p)), y=jnp.zeros((history, p)), rho=jnp.zeros(history),
                      count=jnp.array(0), it=jnp.array(0), energies=energies, status=status, gamma=jnp.array(0.0),
@@ -253,7 +256,7 @@ def _compiled_solver(metric, max_iter, window, history):
         return (st["x"].reshape(shape), st["f"], jnp.linalg.norm(st["g"]), st["it"], st["status"], st["energies"],
                 st["last"])
 
-    return jax.jit(jax.vmap(solve_one, in_axes=(0, 0, None, 0, 0, None, 0, None, 0, 0)))
+    return jax.jit(jax.vmap(solve_one, in_axes=(0, 0, None, 0, 0, None, 0, None, 0, 0, None, None)))
 
 
 def lbfgs_solve(paths, *, metric, sigma2, nodes=None, weights=None, tol=1e-6, max_iter=500, window=5,
@@ -282,12 +285,13 @@ def lbfgs_solve(paths, *, metric, sigma2, nodes=None, weights=None, tol=1e-6, ma
     if pad:
         paths, nodes, weights = (np.concatenate([a, np.repeat(a[:1], pad, axis=0)]) for a in (paths, nodes, weights))
         target = np.concatenate([target, np.full(pad, np.inf)])
-    solver = _compiled_solver(metric, int(max_iter), int(window), int(history))
+    solver = _compiled_solver(metric, max(TRACE_MIN, bucket(int(max_iter) + 1)), int(history))
     with _on(device):
         x0, ends = paths[:, 1:-1], paths[:, [0, -1]]
         f0, g0 = jk._compiled(metric, "value_and_grad")(x0, ends, float(sigma2), nodes, weights)
         x, f, gn, it, status, energies, last = solver(
-            x0, ends, float(sigma2), nodes, weights, float(tol), target, float(FIRST_STEP * np.sqrt(sigma2)), f0, g0)
+            x0, ends, float(sigma2), nodes, weights, float(tol), target, float(FIRST_STEP * np.sqrt(sigma2)), f0, g0,
+            int(max_iter), int(window))
         x, f, gn, it, status, energies, last = (np.asarray(a) for a in (x, f, gn, it, status, energies, last))
     paths, x, f, gn, it, status, energies, last = (a[:b] for a in (paths, x, f, gn, it, status, energies, last))
     out = paths.copy()

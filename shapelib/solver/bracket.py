@@ -416,8 +416,8 @@ def _jax_brackets(us, vs, ratios, *, model, s2, rtol, n, max_n, level_iter, leve
 def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: int = 8,
                       max_n_steps: int = 64, level_iter: int = 3, level_tol: float | None = None,
                       min_shrink: float = 0.25, grid_spacing: float | None = None,
-                      grid_margin: float = DEFAULT_MARGIN, backend: str = "jax", device: str | None = None,
-                      batch_size: int | None = None, warn: bool = True) -> list:
+                      grid_margin: float = DEFAULT_MARGIN, hessian: str | None = None, backend: str = "jax",
+                      device: str | None = None, batch_size: int | None = None, warn: bool = True) -> list:
     """Certified brackets of many pairs ``(us[i], vs[i])``: :func:`distance_bracket` for each, with
     ``backend="jax"`` every level of all pairs solved as one batch on the device.
 
@@ -426,7 +426,9 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
     us, vs : array_like, shape (B, K, d)
         Pairs of shapes of one size (group pairs by ``K`` and ``d`` before calling).
     metric, sigma2, rtol, n_steps, max_n_steps, level_iter, level_tol, min_shrink, grid_spacing, grid_margin
-        As in :func:`distance_bracket` (its ``hessian`` applies to ``backend="cpu"`` only and is the default).
+        As in :func:`distance_bracket`.
+    hessian : {"exact", "model"}, optional
+        As in :func:`distance_bracket`; ``backend="cpu"`` only (L-BFGS needs none).
     backend : {"jax", "cpu"}
         ``"jax"`` (default): batched on a JAX device; ``"cpu"``: :func:`distance_bracket` pair by pair.
     device : {None, "cpu", "gpu"}
@@ -463,7 +465,7 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
                   level_iter=level_iter, level_tol=level_tol, min_shrink=min_shrink, grid_spacing=grid_spacing,
                   grid_margin=grid_margin)
     if backend == "cpu":
-        return [distance_bracket(u, v, warn=warn, **common) for u, v in zip(us, vs)]
+        return [distance_bracket(u, v, warn=warn, hessian=hessian, **common) for u, v in zip(us, vs)]
     s2 = check_sigma2(sigma2)
     pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
     ratios = [check_entry(u, v, s2, metric=metric, stacklevel=3) for u, v in pairs]

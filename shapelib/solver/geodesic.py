@@ -79,7 +79,7 @@ from .minimise import minimise_path
 from .path_metric import METRICS, FisherRaoPathMetric, path_metric
 from .result import GeodesicResult, GeodesicWarning, StopReason
 
-__all__ = ["geodesic", "shoot", "geodesic_acceleration", "fisher_rao_lower_bound", "alpha_lower_bound", "path_length",
+__all__ = ["geodesic", "geodesics", "shoot", "geodesic_acceleration", "fisher_rao_lower_bound", "alpha_lower_bound", "path_length",
            "check_entry",
            "METRICS", "GeodesicResult", "GeodesicWarning", "StopReason", "minimise_path"]
 
@@ -329,3 +329,67 @@ def shoot(u, velocity, *, metric: str = "alpha", sigma2, n_steps: int = 200,
         v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
         out.append(th.copy())
     return np.stack(out)
+
+
+def geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: float = 1e-6,
+              max_iter: int = 500, window: int = 5, grid_spacing: float = DEFAULT_SPACING,
+              grid_margin: float = DEFAULT_MARGIN, hessian: str = "exact", warn: bool = True,
+              backend: str = "jax", device: str | None = None, batch_size: int | None = None) -> list:
+    """Geodesics of many pairs ``(us[i], vs[i])``: :func:`geodesic` for each, with ``backend="jax"``
+    all of them minimised as one batch on the device (:func:`shapelib.solver.batched.batched_geodesics`).
+
+    Parameters
+    ----------
+    us, vs : array_like, shape (B, K, d)
+        Pairs of shapes of one size (group pairs by ``K`` and ``d`` before calling).
+    metric, sigma2, n_steps, tol, max_iter, window, grid_spacing, grid_margin, hessian
+        As in :func:`geodesic` (``hessian`` applies to ``backend="cpu"``).
+    warn : bool
+        ``backend="jax"``: one :class:`GeodesicWarning` for the pairs that stopped before converging.
+    backend : {"jax", "cpu"}
+        ``"jax"`` (default): batched on a JAX device; ``"cpu"``: :func:`geodesic` pair by pair.
+    device : {None, "cpu", "gpu"}
+        JAX device (:func:`geodesic`).
+    batch_size : int, optional
+        Pairs per device call (default: from the device's memory).
+
+    Returns
+    -------
+    list of GeodesicResult
+        In the order of the pairs, each checked and certified as :func:`geodesic`'s.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib import geodesics
+    >>> u = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.5]])
+    >>> vs = np.stack([u + [[0.3, -0.2], [0.0, 0.1], [-0.2, 0.0]], u * 1.1])
+    >>> out = geodesics(np.stack([u, u]), vs, metric="alpha", sigma2=0.5, n_steps=8, device="cpu")
+    >>> [bool(r.converged and r.lower_bound <= r.length) for r in out]
+    [True, True]
+    """
+    backend, device = check_backend(backend, device)
+    us = np.asarray(us, dtype=np.float64)
+    vs = np.asarray(vs, dtype=np.float64)
+    if us.ndim != 3 or us.shape != vs.shape:
+        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    common = dict(metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window,
+                  grid_spacing=grid_spacing, grid_margin=grid_margin)
+    if backend == "cpu":
+        return [geodesic(u, v, hessian=hessian, warn=warn, **common) for u, v in zip(us, vs)]
+    s2 = check_sigma2(sigma2)
+    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
+    ratios = [check_entry(u, v, s2, metric=metric, stacklevel=3) for u, v in pairs]
+    out = batched_geodesics(np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), device=device,
+                            batch_size=batch_size, warn=False, **{**common, "sigma2": s2})
+    for result, ratio in zip(out, ratios):
+        reason = _underflow(result, ratio)
+        if reason is not None:
+            result.converged = False
+            result.log["stopped_by"] = StopReason.UNDERFLOW.value
+            result.log["reason"] = reason
+    failed = [r for r in out if not r.converged]
+    if failed and warn:
+        warnings.warn(f"{metric} geodesics: {len(failed)} of {len(out)} pairs did not converge "
+                      f"(first: {failed[0].summary()})", GeodesicWarning, stacklevel=2)
+    return out
