@@ -2,6 +2,7 @@
 the L-BFGS geodesics and brackets agree with the CPU solver and are certified the same way, batches
 equal single solves; the errors for a missing extra and a missing GPU. Run on JAX's CPU backend."""
 
+import importlib.util
 import json
 import os
 import subprocess
@@ -27,7 +28,7 @@ S2 = 0.5
 
 
 def _shape(rng, k, d):
-    return rng.normal(size=(k, d)) * 1.6
+    return rng.normal(size=(k, d)) * (1.6 if d == 2 else 0.8)  # σ about half a landmark spacing
 
 
 def _pair(rng, k, d, scale):
@@ -111,7 +112,7 @@ def test_converged_geodesic_matches_the_cpu_solver_and_is_certified_the_same_way
 
 def test_batched_geodesics_equal_one_by_one(pair2, fr_geodesics):
     u, v = pair2
-    v2 = _pair(np.random.default_rng(11), 5, 2, 0.3)[1] * 0.2 + 0.8 * v
+    v2 = shapelib.procrustes_align(u, _pair(np.random.default_rng(11), 5, 2, 0.3)[1] * 0.2 + 0.8 * v, scaling=False)
     res = batched.batched_geodesics(np.stack([u, u, v]), np.stack([v, v2, v]), metric="fisher_rao", sigma2=S2,
                                     n_steps=6, tol=1e-8, max_iter=2000, device="cpu")
     one = fr_geodesics[1]
@@ -124,18 +125,35 @@ def test_batched_geodesics_equal_one_by_one(pair2, fr_geodesics):
     assert res[1].length == pytest.approx(single.length, rel=1e-10)
 
 
-@pytest.mark.parametrize("metric, d", [("fisher_rao", 2), ("alpha", 3)])
-def test_bracket_contains_the_cpu_value(pair2, fr_geodesics, metric, d):
+@pytest.fixture(scope="module")
+def alpha3():
+    """A converged 3-D α geodesic on both paths, and the JAX bracket of the same pair (same programs)."""
+    path = _case("alpha", 3)[0]
+    u, v = path[0], path[-1]
+    kw = dict(metric="alpha", sigma2=S2, n_steps=4)
+    return (u, v, shapelib.geodesic(u, v, **kw, tol=1e-9),
+            shapelib.geodesic(u, v, **kw, tol=1e-9, max_iter=300, backend="jax", device="cpu"),
+            shapelib.distance_bracket(u, v, **kw, rtol=1e-2, max_n_steps=4, backend="jax", device="cpu", warn=False))
+
+
+def test_converged_3d_geodesic_matches_the_cpu_solver(alpha3):
+    u, v, cpu, jx, _ = alpha3
+    assert jx.converged and jx.energy == pytest.approx(cpu.energy, rel=1e-7)
+    assert jx.length == pytest.approx(shapelib.path_length(jx.path, metric="alpha", sigma2=S2), rel=1e-11)
+    assert jx.lower_bound == pytest.approx(cpu.lower_bound, rel=1e-13) and jx.lower_bound <= jx.length
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_bracket_contains_the_cpu_value(pair2, fr_geodesics, alpha3, d):
     """Same closed-form lower end; the CPU solver's converged length lies inside; the upper end is
     the returned path's length by the CPU quadrature."""
-    if d == 2:  # the pair of the geodesic tests: same programs
-        (u, v), n, cpu = pair2, 6, fr_geodesics[0]
+    if d == 2:  # the pair of the Fisher–Rao geodesic tests: same programs
+        (u, v), cpu, metric = pair2, fr_geodesics[0], "fisher_rao"
+        b = shapelib.distance_bracket(u, v, metric=metric, sigma2=S2, rtol=1e-2, n_steps=6, max_n_steps=6,
+                                      grid_spacing=0.35, backend="jax", device="cpu", warn=False)
     else:
-        path = _case(metric, d)[0]
-        u, v, n = path[0], path[-1], 4
-        cpu = shapelib.geodesic(u, v, metric=metric, sigma2=S2, n_steps=n, tol=1e-9)
-    b = shapelib.distance_bracket(u, v, metric=metric, sigma2=S2, rtol=1e-2, n_steps=n, max_n_steps=n,
-                                  grid_spacing=0.35, backend="jax", device="cpu", warn=False)
+        u, v, cpu, _, b = alpha3
+        metric = "alpha"
     assert b.stopped_by in ("rtol", "max_n_steps") and b.log["backend"] == "jax"
     assert b.lower == pytest.approx(cpu.lower_bound, rel=1e-12)
     assert b.lower <= cpu.length <= b.upper * (1 + 1e-6)
@@ -143,20 +161,20 @@ def test_bracket_contains_the_cpu_value(pair2, fr_geodesics, metric, d):
 
 
 def test_backend_and_device_are_checked():
-    u = np.eye(3)[:, :2]
+    u = np.array([[-0.5, -0.3], [0.5, -0.3], [0.0, 0.6]])  # centred: u * 1.1 has the same pose
     with pytest.raises(ValueError, match="backend must be one of"):
-        shapelib.geodesic(u, u + 0.1, sigma2=S2, backend="cuda")
+        shapelib.geodesic(u, u * 1.1, sigma2=S2, backend="cuda")
     with pytest.raises(ValueError, match='needs backend="jax"'):
-        shapelib.geodesic(u, u + 0.1, sigma2=S2, device="gpu")
+        shapelib.geodesic(u, u * 1.1, sigma2=S2, device="gpu")
     with pytest.raises(ValueError, match="device must be"):
-        shapelib.distance_bracket(u, u + 0.1, metric="alpha", sigma2=S2, backend="jax", device="tpu0")
+        shapelib.distance_bracket(u, u * 1.1, metric="alpha", sigma2=S2, backend="jax", device="tpu0")
 
 
 @pytest.mark.skipif(any(d.platform == "gpu" for d in jax.devices()), reason="a GPU is visible")
 def test_gpu_without_a_gpu_is_a_one_line_error_not_a_cpu_fallback():
-    u = np.eye(3)[:, :2]
+    u = np.array([[-0.5, -0.3], [0.5, -0.3], [0.0, 0.6]])  # centred: u * 1.1 has the same pose
     with pytest.raises(RuntimeError, match="JAX sees no GPU") as err:
-        shapelib.geodesic(u, u + 0.1, metric="fisher_rao", sigma2=S2, backend="jax", device="gpu")
+        shapelib.geodesic(u, u * 1.1, metric="fisher_rao", sigma2=S2, backend="jax", device="gpu")
     assert "\n" not in str(err.value) and "shapelib[gpu]" in str(err.value)
 
 
@@ -164,7 +182,7 @@ def test_missing_jax_is_a_one_line_import_error_naming_the_extra():
     code = ("import sys; sys.modules['jax'] = None\n"
             "import numpy as np, shapelib\n"
             "u = np.eye(3)[:, :2]\n"
-            "try:\n    shapelib.geodesic(u, u + 0.1, sigma2=0.5, backend='jax')\n"
+            "try:\n    shapelib.geodesic(u, u * 1.1, sigma2=0.5, backend='jax')\n"
             "except ImportError as e:\n    print(repr(str(e)))\n"
             "assert 'jax' not in [m.split('.')[0] for m in sys.modules if sys.modules[m] is not None]\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
@@ -182,6 +200,11 @@ def test_bench_gpu_cpu_check_writes_a_record(tmp_path):
     res = rec["results"]
     assert res["mode"] == "cpu-check" and res["device"]["platform"] == "cpu" and rec["machine"]["date"]
     rows = res["rows"]
+    spec = importlib.util.spec_from_file_location("shapelib_docs", ROOT / "docs" / "_ext" / "shapelib_docs.py")
+    docs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(docs)
+    for table in docs.RENDERERS["bench_gpu"](res):  # the performance page renders the record
+        assert table.rows and all(len(row) == len(table.header) for row in table.rows)
     # the same pairs on both paths: certified, and the two lengths agree to the solvers' tolerance
     for row in rows["geodesic"]:
         assert row["lower"] <= row["length_jax"] and row["lower"] <= row["length_cpu"]
