@@ -90,7 +90,7 @@ def _adhd(args):
     sel = stratified_sample(np.arange(len(raw)), 180, cells, np.random.default_rng(0))
     x = shapes[sel]
     if args.cpu_check:
-        x = x[:5, ::10]  # 5 shapes of 5 landmarks
+        x = x[:3, ::10]  # 3 shapes of 5 landmarks
     return x
 
 
@@ -105,7 +105,7 @@ def main(argv=None) -> int:
                     help="write the record here (default on a GPU: docs/_data/benchmarks/bench_gpu.json; "
                          "--cpu-check writes only with --json)")
     args = ap.parse_args(argv)
-    args.batch = args.batch or (4 if args.cpu_check else 128)
+    args.batch = args.batch or (2 if args.cpu_check else 128)
     args.budget = args.budget if args.budget is not None else (10.0 if args.cpu_check else 100.0)
     args.cpu_pairs = args.cpu_pairs or (2 if args.cpu_check else 3)
     try:
@@ -172,8 +172,11 @@ def main(argv=None) -> int:
           f"lengths agree to {g['max_rel_length_difference']:.1e}")
 
     # --- certified brackets ------------------------------------------------------------------------
-    bkw = dict(metric="fisher_rao", sigma2=sigma2, rtol=1e-3)
-    _, b_compile = _timed(lambda: shapelib.distance_brackets(us[:2], vs[:2], **bkw, device=device))
+    # --cpu-check: one level at the geodesics' n_steps and grid, so the programs compiled above serve
+    # (each n_steps, batch size and grid size is another compiled program)
+    small = dict(n_steps=n_steps, max_n_steps=n_steps, grid_spacing=0.35) if args.cpu_check else {}
+    bkw = dict(metric="fisher_rao", sigma2=sigma2, rtol=1e-3, **small)
+    _, b_compile = _timed(lambda: shapelib.distance_brackets(us, vs, **bkw, device=device))
     brs, bs = _timed(lambda: shapelib.distance_brackets(us, vs, **bkw, device=device))
     cpu_b = [_timed(lambda: shapelib.distance_bracket(us[p], vs[p], **bkw)) for p in range(args.cpu_pairs)]
     cpu_bs = sum(s for _, s in cpu_b)
@@ -192,8 +195,8 @@ def main(argv=None) -> int:
     xa = _adhd(args)
     s2a = float(f"{(2.6 * shapelib.landmark_spacing(xa)) ** 2:.2g}") if args.cpu_check else 1.2
     all_pairs = list(itertools.combinations(range(len(xa)), 2))
-    mkw = dict(metric="fisher_rao", sigma2=s2a, rtol=1e-3)
-    chunk = args.batch
+    mkw = dict(metric="fisher_rao", sigma2=s2a, rtol=1e-3, **small)
+    chunk = len(all_pairs) if args.cpu_check else args.batch
     ii = np.array(all_pairs)
     _, m_warm = _timed(lambda: shapelib.distance_brackets(xa[ii[:chunk, 0]], xa[ii[:chunk, 1]], **mkw, device=device))
     done, certified, t0 = 0, 0, time.perf_counter()

@@ -194,7 +194,7 @@ def test_missing_jax_is_a_one_line_import_error_naming_the_extra():
 def test_bench_gpu_cpu_check_writes_a_record(tmp_path):
     out = tmp_path / "bench_gpu.json"
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_gpu.py"), "--cpu-check", "--json", str(out)],
-                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+                          capture_output=True, text=True, timeout=900, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr[-2000:]
     rec = json.loads(out.read_text())
     res = rec["results"]
@@ -210,3 +210,30 @@ def test_bench_gpu_cpu_check_writes_a_record(tmp_path):
         assert row["lower"] <= row["length_jax"] and row["lower"] <= row["length_cpu"]
         assert row["length_jax"] == pytest.approx(row["length_cpu"], rel=1e-3)
     assert 0.0 <= rows["brackets"]["certified_rate"] <= 1.0
+
+
+@pytest.fixture(scope="module")
+def three(pair2):
+    """Three aligned shapes: the pairs of the batched test (same compiled programs)."""
+    u, v = pair2
+    v2 = shapelib.procrustes_align(u, _pair(np.random.default_rng(11), 5, 2, 0.3)[1] * 0.2 + 0.8 * v, scaling=False)
+    return np.stack([u, v, v2])
+
+
+@pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
+def test_pairwise_engine_sends_a_block_to_the_device_as_one_batch(three, fr_geodesics):
+    d = shapelib.pairwise_distances(three, metric="fisher_rao", sigma2=S2, n_steps=6, tol=1e-8, max_iter=2000,
+                                    backend="jax", device="cpu", n_jobs=1, progress=False)
+    np.testing.assert_array_equal(d, d.T)
+    assert d[0, 1] == pytest.approx(fr_geodesics[1].length, rel=1e-10)  # the single JAX geodesic
+    assert d[0, 1] == pytest.approx(fr_geodesics[0].length, rel=1e-6)  # and the CPU one
+
+
+@pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
+def test_frechet_mean_with_batched_log_maps_matches_the_cpu_mean(three):
+    kw = dict(metric="fisher_rao", sigma2=S2, n_steps=6, log_tol=1e-8, tol=1e-4)
+    cpu = shapelib.frechet_mean(three, **kw, n_jobs=1)
+    jx = shapelib.frechet_mean(three, **kw, backend="jax", device="cpu")
+    assert jx.converged and jx.certificate <= 1e-4
+    spread = np.abs(three - cpu.mean).max()
+    assert np.abs(jx.mean - cpu.mean).max() <= 1e-3 * spread

@@ -82,11 +82,12 @@ def alpha_qform(theta, vel, s2):
     """``Vᵀ g_α(θ) V`` (eq. 22) for one shape ``theta`` (K, d) moving with ``vel`` (K, d)."""
     import jax.numpy as jnp
     k, d = theta.shape
-    delta = theta[:, None, :] - theta[None, :, :]  # (K, K, d)
-    c = jnp.exp(-jnp.sum(delta * delta, axis=-1) / (4 * s2)) / ((4 * np.pi * s2) ** (d / 2) * k * k)
-    dva = jnp.einsum("abi,ai->ab", delta, vel)
-    dvb = jnp.einsum("abi,bi->ab", delta, vel)
-    vv = vel @ vel.T
+    # one coordinate at a time: (K, K) arrays, no small batched matrix products (3x faster on a CPU)
+    delta = [theta[:, None, i] - theta[None, :, i] for i in range(d)]
+    c = jnp.exp(-sum(x * x for x in delta) / (4 * s2)) / ((4 * np.pi * s2) ** (d / 2) * k * k)
+    dva = sum(delta[i] * vel[:, None, i] for i in range(d))
+    dvb = sum(delta[i] * vel[None, :, i] for i in range(d))
+    vv = sum(vel[:, None, i] * vel[None, :, i] for i in range(d))
     return jnp.sum(c * (vv / (2 * s2) - dva * dvb / (4 * s2 * s2)))
 
 
@@ -101,7 +102,7 @@ def fisher_rao_qform(theta, vel, s2, nodes, weights):
     lse = logsumexp(expo, axis=1)  # log Σ_a exp(expo): log p = lse + log_norm − log K
     # coef_a = N_a / (K σ² √p) = exp(expo_a + log_norm − ½ log p) / (K σ²)
     coef = jnp.exp(expo - 0.5 * lse[:, None] + 0.5 * (log_norm + np.log(k))) / (k * s2)
-    rv = nodes @ vel.T - jnp.sum(theta * vel, axis=1)[None, :]  # r_a·V_a (M, K)
+    rv = sum((nodes[:, i, None] - theta[None, :, i]) * vel[None, :, i] for i in range(d))  # r_a·V_a (M, K)
     psidot = jnp.sum(coef * rv, axis=1)
     return jnp.sum(weights * psidot * psidot)
 
