@@ -36,7 +36,7 @@ import numpy as np
 
 from .._validate import check_nonnegative_int, check_positive, check_positive_int
 from ..geometry import _jax_kernels as jk
-from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, _axis_bounds, make_grid
+from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
 from .path_metric import GL5_NODES, GL5_WEIGHTS, METRICS, path_metric
 from .result import GeodesicResult, GeodesicWarning, StopReason
 
@@ -151,8 +151,9 @@ def _solve_grid(path, s2, spacing, margin):
 
 def _covers(grid, path, s2, spacing, margin):
     """Whether ``grid`` contains every node of the CPU grid of ``path``."""
-    h, lo, hi = _axis_bounds(path.reshape(-1, path.shape[-1]), np.sqrt(s2), spacing, margin)
-    return all(ax[0] <= h * lo[i] + 1e-9 * h and ax[-1] >= h * hi[i] - 1e-9 * h for i, ax in enumerate(grid.axes))
+    need = make_grid(path, s2, spacing=spacing, margin=margin)
+    h = spacing * np.sqrt(s2)
+    return all(ax[0] <= nd[0] + 1e-9 * h and ax[-1] >= nd[-1] - 1e-9 * h for ax, nd in zip(grid.axes, need.axes))
 
 
 # -------------------------------------------------------------------------------------------------
