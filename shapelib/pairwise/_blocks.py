@@ -97,7 +97,7 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     return out
 
 
-#: with ``backend="jax"`` a block has at least this many shapes a side (up to ~1,000 pairs: one
+#: with ``backend="jax"`` a block has this many shapes a side unless ``block_size`` says (up to ~1,000 pairs: one
 #: batched solve on the device per block, which the store saves as it does any block)
 JAX_BLOCK_SIDE = 32
 
@@ -221,14 +221,8 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
             best = min(best, time.perf_counter() - t0)
         if out is not None:
             return best / max(1, m * (m - 1) // 2)
-    if _batched_jax(metric, params) and len(x) > 2:  # the cost of a pair within a batch on the device
-        m = min(len(x), 12)
-        best = math.inf
-        for _ in range(2):  # the first call also compiles
-            t0 = time.perf_counter()
-            compute_block(x[:m], x[:m], diagonal=True, symmetric=True, metric=metric, rtol=rtol, params=params)
-            best = min(best, time.perf_counter() - t0)
-        return best / (m * (m - 1) // 2)
+    if _batched_jax(metric, params):  # not timed: a block is one batch on the device (JAX_BLOCK_SIDE), and a
+        return 0.0  # lone pair would compile programs the blocks do not use
     times = []
     with _pair_work():
         # a pair far above TASK_SECONDS gets a block of its own either way: no second call

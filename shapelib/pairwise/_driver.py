@@ -96,7 +96,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         if block_size is None and _batched_bound(metric, rtol) and local and n_workers == 1:
             b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
         if block_size is None and jax_batches:
-            b = max(b, min(n, JAX_BLOCK_SIDE))  # blocks of pairs large enough to fill the device
+            b = min(n, JAX_BLOCK_SIDE)  # blocks of pairs that fill the device, stored as they finish
         st = _Store.create(store, {**want, "block_size": b})
     done = st.task_done()
     todo = [t for t in block_pairs(n, st.b, symmetric=symmetric) if t not in done]
