@@ -99,14 +99,14 @@ def main(argv=None) -> int:
     ap.add_argument("--cpu-check", action="store_true", help="a tiny version on JAX's CPU backend (no GPU needed)")
     ap.add_argument("--batch", type=int, default=None, help="pairs of the batched rows (default 128; 4 with --cpu-check)")
     ap.add_argument("--budget", type=float, default=None,
-                    help="seconds for the ADHD-200 matrix row (default 100; 10 with --cpu-check)")
+                    help="seconds for the ADHD-200 matrix row (default 80; 10 with --cpu-check)")
     ap.add_argument("--cpu-pairs", type=int, default=None, help="pairs solved on the CPU path (default 3)")
     ap.add_argument("--json", type=Path, default=None,
                     help="write the record here (default on a GPU: docs/_data/benchmarks/bench_gpu.json; "
                          "--cpu-check writes only with --json)")
     args = ap.parse_args(argv)
     args.batch = args.batch or (2 if args.cpu_check else 128)
-    args.budget = args.budget if args.budget is not None else (10.0 if args.cpu_check else 100.0)
+    args.budget = args.budget if args.budget is not None else (10.0 if args.cpu_check else 80.0)
     args.cpu_pairs = args.cpu_pairs or (2 if args.cpu_check else 3)
     try:
         import jax
