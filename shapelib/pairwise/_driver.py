@@ -15,8 +15,10 @@ from .._version import __version__
 from ..distances import check_metric_params, metric_info, pose_dependent
 from ..geometry.procrustes import check_pose
 from ..geometry.scale import check_fisher_rao_scale, check_scale
+from ..solver.batched import check_backend
 from ..solver.geodesic import GeodesicWarning
-from ._blocks import BOUND_BLOCK_MAX, JAX_BLOCK_SIDE, _batched_bound, _batched_jax, _time_one_pair, block_pairs, compute_block, default_block_size
+from ._blocks import (BOUND_BLOCK_MAX, JAX_BLOCK_SIDE, _batched_bound, _batched_jax, _time_one_pair, block_pairs,
+                      compute_block, default_block_size)
 from ._results import BlockProgress, PairwiseResult
 from ._store import (_FORMAT, _Store, _block_n_pairs, _check_same, _full_params, _pairs_left, _result, _rows,
                      _stored_seconds_per_pair, _token, shapes_sha256)
@@ -83,6 +85,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
             _time_one_pair(x, info, rtol, params) if n > 2 else 0.0)  # one pair: in-process whatever it costs
     jax_batches = _batched_jax(info, params)
+    if jax_batches:  # JAX installed and the device there, before any block (one-line errors)
+        check_backend(params["backend"], params.get("device"))
     if local and n_jobs in (None, -1) and jax_batches:
         n_workers = 1  # one device, fed by this process (worker processes would each claim it)
     elif local and n_jobs in (None, -1):
