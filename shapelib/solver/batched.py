@@ -478,8 +478,11 @@ def batched_geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 1
            "stopped_by": [StopReason.TRIVIAL] * b, "energies": [None] * b, "rel_change": np.zeros(b),
            "regrids": np.zeros(b, int)}
     todo = np.flatnonzero(~trivial)
+    if metric == "fisher_rao" and len(todo) > 1:  # device batches of similar grid sizes: little padding
+        sizes = [np.prod([len(ax) for ax in _solve_grid(paths[i], s2, grid_spacing, grid_margin).axes]) for i in todo]
+        todo = todo[np.argsort(sizes, kind="stable")]
     if batch_size is None:
-        size = 1 if metric == "alpha" else len(_solve_grid(paths[todo[0]], s2, grid_spacing, grid_margin).nodes) \
+        size = 1 if metric == "alpha" else len(_solve_grid(paths[todo[-1]], s2, grid_spacing, grid_margin).nodes) \
             if len(todo) else 1
         batch_size = _auto_batch(metric, n, k, size, device)
     batch_size = check_positive_int(batch_size, name="batch_size")
