@@ -20,10 +20,11 @@ Where each equation lives:
 """
 
 from ._validate import InputError
-from .solver.bracket import DistanceBracket, distance_bracket
+from .solver.bracket import DistanceBracket, distance_bracket, distance_brackets
+from .solver.batched import batched_lengths
 from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
 from .distances import MetricInfo, distance, metric_info, pair_record, register_metric
-from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, path_length
+from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, geodesics, path_length
 from .solver.logexp import exp_map, log_map, tangent_space
 from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
 from .solver.result import BracketStopReason, StopReason
@@ -112,6 +113,8 @@ __all__ = [
     "diffeomorphism_warp",
     "distance",
     "distance_bracket",
+    "distance_brackets",  # many pairs at once, batched on a JAX device
+    "batched_lengths",
     "DistanceBracket",
     "exp_map",
     "extrinsic_warp",
@@ -121,6 +124,7 @@ __all__ = [
     "frechet_mean",
     "generalized_procrustes",
     "geodesic",
+    "geodesics",
     "geodesic_regression",
     "GeodesicResult",
     "GeodesicWarning",

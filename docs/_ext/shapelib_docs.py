@@ -305,8 +305,40 @@ def _intrinsic(r: dict) -> list[Table]:
                                                         "log maps", "log maps/s"], rows, note, key="measurements")]
 
 
+def _gpu(r: dict) -> list[Table]:
+    dev = r.get("device", {})
+    where = f"{dev.get('device_kind', '?')} (JAX {dev.get('jax', '?')})"
+    g = r["rows"]["geodesic_timing"]
+    b = r["rows"]["brackets"]
+    m = r["rows"]["matrix"]
+    geo = Table(f"Fisher–Rao geodesic, corpus callosum (K = {g.get('K')}, σ² = {r.get('sigma2')}, n_steps = {r.get('n_steps')})",
+                ["path", "seconds per geodesic", "speed-up"],
+                [["CPU (compiled kernels, Levenberg–Marquardt)", _seconds(g["cpu_seconds_per_geodesic"]), "1"],
+                 [f"{where}, batch of 1", _seconds(g["jax_batch1_seconds"]), f"{_rate(g['speedup_batch1'])}×"],
+                 [f"{where}, batch of {g['jax_batch_pairs']}", _seconds(g["jax_seconds_per_geodesic"]),
+                  f"{_rate(g['speedup_batch'])}×"]],
+                f"Lengths of the pairs solved on both paths agree to {_sci(g.get('max_rel_length_difference'))} "
+                "(relative). Compilation (first call) is not charged.", key="geodesic")
+    rates = Table("Certified Fisher–Rao brackets (rtol 1e-3) and the ADHD-200 matrix",
+                  ["row", "pairs/s", "certified", "note"],
+                  [[f"brackets, {b['pairs']} corpus callosum pairs, {where}", _rate(b["pairs_per_second"]),
+                    f"{b['certified_rate']:.0%}", ""],
+                   [f"brackets, {b['cpu_pairs']} of them on the CPU", _rate(b["cpu_pairs_per_second"]),
+                    f"{b['cpu_certified_rate']:.0%}", ""],
+                   [f"ADHD-200 matrix, {m['shapes']} shapes (K = {m['K']}, σ² = {m['sigma2']})", _rate(m["pairs_per_second"]),
+                    f"{m['certified_rate']:.0%}",
+                    f"{m['pairs_done']:,} of {m['pairs_total']:,} pairs; extrapolated: {_num(m['extrapolated_hours_180'])} h "
+                    f"for the {m['shapes']}, {_num(m['extrapolated_hours_647'])} h for all 647 shapes"]],
+                  key="rates")
+    return [geo, rates]
+
+
 RENDERERS = {"bench_geodesic": _geodesic, "bench_bracket": _bracket, "bench_pairwise": _pairwise,
-             "bench_solvers": _solvers, "run_times": _run_times, "bench_intrinsic": _intrinsic}
+             "bench_solvers": _solvers, "run_times": _run_times, "bench_intrinsic": _intrinsic, "bench_gpu": _gpu}
+#: records that may be absent (measured on hardware that is not always at hand): the page says so
+OPTIONAL = {"bench_gpu": "Pending a measurement on a GPU: run ``python benchmarks/bench_gpu.py`` on a machine "
+                         "with an NVIDIA GPU and ``pip install \"shapelib[gpu]\"``, which writes the record this "
+                         "section is rendered from."}
 
 
 def benchmark_tables(name: str, data_dir: Path = DATA) -> Rendered:
@@ -366,6 +398,8 @@ def _benchmark_directive():
         def run(self):
             name = self.arguments[0]
             self.env.note_dependency(str(DATA / f"{name}.json"))
+            if name in OPTIONAL and not (DATA / f"{name}.json").is_file():
+                return [nodes.paragraph("", "", *_rst_inline(OPTIONAL[name]), classes=["benchmark-provenance"])]
             try:
                 rendered = benchmark_tables(name)
             except (ValueError, KeyError) as exc:

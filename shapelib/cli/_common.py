@@ -145,6 +145,7 @@ def _metric_params(args):
     from ..distances import check_metric_params
 
     params = _parse_params(args.param)
+    params.update(_backend_params(args, args.metric))
     for name in ("sigma2",):
         value = getattr(args, name, None)
         if value is not None:
@@ -161,6 +162,35 @@ def _metric_params(args):
     except ValueError as exc:
         raise CLIError(f"--metric {args.metric}: {exc}") from None
     return params
+
+
+def _backend_options(p):
+    g = p.add_argument_group("where the geodesics are solved (alpha, fisher_rao)")
+    g.add_argument("--backend", choices=("cpu", "jax"), default="cpu",
+                   help="cpu: the compiled solver (default); jax: batches of pairs by L-BFGS on a JAX device "
+                        '(pip install "shapelib[gpu]" on a CUDA 12 machine)')
+    g.add_argument("--device", choices=("cpu", "gpu"), default=None,
+                   help="with --backend jax: gpu demands a GPU (an error without one), cpu runs JAX on the CPU; "
+                        "default: JAX's default device")
+
+
+def _backend_params(args, metric) -> dict:
+    """``backend``/``device`` options of ``--backend``/``--device``, checked (one-line errors: JAX
+    missing, no GPU)."""
+    from ..solver.batched import check_backend
+
+    backend, device = getattr(args, "backend", "cpu"), getattr(args, "device", None)
+    if backend == "cpu" and device is None:
+        return {}
+    if backend == "cpu":
+        raise CLIError("--device needs --backend jax")
+    if metric not in ("alpha", "fisher_rao"):
+        raise CLIError(f"--backend jax applies to --metric alpha and fisher_rao, not {metric}")
+    try:
+        check_backend(backend, device)
+    except (ImportError, RuntimeError, ValueError) as exc:
+        raise CLIError(str(exc)) from None
+    return {"backend": backend} if device is None else {"backend": backend, "device": device}
 
 
 @contextlib.contextmanager
@@ -306,6 +336,7 @@ def _metric_options(p, *, metrics, required_sigma2=False):
                         "around the mean shape (`shapelib info` shows it); alpha and fisher_rao need it")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
+    _backend_options(p)
     p.add_argument("--no-align", action="store_true",
                    help="use the file's pose: by default the specimens are aligned first (rotations and "
                         "translations, sizes kept) for the metrics that depend on pose (alpha, fisher_rao, their "

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import CLIError, _auto_sigma2, _sigma2_arg, _file_options, _output_path, _read, _write_frame
+from ._common import (CLIError, _auto_sigma2, _backend_options, _backend_params, _file_options, _output_path, _read,
+                      _sigma2_arg, _write_frame)
 
 EXAMPLES = {
     "mean": ("example:\n  shapelib mean wings.tps --size 20 --metric alpha --sigma2 1.2 --jobs 2 -o mean.tps --plot mean.png"),
@@ -68,6 +69,7 @@ def cmd_mean(args) -> int:
     plot = _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot") if args.plot else None
     shapes, spec, options = _intrinsic_input(args)
     sigma2 = _auto_sigma2(args, {"sigma2": args.sigma2}, shapes)["sigma2"]
+    options.update(_backend_params(args, args.metric))
     res = frechet_mean(shapes, metric=args.metric, sigma2=sigma2, **options)
     io.write_landmarks(out, res.mean[None], pd.DataFrame({"id": ["frechet_mean"]}))  # reads back as written
     print(f"{res.summary()} -> {out}")
@@ -179,6 +181,7 @@ def register(add) -> None:
     _intrinsic_options(p)
     p.add_argument("-o", "--output", required=True, metavar="mean.tps", help="the mean shape (.tps, .csv, .npy)")
     p.add_argument("--plot", metavar="mean.png", help="the specimens, the Procrustes start and the mean")
+    _backend_options(p)
     p.set_defaults(func=cmd_mean)
     p = add("pca", "principal modes of variation at the Fréchet mean (tangent PCA in the metric)", EXAMPLES["pca"])
     _file_options(p)

@@ -11,10 +11,11 @@ import numpy as np
 
 from .._executor import in_dask_worker
 from .._validate import as_shapes, set_checked
-from ..distances import check_metric_params, metric_info
+from ..distances import check_metric_params, is_builtin, metric_info
 from ..geometry.procrustes import PoseWarning
 from ..geometry.scale import ScaleWarning
-from ..solver.geodesic import GeodesicWarning
+from ..solver.bracket import distance_brackets
+from ..solver.geodesic import GeodesicWarning, geodesics
 from ..solver.linalg import one_blas_thread
 from ._results import PairError
 
@@ -84,11 +85,10 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
         if out is not None:
             return out
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
-    with _pair_work():
-        for a in range(bi):
-            for b in range(bj):
-                if diagonal and (a == b or (symmetric and b < a)):
-                    continue
+    todo = [(a, b) for a in range(bi) for b in range(bj) if not (diagonal and (a == b or (symmetric and b < a)))]
+    if not (_batched_jax(info, params) and _jax_block(xi, xj, todo, out, metric=info, rtol=rtol, params=params)):
+        with _pair_work():
+            for a, b in todo:
                 rec = _pair_record(info, xi[a], xj[b], offset[0] + a, offset[1] + b, rtol=rtol, params=params)
                 for name in ARRAYS:
                     out[name][a, b] = rec[_FIELD.get(name, name)]
@@ -108,6 +108,47 @@ def _batched(metric, rtol) -> bool:
     """Whether a block of ``metric`` (a name or a :class:`~shapelib.distances.MetricInfo`) is one
     batched call: its record carries a ``block`` function, and no bracket's ``rtol`` is asked."""
     return rtol is None and metric_info(metric).block is not None
+
+
+#: with ``backend="jax"`` a block has this many shapes a side unless ``block_size`` says (up to ~1,000 pairs: one
+#: batched solve on the device per block, which the store saves as it does any block)
+JAX_BLOCK_SIDE = 32
+
+
+def _batched_jax(metric, params) -> bool:
+    """Whether a block's pairs go to the device as one batch: shapelib's own α and Fisher–Rao
+    geodesics (or brackets) with ``backend="jax"``."""
+    info = metric_info(metric)
+    return params.get("backend") == "jax" and info.name in ("alpha", "fisher_rao") and is_builtin(info)
+
+
+def _jax_block(xi, xj, todo, out, *, metric, rtol, params) -> bool:
+    """The pairs ``todo`` of a block as one batched call on the JAX device
+    (:func:`shapelib.solver.bracket.distance_brackets` with ``rtol``, else
+    :func:`shapelib.solver.geodesic.geodesics`) into ``out``; each pair's ``seconds`` is the call's wall
+    time over its pairs. False (nothing written) when the call rejects an input, so that
+    :func:`compute_block` goes pair by pair and names the bad pair."""
+    if not todo:
+        return True
+    name = metric_info(metric).name
+    a_idx, b_idx = np.array([p[0] for p in todo]), np.array([p[1] for p in todo])
+    t0 = time.perf_counter()
+    try:
+        with _pair_work():
+            if rtol is not None:
+                res = distance_brackets(xi[a_idx], xj[b_idx], metric=name, rtol=rtol, **params)
+                rec = [(r.upper, r.lower, r.upper, r.energy, r.converged, r.n_iter) for r in res]
+            else:
+                res = geodesics(xi[a_idx], xj[b_idx], metric=name, **params)
+                rec = [(r.length, r.lower_bound, r.length, r.energy, r.converged, r.n_iter) for r in res]
+    except ValueError:
+        return False
+    seconds = (time.perf_counter() - t0) / len(todo)
+    for (a, b), (value, lower, upper, energy, converged, n_iter) in zip(todo, rec):
+        for key, val in (("matrix", value), ("lower", lower), ("upper", upper), ("energy", energy),
+                         ("converged", converged), ("n_iter", n_iter), ("seconds", seconds)):
+            out[key][a, b] = val
+    return True
 
 
 #: a batched metric's matrix in this process is one block of at most this many shapes a side
@@ -184,6 +225,8 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
             best = min(best, time.perf_counter() - t0)
         if out is not None:
             return best / max(1, m * (m - 1) // 2)
+    if _batched_jax(metric, params):  # not timed: a block is one batch on the device (JAX_BLOCK_SIDE), and a
+        return 0.0  # lone pair would compile programs the blocks do not use
     times = []
     with _pair_work():
         # a pair far above TASK_SECONDS gets a block of its own either way: no second call

@@ -15,8 +15,10 @@ from .._version import __version__
 from ..distances import check_metric_params, metric_info, pose_dependent
 from ..geometry.procrustes import check_pose
 from ..geometry.scale import check_fisher_rao_scale, check_scale
+from ..solver.batched import check_backend
 from ..solver.geodesic import GeodesicWarning
-from ._blocks import BOUND_BLOCK_MAX, _batched, _time_one_pair, block_pairs, compute_block, default_block_size
+from ._blocks import (BOUND_BLOCK_MAX, JAX_BLOCK_SIDE, _batched, _batched_jax, _time_one_pair, block_pairs,
+                      compute_block, default_block_size)
 from ._results import BlockProgress, PairwiseResult
 from ._store import (_FORMAT, _Store, _block_n_pairs, _check_same, _full_params, _pairs_left, _result, _rows,
                      _stored_seconds_per_pair, _token, shapes_sha256)
@@ -82,7 +84,12 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if (st is None and block_size is None) or (local and n_jobs in (None, -1)):
         seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
             _time_one_pair(x, info, rtol, params) if n > 2 else 0.0)  # one pair: in-process whatever it costs
-    if local and n_jobs in (None, -1):
+    jax_batches = _batched_jax(info, params)
+    if jax_batches:  # JAX installed and the device there, before any block (one-line errors)
+        check_backend(params["backend"], params.get("device"))
+    if local and n_jobs in (None, -1) and jax_batches:
+        n_workers = 1  # one device, fed by this process (worker processes would each claim it)
+    elif local and n_jobs in (None, -1):
         left = _pairs_left(st, n, symmetric)
         n_workers = 1 if n_workers < 2 or seconds_per_pair * left < (
             CLUSTER_OVERHEAD_SECONDS * n_workers / (n_workers - 1)) else n_workers
@@ -92,6 +99,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
             symmetric=symmetric)
         if block_size is None and _batched(info, rtol) and local and n_workers == 1:
             b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
+        if block_size is None and jax_batches:
+            b = min(n, JAX_BLOCK_SIDE)  # blocks of pairs that fill the device, stored as they finish
         st = _Store.create(store, {**want, "block_size": b})
     done = st.task_done()
     todo = [t for t in block_pairs(n, st.b, symmetric=symmetric) if t not in done]

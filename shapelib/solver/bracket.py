@@ -38,6 +38,7 @@ import numpy as np
 
 from .._validate import as_shape_pair, check_positive, check_positive_int, check_sigma2
 from .geodesic import check_entry, fisher_rao_lower_bound
+from .batched import batched_geodesics, check_backend
 from .minimise import minimise_path
 from .path_metric import METRICS, path_metric
 from .result import BracketStopReason, GeodesicWarning
@@ -45,7 +46,7 @@ from ..geometry.gmm import l2_distance
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import SIGMA_RATIO_MIN
 
-__all__ = ["DistanceBracket", "distance_bracket", "extrapolate_doublings", "lower_bound", "refine_path"]
+__all__ = ["DistanceBracket", "distance_bracket", "distance_brackets", "JAX_LEVEL_ITER", "JAX_LEVEL_WINDOW", "extrapolate_doublings", "lower_bound", "refine_path"]
 
 #: Hessian of the Levenberg–Marquardt steps per metric when ``hessian=None``. Measured on the CC
 #: pairs at σ² = 0.5 (2026-11-23, load ~20, so as ratios): α exact 32 iterations for 21 pairs,
@@ -60,6 +61,11 @@ DEFAULT_HESSIAN = {"alpha": "exact", "fisher_rao": "model"}
 #: Fisher–Rao brackets at σ² = 0.5 run 2.1× faster (4.0 → 8.4 pairs/s), same iterations.
 BRACKET_SPACING = 0.5
 BRACKET_SPACING_RTOL = 1e-5
+#: ``backend="jax"``: L-BFGS iterations per level per ``level_iter`` (an L-BFGS iteration is one
+#: gradient, far cheaper and weaker than a Levenberg–Marquardt step)
+JAX_LEVEL_ITER = 100
+#: ``backend="jax"``: iterations over which a level's energy decrease is measured
+JAX_LEVEL_WINDOW = 10
 
 
 @dataclass
@@ -338,11 +344,40 @@ def extrapolate_doublings(gaps):
     return g3 - d2 * d2 / (d1 - d2), float(np.log2(d1 / d2))
 
 
+def _level_stop(levels, prev_gap, *, rtol, min_shrink, max_n):
+    """Why the refinement stops after the last of ``levels``, or None to double ``n_steps``."""
+    gap, n = levels[-1]["rel_gap"], levels[-1]["n_steps"]
+    if gap <= rtol:
+        return "rtol"
+    if prev_gap is not None and not gap < (1.0 - min_shrink) * prev_gap:
+        return "stalled"
+    limit, _ = extrapolate_doublings([lv["rel_gap"] for lv in levels])
+    if limit is not None and limit > rtol:
+        return "stalled"  # the gaps converge geometrically to a limit above rtol
+    if 2 * n > max_n:
+        return "max_n_steps"
+    return None
+
+
+def _warn_bracket(metric, stopped_by, gap, rtol, n, n_iter, lower, upper, ratio, *, stacklevel):
+    warnings.warn(
+        f"{metric} distance bracket stopped ({stopped_by}) at relative gap {gap:.2e} > rtol {rtol:.1e} "
+        f"(n_steps {n}, {n_iter} iterations): the distance is certified only to lie in "
+        f"[{lower:.6g}, {upper:.6g}]" + (
+            "; raise max_n_steps to refine further" if stopped_by == "max_n_steps" else
+            f"; sigma is {ratio:.3g} landmark spacings, so the Gaussians of different landmarks do not "
+            f"interact and the gradient that would shorten the path underflows: bring the shapes to a "
+            f"scale that fits sigma2 (shapelib.to_centroid_size)" if ratio < SIGMA_RATIO_MIN else
+            "; the gap no longer shrinks with n_steps, so the geodesic is itself longer than the "
+            "closed-form bound (typical at small sigma2)"),
+        GeodesicWarning, stacklevel=stacklevel)
+
+
 def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: int = 8,
                      max_n_steps: int = 64, level_iter: int = 3, level_tol: float | None = None,
                      min_shrink: float = 0.25, grid_spacing: float | None = None,
                      grid_margin: float = DEFAULT_MARGIN, hessian: str | None = None,
-                     warn: bool = True) -> DistanceBracket:
+                     warn: bool = True, backend: str = "cpu", device: str | None = None) -> DistanceBracket:
     r"""Certified bracket ``lower ≤ d(u, v) ≤ upper`` with ``upper / lower − 1 ≤ rtol`` if reachable.
 
     ``lower`` is the metric's closed-form bound and ``upper`` the length of an actual path, refined
@@ -396,6 +431,14 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     warn : bool
         Emit a :class:`shapelib.GeodesicWarning` when ``rtol`` was not reached, with the
         gap reached.
+    backend : {"cpu", "jax"}
+        ``"jax"``: each level minimises the same discrete energy by L-BFGS on a JAX device
+        (:mod:`shapelib.solver.batched`), up to :data:`JAX_LEVEL_ITER` ``· level_iter`` iterations, a
+        level ending when the energy fell by less than ``level_tol · E`` over
+        :data:`JAX_LEVEL_WINDOW` iterations; ``hessian`` is not used. ``lower`` and ``upper`` are
+        certified as on the CPU. For many pairs at once: :func:`distance_brackets`.
+    device : {None, "cpu", "gpu"}
+        With ``backend="jax"`` (:func:`shapelib.geodesic`).
 
     Returns
     -------
@@ -422,6 +465,15 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     --------
     shapelib.geodesic : A geodesic solved to a tolerance on its energy.
     shapelib.distance : Every distance through one entry point (``rtol=`` gives this bracket's upper end).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib import distance_bracket
+    >>> u = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.5]]); v = u + [[0.3, -0.2], [0.0, 0.1], [-0.2, 0.0]]
+    >>> b = distance_bracket(u, v, metric="alpha", sigma2=0.5, rtol=1e-3, warn=False)
+    >>> bool(b.lower <= b.upper) and b.stopped_by in ("rtol", "stalled", "max_n_steps")
+    True
 
     Notes
     -----
@@ -467,10 +519,16 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         hessian = DEFAULT_HESSIAN[metric]
     if hessian not in ("exact", "model"):
         raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")
+    backend, device = check_backend(backend, device)
     model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter,
                "level_tol": level_tol, "min_shrink": float(min_shrink), "hessian": hessian, "sigma_ratio": ratio,
                **model.settings()}
+    if backend == "jax":
+        options.update(hessian=None, backend="jax")
+        return _jax_brackets(u[None], v[None], [ratio], model=model, s2=s2, rtol=rtol, n=n, max_n=max_n,
+                             level_iter=level_iter, level_tol=level_tol, min_shrink=float(min_shrink),
+                             options=options, device=device, batch_size=None, warn=warn, t0=t0)[0]
 
     if np.array_equal(u, v):
         path = np.stack([u] * (n + 1))
@@ -490,36 +548,156 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
         gap = upper / lower - 1.0 if lower > 0 else np.inf
         levels.append({"n_steps": n, "n_iter": r.n_iter, "upper": upper, "rel_gap": gap,
                        "stopped_by": r.log["stopped_by"], "seconds": time.perf_counter() - tl})
-        if gap <= rtol:
-            stopped_by = "rtol"
-            break
-        if prev_gap is not None and not gap < (1.0 - min_shrink) * prev_gap:
-            stopped_by = "stalled"
-            break
-        limit, _ = extrapolate_doublings([lv["rel_gap"] for lv in levels])
-        if limit is not None and limit > rtol:
-            stopped_by = "stalled"  # the gaps converge geometrically to a limit above rtol
-            break
-        if 2 * n > max_n:
-            stopped_by = "max_n_steps"
+        stopped_by = _level_stop(levels, prev_gap, rtol=rtol, min_shrink=min_shrink, max_n=max_n)
+        if stopped_by is not None:
             break
         prev_gap = gap
         path = refine_path(r.path)  # warm start
         n *= 2
     converged = stopped_by == "rtol"
     if not converged and warn:
-        warnings.warn(
-            f"{metric} distance bracket stopped ({stopped_by}) at relative gap {gap:.2e} > rtol {rtol:.1e} "
-            f"(n_steps {n}, {n_iter} iterations): the distance is certified only to lie in "
-            f"[{lower:.6g}, {upper:.6g}]" + (
-                "; raise max_n_steps to refine further" if stopped_by == "max_n_steps" else
-                f"; sigma is {ratio:.3g} landmark spacings, so the Gaussians of different landmarks do not "
-                f"interact and the gradient that would shorten the path underflows: bring the shapes to a "
-                f"scale that fits sigma2 (shapelib.to_centroid_size)" if ratio < SIGMA_RATIO_MIN else
-                "; the gap no longer shrinks with n_steps, so the geodesic is itself longer than the "
-                "closed-form bound (typical at small sigma2)"),
-            GeodesicWarning, stacklevel=2)
+        _warn_bracket(metric, stopped_by, gap, rtol, n, n_iter, lower, upper, ratio, stacklevel=3)
     return DistanceBracket(lower=lower, upper=float(upper), rel_gap=float(gap), energy=float(energy), path=path,
                            metric=metric, sigma2=s2, n_steps=n, n_iter=n_iter, converged=converged,
                            stopped_by=stopped_by, seconds=time.perf_counter() - t0,
                            log={"levels": levels, **options})
+
+
+def _jax_brackets(us, vs, ratios, *, model, s2, rtol, n, max_n, level_iter, level_tol, min_shrink, options,
+                  device, batch_size, warn, t0):
+    """:func:`distance_bracket`'s levels for many validated pairs at once, each level one batched
+    L-BFGS solve on the device (:func:`shapelib.solver.batched.batched_geodesics`)."""
+    metric = model.name
+    b = len(us)
+    out = [None] * b
+    lowers = np.zeros(b)
+    for i in range(b):
+        if np.array_equal(us[i], vs[i]):
+            out[i] = DistanceBracket(lower=0.0, upper=0.0, rel_gap=0.0, energy=0.0, path=np.stack([us[i]] * (n + 1)),
+                                     metric=metric, sigma2=s2, n_steps=n, n_iter=0, converged=True,
+                                     stopped_by="trivial", seconds=time.perf_counter() - t0,
+                                     log={"levels": [], **options, "sigma_ratio": ratios[i]})
+        else:
+            lowers[i] = float(model.lower_bound(us[i], vs[i]))
+    targets = (lowers * (1.0 + rtol)) ** 2
+    active = [i for i in range(b) if out[i] is None]
+    levels = {i: [] for i in active}
+    prev_gap = dict.fromkeys(active)
+    n_iter = dict.fromkeys(active, 0)
+    paths = {}
+    cur = n
+    while active:
+        tl = time.perf_counter()
+        res = batched_geodesics(us[active], vs[active], metric=metric, sigma2=s2, n_steps=cur, tol=level_tol,
+                                max_iter=level_iter * JAX_LEVEL_ITER, window=JAX_LEVEL_WINDOW,
+                                init=np.stack([paths[i] for i in active]) if paths else None,
+                                grid_spacing=model.spacing if metric == "fisher_rao" else DEFAULT_SPACING,
+                                grid_margin=model.margin if metric == "fisher_rao" else DEFAULT_MARGIN,
+                                target_energy=targets[active], lower_bounds=lowers[active], device=device,
+                                batch_size=batch_size, warn=False)
+        share = (time.perf_counter() - tl) / len(active)
+        still = []
+        for r, i in zip(res, active):
+            n_iter[i] += r.n_iter
+            gap = r.length / lowers[i] - 1.0 if lowers[i] > 0 else np.inf
+            levels[i].append({"n_steps": cur, "n_iter": r.n_iter, "upper": r.length, "rel_gap": gap,
+                              "stopped_by": r.log["stopped_by"], "seconds": share})
+            stop = _level_stop(levels[i], prev_gap[i], rtol=rtol, min_shrink=min_shrink, max_n=max_n)
+            if stop is None:
+                prev_gap[i] = gap
+                paths[i] = refine_path(r.path)
+                still.append(i)
+                continue
+            out[i] = DistanceBracket(lower=float(lowers[i]), upper=float(r.length), rel_gap=float(gap),
+                                     energy=float(r.energy), path=r.path, metric=metric, sigma2=s2, n_steps=cur,
+                                     n_iter=n_iter[i], converged=stop == "rtol", stopped_by=stop,
+                                     seconds=sum(lv["seconds"] for lv in levels[i]),
+                                     log={"levels": levels[i], **options, "sigma_ratio": ratios[i],
+                                          "device": r.log["device"]})
+        active, cur = still, cur * 2
+    if warn:
+        failed = [x for x in out if not x.converged]
+        if len(failed) == 1 and b == 1:
+            x = failed[0]
+            _warn_bracket(metric, x.stopped_by, x.rel_gap, rtol, x.n_steps, x.n_iter, x.lower, x.upper,
+                          x.log["sigma_ratio"], stacklevel=4)
+        elif failed:
+            warnings.warn(f"{metric} distance brackets: {len(failed)} of {b} pairs stopped above rtol {rtol:.1e} "
+                          f"(first: {failed[0].summary()})", GeodesicWarning, stacklevel=3)
+    return out
+
+
+def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: int = 8,
+                      max_n_steps: int = 64, level_iter: int = 3, level_tol: float | None = None,
+                      min_shrink: float = 0.25, grid_spacing: float | None = None,
+                      grid_margin: float = DEFAULT_MARGIN, hessian: str | None = None, backend: str = "jax",
+                      device: str | None = None, batch_size: int | None = None, warn: bool = True) -> list:
+    """Certified brackets of many pairs ``(us[i], vs[i])``: :func:`distance_bracket` for each, with
+    ``backend="jax"`` every level of all pairs solved as one batch on the device.
+
+    Parameters
+    ----------
+    us, vs : array_like, shape (B, K, d)
+        Pairs of shapes of one size (group pairs by ``K`` and ``d`` before calling).
+    metric, sigma2, rtol, n_steps, max_n_steps, level_iter, level_tol, min_shrink, grid_spacing, grid_margin
+        As in :func:`distance_bracket`.
+    hessian : {"exact", "model"}, optional
+        As in :func:`distance_bracket`; ``backend="cpu"`` only (L-BFGS needs none).
+    backend : {"jax", "cpu"}
+        ``"jax"`` (default): batched on a JAX device; ``"cpu"``: :func:`distance_bracket` pair by pair.
+    device : {None, "cpu", "gpu"}
+        JAX device (:func:`shapelib.geodesic`).
+    batch_size : int, optional
+        Pairs per device call (default: from the device's memory,
+        :func:`shapelib.solver.batched.batched_geodesics`).
+    warn : bool
+        One :class:`~shapelib.solver.result.GeodesicWarning` for the pairs that stopped above ``rtol``.
+
+    Returns
+    -------
+    list of DistanceBracket
+        In the order of the pairs; each certified as :func:`distance_bracket`'s.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib import distance_brackets
+    >>> u = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.5]])
+    >>> vs = np.stack([u + [[0.3, -0.2], [0.0, 0.1], [-0.2, 0.0]], u * 1.1])
+    >>> out = distance_brackets(np.stack([u, u]), vs, metric="alpha", sigma2=0.5, device="cpu")
+    >>> [bool(b.lower <= b.upper) for b in out]
+    [True, True]
+    """
+    t0 = time.perf_counter()
+    _check_metric(metric)
+    us = np.asarray(us, dtype=np.float64)
+    vs = np.asarray(vs, dtype=np.float64)
+    if us.ndim != 3 or us.shape != vs.shape:
+        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    backend, device = check_backend(backend, device)
+    common = dict(metric=metric, sigma2=sigma2, rtol=rtol, n_steps=n_steps, max_n_steps=max_n_steps,
+                  level_iter=level_iter, level_tol=level_tol, min_shrink=min_shrink, grid_spacing=grid_spacing,
+                  grid_margin=grid_margin)
+    if backend == "cpu":
+        return [distance_bracket(u, v, warn=warn, hessian=hessian, **common) for u, v in zip(us, vs)]
+    s2 = check_sigma2(sigma2)
+    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
+    ratios = [check_entry(u, v, s2, metric=metric, stacklevel=3) for u, v in pairs]
+    rtol = check_positive(rtol, name="rtol")
+    n = check_positive_int(n_steps, name="n_steps")
+    max_n = check_positive_int(max_n_steps, name="max_n_steps")
+    if max_n < n:
+        raise ValueError(f"max_n_steps must be >= n_steps; got max_n_steps={max_n_steps!r}, n_steps={n_steps!r}")
+    level_iter = check_positive_int(level_iter, name="level_iter")
+    level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
+    if not 0.0 <= float(min_shrink) < 1.0:
+        raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
+    if grid_spacing is None:
+        grid_spacing = BRACKET_SPACING if rtol >= BRACKET_SPACING_RTOL else DEFAULT_SPACING
+    model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
+    options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter, "level_tol": level_tol,
+               "min_shrink": float(min_shrink), "hessian": None, "backend": "jax", **model.settings()}
+    return _jax_brackets(np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), ratios, model=model,
+                         s2=s2, rtol=rtol, n=n, max_n=max_n, level_iter=level_iter, level_tol=level_tol,
+                         min_shrink=float(min_shrink), options=options, device=device, batch_size=batch_size,
+                         warn=warn, t0=t0)

@@ -86,11 +86,12 @@ from ..geometry.procrustes import check_pose
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import SIGMA_RATIO_MIN, check_fisher_rao_scale, check_scale
 from .energy import metric_length
+from .batched import batched_geodesics, check_backend
 from .minimise import minimise_path
 from .path_metric import METRICS, FisherRaoPathMetric, path_metric
 from .result import GeodesicResult, GeodesicWarning, StopReason
 
-__all__ = ["geodesic", "shoot", "geodesic_acceleration", "fisher_rao_lower_bound", "alpha_lower_bound", "path_length",
+__all__ = ["geodesic", "geodesics", "shoot", "geodesic_acceleration", "fisher_rao_lower_bound", "alpha_lower_bound", "path_length",
            "check_entry",
            "METRICS", "GeodesicResult", "GeodesicWarning", "StopReason", "minimise_path"]
 
@@ -409,7 +410,8 @@ def _underflow(result, ratio):
 
 def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: float = 1e-6,
              max_iter: int = 500, window: int = 5, init=None, grid_spacing: float = DEFAULT_SPACING,
-             grid_margin: float = DEFAULT_MARGIN, hessian: str = "exact", warn: bool = True) -> GeodesicResult:
+             grid_margin: float = DEFAULT_MARGIN, hessian: str = "exact", warn: bool = True,
+             backend: str = "cpu", device: str | None = None) -> GeodesicResult:
     r"""Geodesic between two landmark shapes under the α-order or Fisher–Rao metric (eqs. 8–12).
 
     Minimises the path energy of eq. (8) of [1]_,
@@ -458,6 +460,16 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
         ``n_steps = 16`` — but many more iterations, and it only stops on the energy window).
     warn : bool
         Emit a :class:`GeodesicWarning` when the solver stops before converging.
+    backend : {"cpu", "jax"}
+        ``"cpu"``: the compiled Levenberg–Marquardt solver above. ``"jax"``: the same discrete
+        energy (same path, time rule and grid) in JAX with its gradient by ``jax.grad``, minimised
+        by L-BFGS on the device (:mod:`shapelib.solver.batched`; ``max_iter`` then counts L-BFGS
+        iterations, ``hessian`` is not used, and the stop is the energy window: no Newton
+        certificate). The bounds are certified as on the CPU. Needs ``pip install "shapelib[gpu]"``
+        (CUDA 12) or ``"shapelib[jax]"`` (CPU).
+    device : {None, "cpu", "gpu"}
+        With ``backend="jax"``: JAX's default device (None: a GPU when JAX sees one), the CPU, or a
+        GPU — refused with a one-line ``RuntimeError`` when JAX sees none (never a silent CPU fallback).
 
     Returns
     -------
@@ -508,10 +520,21 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
     """
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
+    backend, device = check_backend(backend, device)
     ratio = check_entry(u, v, s2, metric=metric, stacklevel=3)
-    model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
-    result = minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
-                           warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
+    if backend == "jax":
+        if hessian not in ("exact", "model"):
+            raise ValueError(f"hessian must be 'exact' or 'model'; got {hessian!r}")
+        result = batched_geodesics(u[None], v[None], metric=metric, sigma2=s2, n_steps=n_steps, tol=tol,
+                                   max_iter=max_iter, window=window, init=None if init is None else np.asarray(init)[None],
+                                   grid_spacing=grid_spacing, grid_margin=grid_margin, device=device, warn=False)[0]
+        if not result.converged and warn:
+            warnings.warn(f"{metric} geodesic did not converge in {result.n_iter} L-BFGS iterations "
+                          f"({result.summary()})", GeodesicWarning, stacklevel=2)
+    else:
+        model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
+        result = minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
+                               warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
     reason = _underflow(result, ratio)
     if reason is not None:
         result.converged = False
@@ -681,3 +704,67 @@ def shoot(u, velocity, *, metric: str = "alpha", sigma2, n_steps: int = 200,
         v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
         out.append(th.copy())
     return np.stack(out)
+
+
+def geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: float = 1e-6,
+              max_iter: int = 500, window: int = 5, grid_spacing: float = DEFAULT_SPACING,
+              grid_margin: float = DEFAULT_MARGIN, hessian: str = "exact", warn: bool = True,
+              backend: str = "jax", device: str | None = None, batch_size: int | None = None) -> list:
+    """Geodesics of many pairs ``(us[i], vs[i])``: :func:`geodesic` for each, with ``backend="jax"``
+    all of them minimised as one batch on the device (:func:`shapelib.solver.batched.batched_geodesics`).
+
+    Parameters
+    ----------
+    us, vs : array_like, shape (B, K, d)
+        Pairs of shapes of one size (group pairs by ``K`` and ``d`` before calling).
+    metric, sigma2, n_steps, tol, max_iter, window, grid_spacing, grid_margin, hessian
+        As in :func:`geodesic` (``hessian`` applies to ``backend="cpu"``).
+    warn : bool
+        ``backend="jax"``: one :class:`GeodesicWarning` for the pairs that stopped before converging.
+    backend : {"jax", "cpu"}
+        ``"jax"`` (default): batched on a JAX device; ``"cpu"``: :func:`geodesic` pair by pair.
+    device : {None, "cpu", "gpu"}
+        JAX device (:func:`geodesic`).
+    batch_size : int, optional
+        Pairs per device call (default: from the device's memory).
+
+    Returns
+    -------
+    list of GeodesicResult
+        In the order of the pairs, each checked and certified as :func:`geodesic`'s.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib import geodesics
+    >>> u = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.5]])
+    >>> vs = np.stack([u + [[0.3, -0.2], [0.0, 0.1], [-0.2, 0.0]], u * 1.1])
+    >>> out = geodesics(np.stack([u, u]), vs, metric="alpha", sigma2=0.5, n_steps=8, device="cpu")
+    >>> [bool(r.converged and r.lower_bound <= r.length) for r in out]
+    [True, True]
+    """
+    backend, device = check_backend(backend, device)
+    us = np.asarray(us, dtype=np.float64)
+    vs = np.asarray(vs, dtype=np.float64)
+    if us.ndim != 3 or us.shape != vs.shape:
+        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    common = dict(metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window,
+                  grid_spacing=grid_spacing, grid_margin=grid_margin)
+    if backend == "cpu":
+        return [geodesic(u, v, hessian=hessian, warn=warn, **common) for u, v in zip(us, vs)]
+    s2 = check_sigma2(sigma2)
+    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
+    ratios = [check_entry(u, v, s2, metric=metric, stacklevel=3) for u, v in pairs]
+    out = batched_geodesics(np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), device=device,
+                            batch_size=batch_size, warn=False, **{**common, "sigma2": s2})
+    for result, ratio in zip(out, ratios):
+        reason = _underflow(result, ratio)
+        if reason is not None:
+            result.converged = False
+            result.log["stopped_by"] = StopReason.UNDERFLOW.value
+            result.log["reason"] = reason
+    failed = [r for r in out if not r.converged]
+    if failed and warn:
+        warnings.warn(f"{metric} geodesics: {len(failed)} of {len(out)} pairs did not converge "
+                      f"(first: {failed[0].summary()})", GeodesicWarning, stacklevel=2)
+    return out

@@ -63,6 +63,7 @@ from .._validate import as_shape, as_shape_pair, check_dimension, check_nonnegat
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import check_scale
 from .energy import metric_length
+from .batched import BACKENDS, DEVICES, batched_geodesics
 from .linalg import one_blas_thread
 from .minimise import minimise_path
 from .path_metric import GL3_NODES, GL3_WEIGHTS, METRICS, path_metric
@@ -75,6 +76,9 @@ __all__ = ["GeodesicOptions", "LogResult", "TangentSpace", "log_map", "exp_map",
 DEFAULT_RCOND = 1e-6
 #: time steps of the discrete log and exp maps in the statistics
 DEFAULT_LOG_STEPS = 4
+#: ``backend="jax"``: L-BFGS iterations per log map per ``max_iter`` (an L-BFGS iteration is one
+#: gradient, far cheaper and weaker than a Levenberg–Marquardt step)
+JAX_ITER_FACTOR = 10
 
 
 @dataclass(frozen=True)
@@ -128,6 +132,11 @@ class GeodesicOptions:
         Fisher–Rao quadrature grid (:mod:`shapelib.geometry.quadrature`).
     window : int
         Iterations over which the energy decrease is measured.
+    backend : {"cpu", "jax"}
+        ``"jax"``: the log maps of a population are solved as one batch by L-BFGS on a JAX device
+        (:mod:`shapelib.solver.batched`), up to :data:`JAX_ITER_FACTOR` ``· max_iter`` iterations each.
+    device : {None, "cpu", "gpu"}
+        The JAX device (:func:`shapelib.geodesic`).
 
     Raises
     ------
@@ -162,6 +171,8 @@ class GeodesicOptions:
     grid_spacing: float = DEFAULT_SPACING
     grid_margin: float = DEFAULT_MARGIN
     window: int = 5
+    backend: str = "cpu"
+    device: str | None = None
 
     def __post_init__(self):
         if self.metric not in METRICS:
@@ -177,6 +188,10 @@ class GeodesicOptions:
         object.__setattr__(self, "rcond", rcond)
         check_positive(self.grid_spacing, name="grid_spacing")
         check_positive(self.grid_margin, name="grid_margin")
+        if self.backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}; got {self.backend!r}")
+        if self.device not in DEVICES:
+            raise ValueError(f"device must be None, 'cpu' or 'gpu'; got {self.device!r}")
 
     def model(self):
         """The :class:`~shapelib.PathMetric` of these options."""
@@ -522,8 +537,27 @@ def log_maps(base, shapes, *, options: GeodesicOptions, inits=None) -> list:
     bases = np.broadcast_to(base, shapes.shape) if base.ndim == 2 else base
     model = options.model()
     inits = [None] * len(shapes) if inits is None else inits
+    if options.backend == "jax" and len(shapes):
+        return _jax_log_maps(bases, shapes, options, inits)
     with one_blas_thread():
         return [_solve_log(model, b, s, options, i) for b, s, i in zip(bases, shapes, inits)]
+
+
+def _jax_log_maps(bases, shapes, opts: GeodesicOptions, inits) -> list:
+    """:func:`log_maps` as one batched solve on the JAX device (:func:`shapelib.solver.batched.batched_geodesics`)."""
+    t0 = time.perf_counter()
+    n = opts.n_steps
+    t = np.linspace(0.0, 1.0, n + 1)[:, None, None]
+    start = np.stack([np.asarray(i, dtype=np.float64) if i is not None and np.shape(i) == (n + 1, *b.shape)
+                      else (1 - t) * b + t * s for b, s, i in zip(bases, shapes, inits)])
+    res = batched_geodesics(np.array(bases), shapes, metric=opts.metric, sigma2=opts.sigma2, n_steps=n, tol=opts.tol,
+                            max_iter=opts.max_iter * JAX_ITER_FACTOR, window=opts.window, init=start,
+                            grid_spacing=opts.grid_spacing, grid_margin=opts.grid_margin,
+                            lower_bounds=np.zeros(len(shapes)), device=opts.device, warn=False)
+    share = (time.perf_counter() - t0) / len(shapes)
+    return [LogResult(vector=n * (r.path[1] - r.path[0]), path=r.path, energy=float(r.energy),
+                      converged=bool(r.converged), n_iter=int(r.n_iter), stop_reason=str(r.log["stopped_by"]),
+                      seconds=share) for r in res]
 
 
 def _check_entry(base, other, s2, metric, names):

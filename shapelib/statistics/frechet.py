@@ -54,6 +54,7 @@ from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import check_scale
 from ..solver.logexp import (DEFAULT_LOG_STEPS, DEFAULT_RCOND, GeodesicOptions, TangentSpace, exp_path,
                              tangent_space)
+from ..solver.batched import check_backend
 from ..solver.result import GeodesicWarning
 from ._run import MEAN_ROUNDS, where_logs_run
 from .population_logs import population_logs, shifted_paths
@@ -76,10 +77,13 @@ def check_population(x, *, metric, sigma2, stacklevel):
 
 @keeps_old_calls(keyword_only=("sigma2",))
 def geodesic_options(metric, *, sigma2, n_steps=DEFAULT_LOG_STEPS, log_tol=1e-6, log_max_iter=200,
-                     rcond=DEFAULT_RCOND, grid_spacing=DEFAULT_SPACING, grid_margin=DEFAULT_MARGIN) -> GeodesicOptions:
-    """The :class:`~shapelib.solver.logexp.GeodesicOptions` of the statistics' keyword arguments."""
+                     rcond=DEFAULT_RCOND, grid_spacing=DEFAULT_SPACING, grid_margin=DEFAULT_MARGIN,
+                     backend="cpu", device=None) -> GeodesicOptions:
+    """The :class:`~shapelib.solver.logexp.GeodesicOptions` of the statistics' keyword arguments
+    (``backend``, ``device`` checked here: JAX installed, the GPU there)."""
+    backend, device = check_backend(backend, device)
     return GeodesicOptions(metric, sigma2, n_steps=n_steps, tol=log_tol, max_iter=log_max_iter, rcond=rcond,
-                           grid_spacing=grid_spacing, grid_margin=grid_margin)
+                           grid_spacing=grid_spacing, grid_margin=grid_margin, backend=backend, device=device)
 
 
 def procrustes_mean(shapes) -> np.ndarray:
@@ -192,7 +196,8 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, init=None, tol: float
                  n_steps: int = DEFAULT_LOG_STEPS, log_tol: float = 1e-6, log_max_iter: int = 200,
                  rcond: float = DEFAULT_RCOND, grid_spacing: float = DEFAULT_SPACING,
                  grid_margin: float = DEFAULT_MARGIN, executor=None, chunk_size: int | None = None,
-                 warn: bool = True, n_jobs: int | None = None, client=None, scheduler=None) -> FrechetMeanResult:
+                 warn: bool = True, n_jobs: int | None = None, client=None, scheduler=None, backend: str = "cpu",
+                 device: str | None = None) -> FrechetMeanResult:
     """Fréchet (Karcher) mean of ``shapes`` under the α-order (eq. 22) or Fisher–Rao (eq. 6) metric.
 
     Minimises ``F(m) = (1/N) Σ d²(m, x_i)`` by the Karcher iteration
@@ -239,6 +244,13 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, init=None, tol: float
         Run the log maps on this Dask cluster.
     scheduler : str, optional
         Address of a running Dask scheduler (``"tcp://host:8786"``).
+    backend : {"cpu", "jax"}
+        ``"jax"``: each Karcher iteration's log maps are solved as one batch by L-BFGS on a JAX device
+        (:mod:`shapelib.solver.batched`; ``log_max_iter`` then allows
+        :data:`shapelib.solver.logexp.JAX_ITER_FACTOR` times as many L-BFGS iterations); the
+        executor is not used. The exp maps and tangent spaces stay on the CPU.
+    device : {None, "cpu", "gpu"}
+        The JAX device (:func:`shapelib.geodesic`).
 
     Returns
     -------
@@ -265,7 +277,11 @@ def frechet_mean(shapes, *, metric: str = "alpha", sigma2, init=None, tol: float
     x = as_shapes(shapes, name="shapes")
     check_dimension(x, name="shapes")
     opts = geodesic_options(metric, sigma2=sigma2, n_steps=n_steps, log_tol=log_tol, log_max_iter=log_max_iter, rcond=rcond,
-                            grid_spacing=grid_spacing, grid_margin=grid_margin)
+                            grid_spacing=grid_spacing, grid_margin=grid_margin, backend=backend, device=device)
+    if opts.backend == "jax":
+        executor = None  # one batch per iteration on the device, from this process
+        if n_jobs is None and client is None and scheduler is None:
+            n_jobs = 1
     tol = check_positive(tol, name="tol")
     max_iter = check_nonnegative_int(max_iter, name="max_iter")
     m0 = procrustes_mean(x) if init is None else as_shape(init, name="init")

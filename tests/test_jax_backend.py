@@ -1,0 +1,244 @@
+"""backend="jax": the JAX path energy equals the compiled kernels, its gradient is the energy's,
+the L-BFGS geodesics and brackets agree with the CPU solver and are certified the same way, batches
+equal single solves; the errors for a missing extra and a missing GPU. Run on JAX's CPU backend."""
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tests.conftest import ROOT
+
+import shapelib
+from shapelib.solver.energy import path_energy
+from shapelib.solver.path_metric import path_metric
+
+if "jax" not in sys.modules:  # compile time dominates these small problems: XLA's cheapest code generation
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
+jax = pytest.importorskip("jax")
+
+from shapelib.geometry import _jax_kernels as jk  # noqa: E402
+from shapelib.solver import batched  # noqa: E402
+
+S2 = 0.5
+
+
+def _shape(rng, k, d):
+    return rng.normal(size=(k, d)) * (1.6 if d == 2 else 0.8)  # σ about half a landmark spacing
+
+
+def _pair(rng, k, d, scale):
+    """Two shapes in correspondence, ``v`` aligned to ``u`` (no pose warning)."""
+    u = _shape(rng, k, d)
+    return u, shapelib.procrustes_align(u, u + rng.normal(size=u.shape) * scale, scaling=False)
+
+
+@pytest.fixture(scope="module")
+def pair2():
+    return _pair(np.random.default_rng(7), 5, 2, 0.35)
+
+
+def _case(metric, d):
+    """A wiggly path (4 segments, 4 landmarks) and its Fisher–Rao grid as the CPU solver builds it."""
+    rng = np.random.default_rng(d)
+    u, v = _pair(rng, 4, d, 0.5)
+    path = _wiggly_path(rng, u, v, 4)
+    nodes = weights = None
+    if metric == "fisher_rao":
+        nodes, weights = batched.stack_grids([path_metric(metric, S2).prepare(path)], d)  # padded: zero weights
+    return path, nodes, weights
+
+
+def _wiggly_path(rng, u, v, n):
+    path = np.linspace(u, v, n + 1) + 0.2 * rng.normal(size=(n + 1,) + u.shape)
+    path[0], path[-1] = u, v
+    return path
+
+
+@pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
+@pytest.mark.parametrize("d", [2, 3])
+def test_energy_and_gradient_equal_the_compiled_kernels(metric, d):
+    path, nodes, weights = _case(metric, d)
+    e_cpu, g_cpu, _ = path_energy(path_metric(metric, S2), path)
+    e, g = jk.batched_value_and_grad(path[None], S2, nodes, weights, metric=metric)
+    assert e[0] == pytest.approx(e_cpu, rel=1e-11)
+    np.testing.assert_allclose(g[0], g_cpu, rtol=0, atol=1e-10 * np.abs(g_cpu).max())
+
+
+@pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
+def test_gradient_is_the_derivative_of_the_energy(metric):
+    """Central differences of the JAX energy along random directions (2-D)."""
+    path, nodes, weights = _case(metric, 2)
+    rng = np.random.default_rng(3)
+    _, g = jk.batched_value_and_grad(path[None], S2, nodes, weights, metric=metric)
+    h = 1e-5
+    for _ in range(3):
+        direction = np.zeros_like(path)
+        direction[1:-1] = rng.normal(size=path[1:-1].shape)
+        plus, minus = (jk.batched_value_and_grad((path + s * h * direction)[None], S2, nodes, weights, metric=metric)[0][0]
+                       for s in (1, -1))
+        assert (plus - minus) / (2 * h) == pytest.approx(np.sum(g[0] * direction[1:-1]), rel=1e-6)
+
+
+@pytest.fixture(scope="module")
+def fr_geodesics(pair2):
+    u, v = pair2
+    kw = dict(metric="fisher_rao", sigma2=S2, n_steps=6, tol=1e-8, max_iter=2000)
+    return (shapelib.geodesic(u, v, **kw),
+            shapelib.geodesic(u, v, **kw, backend="jax", device="cpu"))
+
+
+def test_converged_geodesic_matches_the_cpu_solver_and_is_certified_the_same_way(pair2, fr_geodesics):
+    u, v = pair2
+    cpu, gpu_path = fr_geodesics
+    assert gpu_path.converged and gpu_path.log["backend"] == "jax"
+    assert gpu_path.stop_reason.converged
+    # same local minimum of the same discrete energy, to the solvers' tolerance
+    assert gpu_path.energy == pytest.approx(cpu.energy, rel=1e-6)
+    assert gpu_path.length == pytest.approx(cpu.length, rel=1e-6)
+    # certified as on the CPU: the same closed-form bound, and the length is the returned path's
+    # length by the CPU code's quadrature (its own grid)
+    assert gpu_path.lower_bound == pytest.approx(cpu.lower_bound, rel=1e-13)
+    assert gpu_path.length == pytest.approx(shapelib.path_length(gpu_path.path, metric="fisher_rao", sigma2=S2), rel=1e-11)
+    assert gpu_path.energy == pytest.approx(path_energy(path_metric("fisher_rao", S2), gpu_path.path, gradient=False)[0],
+                                            rel=1e-11)
+    assert gpu_path.lower_bound <= gpu_path.length <= np.sqrt(gpu_path.energy) * (1 + 1e-12)
+    np.testing.assert_array_equal(gpu_path.path[[0, -1]], np.stack([u, v]))
+
+
+def test_batched_geodesics_equal_one_by_one(pair2, fr_geodesics):
+    u, v = pair2
+    v2 = shapelib.procrustes_align(u, _pair(np.random.default_rng(11), 5, 2, 0.3)[1] * 0.2 + 0.8 * v, scaling=False)
+    res = batched.batched_geodesics(np.stack([u, u, v]), np.stack([v, v2, v]), metric="fisher_rao", sigma2=S2,
+                                    n_steps=6, tol=1e-8, max_iter=2000, device="cpu")
+    one = fr_geodesics[1]
+    assert res[0].length == pytest.approx(one.length, rel=1e-10)
+    assert res[0].n_iter == one.n_iter
+    np.testing.assert_allclose(res[0].path, one.path, atol=1e-8)
+    assert res[2].stop_reason == shapelib.StopReason.TRIVIAL and res[2].length == 0.0
+    single = shapelib.geodesic(u, v2, metric="fisher_rao", sigma2=S2, n_steps=6, tol=1e-8, max_iter=2000,
+                               backend="jax", device="cpu")
+    assert res[1].length == pytest.approx(single.length, rel=1e-10)
+
+
+@pytest.fixture(scope="module")
+def alpha3():
+    """A converged 3-D α geodesic on both paths, and the JAX bracket of the same pair (same programs)."""
+    path = _case("alpha", 3)[0]
+    u, v = path[0], path[-1]
+    kw = dict(metric="alpha", sigma2=S2, n_steps=4)
+    return (u, v, shapelib.geodesic(u, v, **kw, tol=1e-9),
+            shapelib.geodesic(u, v, **kw, tol=1e-9, max_iter=300, backend="jax", device="cpu"),
+            shapelib.distance_bracket(u, v, **kw, rtol=1e-2, max_n_steps=4, backend="jax", device="cpu", warn=False))
+
+
+def test_converged_3d_geodesic_matches_the_cpu_solver(alpha3):
+    u, v, cpu, jx, _ = alpha3
+    assert jx.converged and jx.energy == pytest.approx(cpu.energy, rel=1e-7)
+    assert jx.length == pytest.approx(shapelib.path_length(jx.path, metric="alpha", sigma2=S2), rel=1e-11)
+    assert jx.lower_bound == pytest.approx(cpu.lower_bound, rel=1e-13) and jx.lower_bound <= jx.length
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_bracket_contains_the_cpu_value(pair2, fr_geodesics, alpha3, d):
+    """Same closed-form lower end; the CPU solver's converged length lies inside; the upper end is
+    the returned path's length by the CPU quadrature."""
+    if d == 2:  # the pair of the Fisher–Rao geodesic tests: same programs
+        (u, v), cpu, metric = pair2, fr_geodesics[0], "fisher_rao"
+        b = shapelib.distance_bracket(u, v, metric=metric, sigma2=S2, rtol=1e-2, n_steps=6, max_n_steps=6,
+                                      grid_spacing=0.35, backend="jax", device="cpu", warn=False)
+    else:
+        u, v, cpu, _, b = alpha3
+        metric = "alpha"
+    assert b.stopped_by in ("rtol", "max_n_steps") and b.log["backend"] == "jax"
+    assert b.lower == pytest.approx(cpu.lower_bound, rel=1e-12)
+    assert b.lower <= cpu.length <= b.upper * (1 + 1e-6)
+    assert b.upper == pytest.approx(shapelib.path_length(b.path, metric=metric, sigma2=S2), rel=1e-11)
+
+
+def test_backend_and_device_are_checked():
+    u = np.array([[-0.5, -0.3], [0.5, -0.3], [0.0, 0.6]])  # centred: u * 1.1 has the same pose
+    with pytest.raises(ValueError, match="backend must be one of"):
+        shapelib.geodesic(u, u * 1.1, sigma2=S2, backend="cuda")
+    with pytest.raises(ValueError, match='needs backend="jax"'):
+        shapelib.geodesic(u, u * 1.1, sigma2=S2, device="gpu")
+    with pytest.raises(ValueError, match="device must be"):
+        shapelib.distance_bracket(u, u * 1.1, metric="alpha", sigma2=S2, backend="jax", device="tpu0")
+
+
+@pytest.mark.skipif(any(d.platform == "gpu" for d in jax.devices()), reason="a GPU is visible")
+def test_gpu_without_a_gpu_is_a_one_line_error_not_a_cpu_fallback():
+    u = np.array([[-0.5, -0.3], [0.5, -0.3], [0.0, 0.6]])  # centred: u * 1.1 has the same pose
+    with pytest.raises(RuntimeError, match="JAX sees no GPU") as err:
+        shapelib.geodesic(u, u * 1.1, metric="fisher_rao", sigma2=S2, backend="jax", device="gpu")
+    assert "\n" not in str(err.value) and "shapelib[gpu]" in str(err.value)
+
+
+def test_missing_jax_is_a_one_line_import_error_naming_the_extra():
+    code = ("import sys; sys.modules['jax'] = None\n"
+            "import numpy as np, shapelib\n"
+            "u = np.eye(3)[:, :2]\n"
+            "try:\n    shapelib.geodesic(u, u * 1.1, sigma2=0.5, backend='jax')\n"
+            "except ImportError as e:\n    print(repr(str(e)))\n"
+            "assert 'jax' not in [m.split('.')[0] for m in sys.modules if sys.modules[m] is not None]\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert 'pip install \\"shapelib[gpu]\\"' in proc.stdout or 'pip install "shapelib[gpu]"' in proc.stdout
+    assert proc.stdout.count("\n") == 1
+
+
+def test_bench_gpu_cpu_check_writes_a_record(tmp_path):
+    out = tmp_path / "bench_gpu.json"
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_gpu.py"), "--cpu-check", "--json", str(out)],
+                          capture_output=True, text=True, timeout=900, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    rec = json.loads(out.read_text())
+    res = rec["results"]
+    assert res["mode"] == "cpu-check" and res["device"]["platform"] == "cpu" and rec["machine"]["date"]
+    rows = res["rows"]
+    spec = importlib.util.spec_from_file_location("shapelib_docs", ROOT / "docs" / "_ext" / "shapelib_docs.py")
+    docs = importlib.util.module_from_spec(spec)
+    sys.modules["shapelib_docs"] = docs  # dataclasses look their module up
+    try:
+        spec.loader.exec_module(docs)
+        for table in docs.RENDERERS["bench_gpu"](res):  # the performance page renders the record
+            assert table.rows and all(len(row) == len(table.header) for row in table.rows)
+    finally:
+        sys.modules.pop("shapelib_docs", None)
+    # the same pairs on both paths: certified, and the two lengths agree to the solvers' tolerance
+    for row in rows["geodesic"]:
+        assert row["lower"] <= row["length_jax"] and row["lower"] <= row["length_cpu"]
+        assert row["length_jax"] == pytest.approx(row["length_cpu"], rel=1e-3)
+    assert 0.0 <= rows["brackets"]["certified_rate"] <= 1.0
+
+
+@pytest.fixture(scope="module")
+def three(pair2):
+    """Three aligned shapes: the pairs of the batched test (same compiled programs)."""
+    u, v = pair2
+    v2 = shapelib.procrustes_align(u, _pair(np.random.default_rng(11), 5, 2, 0.3)[1] * 0.2 + 0.8 * v, scaling=False)
+    return np.stack([u, v, v2])
+
+
+@pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
+def test_pairwise_engine_sends_a_block_to_the_device_as_one_batch(three, fr_geodesics):
+    d = shapelib.pairwise_distances(three, metric="fisher_rao", sigma2=S2, n_steps=6, tol=1e-8, max_iter=2000,
+                                    backend="jax", device="cpu", n_jobs=1, progress=False)
+    np.testing.assert_array_equal(d, d.T)
+    assert d[0, 1] == pytest.approx(fr_geodesics[1].length, rel=1e-10)  # the single JAX geodesic
+    assert d[0, 1] == pytest.approx(fr_geodesics[0].length, rel=1e-6)  # and the CPU one
+
+
+@pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
+def test_frechet_mean_with_batched_log_maps_matches_the_cpu_mean(three):
+    # α: its programs do not depend on a grid, so the moving base compiles nothing new per iteration
+    kw = dict(metric="alpha", sigma2=S2, n_steps=6, log_tol=1e-8, tol=1e-4)
+    cpu = shapelib.frechet_mean(three, **kw, n_jobs=1)
+    jx = shapelib.frechet_mean(three, **kw, backend="jax", device="cpu")
+    assert jx.converged and jx.certificate <= 1e-4
+    spread = np.abs(three - cpu.mean).max()
+    assert np.abs(jx.mean - cpu.mean).max() <= 1e-3 * spread
