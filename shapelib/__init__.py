@@ -14,6 +14,8 @@ Where each equation lives:
   :mod:`shapelib.comparison.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
 * §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
+* point sets without landmarks (any sizes, no correspondence): checks, density distances, pose
+  search over every rotation: :mod:`shapelib.pointsets`
 * log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
   tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics`, on the engine through
   :mod:`shapelib.population`
@@ -44,6 +46,18 @@ from .geometry.scale import Sigma2Estimate, estimate_sigma2
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
+from .pointsets import (
+    Pose,
+    PoseSearchWarning,
+    align,
+    as_point_set,
+    as_point_sets,
+    bhattacharyya_affinity,
+    density_distance,
+    density_inner,
+    hellinger_sq,
+    l2_distance_sq,
+)
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -74,6 +88,16 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "as_point_set",  # shapelib.pointsets
+    "as_point_sets",
+    "density_inner",
+    "l2_distance_sq",
+    "hellinger_sq",
+    "bhattacharyya_affinity",
+    "density_distance",
+    "align",
+    "Pose",
+    "PoseSearchWarning",
     "MetricInfo",
     "metric_info",
     "register_metric",
