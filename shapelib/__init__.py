@@ -47,6 +47,9 @@ from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
 from .pointsets import (
+    EMWarning,
+    MixtureFit,
+    fit_mixture,
     Pose,
     PoseSearchWarning,
     align,
@@ -98,6 +101,9 @@ __all__ = [
     "align",
     "Pose",
     "PoseSearchWarning",
+    "fit_mixture",
+    "MixtureFit",
+    "EMWarning",
     "MetricInfo",
     "metric_info",
     "register_metric",
