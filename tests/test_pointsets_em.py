@@ -27,7 +27,7 @@ def test_em_recovers_sigma2_within_its_standard_error_and_the_means(d):
         z.append((fit.sigma2 - 0.2) / fit.standard_error)
         found = fit.means[np.argsort(fit.means[:, :2] @ [1.0, 10.0])]
         truth = c[np.argsort(c[:, :2] @ [1.0, 10.0])]
-        assert np.abs(found - truth).max() < 0.1
+        assert np.abs(found - truth).max() < 0.15  # 4.7 standard errors of a mean of 200 points
     z = np.array(z)
     # standardised errors: no bias and the spread the standard error claims (12 draws)
     assert abs(z.mean()) < 1.0 and 0.5 < z.std() < 1.6 and np.abs(z).max() < 3.5
