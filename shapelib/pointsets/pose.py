@@ -18,9 +18,11 @@ global in rotation:
    icosahedral group (no orientation farther than 38° from one of them); with ``reflection=True``
    each start also mirrored;
 3. the best ``n_starts`` starts (in 2-D: local minima of the score over the circle of angles)
-   are refined by L-BFGS with the analytic gradient, and followed while σ² is lowered by factors
-   of 4 down to the requested σ²;
-4. the refined pose with the smallest objective at the requested σ² wins.
+   are refined by L-BFGS with the analytic gradient at the coarse σ²;
+4. those within :data:`SELECT_RTOL` of the best refined objective there are followed while σ² is
+   lowered by factors of 4 down to the requested σ², and the smallest objective at the requested
+   σ² wins. (Choosing among all starts at a small σ² fails for deformed shapes: a wrong pose can
+   overlap more of the target's points than the right one.)
 """
 
 from __future__ import annotations
@@ -42,6 +44,10 @@ __all__ = ["align", "Pose", "PoseSearchWarning", "COARSE_SIGMA2"]
 
 #: the coarsest σ² of the search, in units of the target's squared RMS radius
 COARSE_SIGMA2 = 0.1
+#: starts whose refined objective at the coarsest σ² is within this fraction of the best are
+#: followed down to the requested σ² (the others are dropped: at a small σ² a wrong pose of a
+#: deformed shape can overlap the target better than the right one)
+SELECT_RTOL = 0.05
 
 
 class PoseSearchWarning(RuntimeWarning):
@@ -75,6 +81,9 @@ class Pose:
     converged, stop_reason
         Whether the refinement of the winning start met its tolerance, and why it stopped
         (``"gradient"``, ``"objective_change"``, ``"no_decrease"``: converged; ``"max_iter"``: not).
+    candidates : list of (float, ndarray, ndarray)
+        Every refined start at the coarsest σ² as ``(objective, A, t)``, best first: the distinct
+        poses the search found (:func:`shapelib.register` follows several of them).
     """
 
     matrix: np.ndarray
@@ -272,10 +281,27 @@ def _search(x, y, xn, yn, cx, cy, size, scale0, s2, transform, metric, reflectio
     models = [Model(transform, d, b, scale0) for _, b in starts]
     scores = np.array([problems[0].fun(m.start(), m)[0] for m in models])
     chosen = _choose(scores, starts, d, n_starts)
-    best, n_iter = None, 0
+    # every chosen start refined at the coarsest σ²; those within SELECT_RTOL of the best there
+    # (the shape's overall layout decides) are followed down to σ², where the best wins
+    n_iter, coarse = 0, []
     for i in chosen:
-        m, p = models[i], models[i].start()
-        for prob in problems:
+        m = models[i]
+        res = minimize(problems[0].fun, m.start(), args=(m,), jac=True, method="L-BFGS-B",
+                       options={"maxiter": max_iter, "ftol": 1e-15, "gtol": 1e-11})
+        n_iter += int(res.nit)
+        coarse.append((float(res.fun), i, res))
+    coarse.sort(key=lambda c: c[0])
+    candidates = []
+    for fval, i, res in coarse:
+        a, tn, _ = models[i].matrix(res.x)
+        candidates.append((fval, a, cy - a @ cx + size * tn))
+    top = coarse[0][0]
+    best = None
+    for fval, i, res in coarse:
+        if fval > top + SELECT_RTOL * max(top, 1e-300) + 1e-12:
+            continue
+        m, p = models[i], res.x
+        for prob in problems[1:]:
             res = minimize(prob.fun, p, args=(m,), jac=True, method="L-BFGS-B",
                            options={"maxiter": max_iter, "ftol": 1e-15, "gtol": 1e-11})
             p = res.x
@@ -300,7 +326,8 @@ def _search(x, y, xn, yn, cx, cy, size, scale0, s2, transform, metric, reflectio
         warnings.warn(f"align: the refinement of the best start stopped after {max_iter} iterations without "
                       f"converging ({why}); raise max_iter", PoseSearchWarning, stacklevel=3)
     return Pose(matrix=a, translation=t, points=points, value=value, objective=fval, converged=ok, stop_reason=why,
-                transform=transform, metric=metric, sigma2=s2, n_starts=len(chosen), n_iter=n_iter)
+                transform=transform, metric=metric, sigma2=s2, n_starts=len(chosen), n_iter=n_iter,
+                candidates=candidates)
 
 
 def _choose(scores, starts, d, n_starts):
