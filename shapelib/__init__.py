@@ -47,6 +47,9 @@ from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
 from .pointsets import (
+    RegistrationResult,
+    RegistrationWarning,
+    register,
     EMWarning,
     MixtureFit,
     fit_mixture,
@@ -104,6 +107,9 @@ __all__ = [
     "fit_mixture",
     "MixtureFit",
     "EMWarning",
+    "register",
+    "RegistrationResult",
+    "RegistrationWarning",
     "MetricInfo",
     "metric_info",
     "register_metric",

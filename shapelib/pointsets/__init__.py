@@ -7,14 +7,17 @@ equal-weight isotropic mixture of eq. (5) with one component per point. Modules:
 * :mod:`~shapelib.pointsets.density`: closed-form and quadrature density distances between sets of
   different sizes, with gradients w.r.t. the points;
 * :mod:`~shapelib.pointsets.pose`: the pose search over every rotation (:func:`align`);
-* :mod:`~shapelib.pointsets.em`: σ² (and the means of a compact mixture) from the points (:func:`fit_mixture`).
+* :mod:`~shapelib.pointsets.em`: σ² (and the means of a compact mixture) from the points (:func:`fit_mixture`);
+* :mod:`~shapelib.pointsets.registration`: registration, rigid to non-rigid, by the information
+  geometry (:func:`register`).
 """
 
 from .checks import as_point_set, as_point_sets
 from .density import bhattacharyya_affinity, density_distance, density_inner, hellinger_sq, l2_distance_sq
 from .em import EMWarning, MixtureFit, fit_mixture
 from .pose import Pose, PoseSearchWarning, align
+from .registration import RegistrationResult, RegistrationWarning, register
 
 __all__ = ["as_point_set", "as_point_sets", "bhattacharyya_affinity", "density_distance", "density_inner",
            "hellinger_sq", "l2_distance_sq", "align", "Pose", "PoseSearchWarning", "fit_mixture", "MixtureFit",
-           "EMWarning"]
+           "EMWarning", "register", "RegistrationResult", "RegistrationWarning"]

@@ -9,11 +9,15 @@ Both sets are mixtures of eq. (5), one component per point. ``register(source, t
    one local start), the similarity group for ``"nonrigid"``.
 2. **σ², outliers, correspondences by EM** with the posed source ``u`` as the means of a mixture
    that explains the target ``y`` together with a uniform component of weight ``w``
-   (Coherent Point Drift's model, Myronenko & Song 2010): posteriors
+   (Coherent Point Drift's model, Myronenko & Song 2010, with the uniform density ``1/V`` over
+   the target's bounding box of volume V in place of CPD's ``1/m``): posteriors
 
-       P_ij = exp(−|y_j − θ_i|²/2σ²) / (Σ_k exp(−|y_j − θ_k|²/2σ²) + (2πσ²)^{d/2} w/(1−w) · n/m),
+       P_ij = exp(−|y_j − θ_i|²/2σ²) / (Σ_k exp(−|y_j − θ_k|²/2σ²) + (2πσ²)^{d/2} w/(1−w) · n/V),
 
    ``σ² = Σ_ij P_ij |y_j − θ_i|² / (d Σ_ij P_ij)`` and, with ``w="auto"``, ``w = 1 − Σ_ij P_ij / m``.
+   Non-rigid, ``w`` is estimated with the means held at the pose and then held fixed: with both
+   free, σ² → 0 and w → 1 (a deformation that explains a few target points exactly and calls the
+   rest outliers) has an unbounded likelihood.
 3. **Non-rigid: the metric as the deformation's kernel.** The means move to
    ``θ = u + G W``, where ``G = g(u)/g_aa`` is the α-order metric tensor of eq. (22) of the posed
    source mixture at the geometry's σ_g², divided by its diagonal:
@@ -29,10 +33,11 @@ Both sets are mixtures of eq. (5), one component per point. ``register(source, t
    itself, ``(θ − u)ᵀ G (θ − u)``, ranks them the other way — two overlapping components moving
    apart leave the density almost unchanged — so it does not keep a shape together.)
 4. **The deformation is a geodesic.** The path from ``u`` to the fitted ``θ`` (points in
-   correspondence) is the α-order (or Fisher–Rao) geodesic at σ_g² (:func:`shapelib.geodesic`),
-   computed on first use of ``result.path``; other points are carried along it by the paper's
-   extrinsic warp (§III-E, :func:`shapelib.extrinsic_warp`, 2-D) or, in 3-D and on request, by
-   the kernel ``x ↦ x + Σ_b G(x, u_b) W_b``.
+   correspondence) is the α-order (or Fisher–Rao) geodesic (:func:`shapelib.geodesic`) at the
+   target's leave-one-out σ² (the spacing of its points, the scale of the paper's geodesics),
+   computed on first use of ``result.path``. Other points are moved by the fit's kernel,
+   ``x ↦ x + Σ_b G(x, u_b) W_b`` (exact at the source points), or, in 2-D on request, carried
+   along the geodesic by the paper's extrinsic warp (§III-E, :func:`shapelib.extrinsic_warp`).
 """
 
 from __future__ import annotations
@@ -58,8 +63,17 @@ NONRIGID_POSE_SIGMA2 = 0.025
 #: non-rigid: the pose search's best few distinct poses are each followed by SCREEN_ITER EM
 #: iterations and the one with the smallest negative log-posterior is carried on (a deformed
 #: shape can overlap the target best in a wrong pose; the deformation it then needs costs more)
-N_CANDIDATES = 4
-SCREEN_ITER = 30
+N_CANDIDATES = 3
+#: the pose group searched before a non-rigid fit
+NONRIGID_POSE = "affine"
+SCREEN_ITER = 150
+#: EM iterations of the outlier weight at the pose (``w="auto"``, non-rigid)
+W_ITER = 50
+#: the largest outlier weight ``w="auto"`` estimates
+W_MAX = 0.9
+#: EM's σ² stays above this fraction of the target's leave-one-out σ²: an exact fit of some points
+#: at σ² → 0 has an unbounded likelihood, which would otherwise decide between candidate poses
+SIGMA2_FLOOR = 1e-4
 #: the deformation kernels: the metric in the mixture's weight coordinates, or on its means
 KERNELS = ("weights", "means")
 
@@ -73,14 +87,20 @@ def _rms(x):
 
 
 def _sq(x, y):
-    d = x[:, None, :] - y[None, :, :]
-    return np.einsum("ikd,ikd->ik", d, d)
+    """Squared distances (n, m) by the expansion |x|² + |y|² − 2 x·y (clipped at 0)."""
+    out = np.einsum("id,id->i", x, x)[:, None] + np.einsum("jd,jd->j", y, y)[None, :] - 2.0 * (x @ y.T)
+    return np.maximum(out, 0.0, out=out)
+
+
+def _volume(y):
+    """Volume of the target's bounding box: the support of the uniform (outlier) component."""
+    return float(np.prod(np.maximum(np.ptp(y, axis=0), 1e-12)))
 
 
 def _posteriors(theta, y, s2, w):
     """P (n, m), the uniform component's constant included; and Σ_ij P_ij |y_j − θ_i|²."""
     n, d = theta.shape
-    m = len(y)
+    m = _volume(y)
     sq = _sq(theta, y)
     e = np.exp(-sq / (2 * s2))
     c = (2 * np.pi * s2) ** (d / 2) * w / (1 - w) * n / m if w > 0 else 0.0
@@ -145,8 +165,9 @@ class RegistrationResult:
     pose : Pose
         The rigid (similarity, affine) part, from the source's coordinates to the target's.
     objective : float
-        The density bound between the moved source and the target at the final σ² (α: ``‖p − q‖``,
-        Fisher–Rao: ``2 arccos ∫√(pq)``).
+        The density bound between the moved source and the target (α: ``‖p − q‖``, Fisher–Rao:
+        ``2 arccos ∫√(pq)``) at ``sigma2_objective``: the given σ², or the target's leave-one-out σ²
+        (:func:`shapelib.pointsets.fit_mixture`).
     sigma2 : float
         The final σ² of the EM (in the target's units); ``w``: the final outlier weight.
     converged, stop_reason, n_iter
@@ -166,6 +187,7 @@ class RegistrationResult:
     transform: str
     metric: str
     sigma2_metric: float | None
+    sigma2_objective: float = None
     _source: np.ndarray = field(repr=False, default=None)
     _target: np.ndarray = field(repr=False, default=None)
     _u: np.ndarray = field(repr=False, default=None)
@@ -173,6 +195,7 @@ class RegistrationResult:
     _p: np.ndarray = field(repr=False, default=None)
     _frame: tuple = field(repr=False, default=None)
     _n_steps: int = field(repr=False, default=16)
+    _kernel: str = field(repr=False, default="weights")
     _geodesic: object = field(repr=False, default=None)
 
     @property
@@ -188,8 +211,9 @@ class RegistrationResult:
 
     @property
     def geodesic(self):
-        """The geodesic (:class:`shapelib.GeodesicResult`) from the posed source to ``points``,
-        in the target's units (non-rigid only; computed on first use)."""
+        """The geodesic (:class:`shapelib.GeodesicResult`) from the posed source to ``points`` at
+        ``sigma2_objective``, in the target's units (non-rigid only; computed on first use: seconds
+        for ~50 points, ``n_steps`` of :func:`register`)."""
         if self.transform != "nonrigid":
             return None
         if self._geodesic is None:
@@ -198,7 +222,7 @@ class RegistrationResult:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", category=UserWarning)
                 self._geodesic = geodesic(self.rigid_points, self.points, metric=self.metric,
-                                          sigma2=self.sigma2_metric, n_steps=self._n_steps, warn=False)
+                                          sigma2=self.sigma2_objective, n_steps=self._n_steps, warn=False)
         return self._geodesic
 
     @property
@@ -210,13 +234,17 @@ class RegistrationResult:
         t = np.linspace(0.0, 1.0, self._n_steps + 1)[:, None, None]
         return (1 - t) * self._source + t * self.points
 
-    def warp(self, x, *, method: str | None = None) -> np.ndarray:
+    def warp(self, x, *, method: str = "kernel", lam: float | None = None, grid_size: int = 64) -> np.ndarray:
         """Move new points ``x`` (k, d), given in the source's coordinates, as the source was moved.
 
-        ``method="extrinsic"`` (default in 2-D, non-rigid): the pose, then the likelihood-
-        preserving flow along the geodesic (§III-E, :func:`shapelib.extrinsic_warp`).
-        ``method="kernel"`` (default in 3-D): the pose, then ``x + Σ_b G(x, u_b) W_b`` with the
-        metric kernel of the fit (α only), which reproduces ``points`` at the source points.
+        ``method="kernel"`` (default): the pose, then ``x ↦ x + Σ_b G(x, u_b) W_b`` with the kernel
+        of the fit (α only): it reproduces ``points`` at the source points exactly.
+        ``method="extrinsic"`` (2-D): the pose, then the paper's likelihood-preserving flow along the
+        deformation's geodesic (§III-E, :func:`shapelib.extrinsic_warp`, ``lam`` (default
+        ``1e-3 ×`` the target's squared RMS radius) and ``grid_size`` passed on). It solves one
+        sparse system per path step on a ``grid_size²`` grid (tens of seconds for 16 steps) and
+        carries the source points only approximately to ``points``: the flow keeps each point's
+        likelihood, not its identity.
         """
         x = as_point_set(x, name="x", min_points=1)
         if x.shape[1] != self.points.shape[1]:
@@ -225,21 +253,23 @@ class RegistrationResult:
         if self.transform != "nonrigid":
             return z
         d = x.shape[1]
-        method = method or ("extrinsic" if d == 2 else "kernel")
         if method == "extrinsic":
             if d != 2:
                 raise ValueError("the extrinsic warp (§III-E) is implemented in 2-D; use method='kernel' in 3-D")
             from ..comparison.warp import extrinsic_warp
 
-            return extrinsic_warp(z, self.geodesic, lam=1e-3 * self._frame[1] ** 2)[-1]
+            lam = 1e-3 * self._frame[1] ** 2 if lam is None else lam
+            return extrinsic_warp(z, self.geodesic, lam=lam, grid_size=grid_size)[-1]
         if method != "kernel":
             raise ValueError(f"method must be 'extrinsic' or 'kernel'; got {method!r}")
         if self.metric != "alpha":
             raise ValueError("method='kernel' needs the closed-form alpha kernel; register with metric='alpha'")
         mean, size = self._frame
         zn = (z - mean) / size
-        k = alpha_kernel(zn, self._u, self.sigma2_metric / size ** 2)
-        return (zn + (k @ self._coef).reshape(-1, d)) * size + mean
+        s2g = self.sigma2_metric / size ** 2
+        if self._kernel == "weights":
+            return (zn + overlap_kernel(zn, self._u, s2g) @ self._coef) * size + mean
+        return (zn + (alpha_kernel(zn, self._u, s2g) @ self._coef.ravel()).reshape(-1, d)) * size + mean
 
     def summary(self) -> str:
         """A few lines: the pose, the fit, the correspondences and convergence."""
@@ -360,7 +390,7 @@ class _EMState:
         return self.u + (self.g @ self.coef.ravel()).reshape(self.u.shape)
 
 
-def _em(st, yn, *, lam, fixed_s2, auto_w, max_iter, tol):
+def _em(st, yn, *, lam, fixed_s2, auto_w, max_iter, tol, s2_floor=1e-12):
     """Continue the EM of the module docstring for up to ``max_iter`` more iterations."""
     u, g = st.u, st.g
     n, d = u.shape
@@ -380,9 +410,9 @@ def _em(st, yn, *, lam, fixed_s2, auto_w, max_iter, tol):
                 st.coef = np.linalg.solve(a, (p @ yn - p1[:, None] * u).ravel()).reshape(n, d)
         s2_old, w_old = st.s2, st.w
         if fixed_s2 is None:
-            st.s2 = max(float(np.sum(p * _sq(st.theta, yn))) / (np_ * d), 1e-12)
+            st.s2 = max(float(np.sum(p * _sq(st.theta, yn))) / (np_ * d), s2_floor)
         if auto_w:
-            st.w = float(np.clip(1.0 - np_ / len(yn), 1e-6, 0.99))
+            st.w = float(np.clip(1.0 - np_ / len(yn), 1e-6, W_MAX))
         if abs(st.s2 - s2_old) <= tol * s2_old and abs(st.w - w_old) <= tol:
             st.ok, st.why = True, "tolerance"
             break
@@ -398,7 +428,7 @@ def _neg_log_posterior(st, yn, lam):
     from scipy.special import logsumexp
 
     mix = logsumexp(logn, axis=0) + np.log((1 - st.w) / n)
-    ll = np.logaddexp(mix, np.log(st.w / m)) if st.w > 0 else mix
+    ll = np.logaddexp(mix, np.log(st.w / _volume(yn))) if st.w > 0 else mix
     prior = 0.0
     if st.g is not None:
         c = st.coef.reshape(n, -1)
@@ -416,9 +446,10 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
     xn, yn = (x - mx) / sx, (y - my) / sy
     # pose: σ² of the search's last level from the target's own spread (leave-one-out), or the given one
     s2_pose = fixed_s2 / sy ** 2 if fixed_s2 is not None else fit_mixture(yn, warn=False).sigma2
+    s2_eval = s2_pose  # the σ² at which the objective is reported
     if transform == "nonrigid":  # the pose need not resolve what the deformation will fit
         s2_pose = max(s2_pose, NONRIGID_POSE_SIGMA2)
-    pose_t = "similarity" if transform == "nonrigid" else transform
+    pose_t = NONRIGID_POSE if transform == "nonrigid" else transform
     pn = align(xn, yn, sigma2=s2_pose, transform=pose_t, metric=metric, reflection=reflection,
                n_angles=max(n_angles, 1), warn=warn)
     poses = [(pn.matrix, pn.translation)]
@@ -429,10 +460,18 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
     def start(a, t):
         u = xn @ a.T + t
         s2 = fixed_s2 / sy ** 2 if fixed_s2 is not None else float(np.mean(_sq(u, yn)) / d)
+        w_start = w
+        if auto_w and transform == "nonrigid":
+            # w from the pose alone (EM on σ² ≥ the target's leave-one-out σ² and w, the means held):
+            # a deformation free to choose which target points to explain would call inliers outliers
+            rigid = _em(_EMState(u=u, g=None, coef=None, s2=s2, w=w), yn, lam=lam, fixed_s2=fixed_s2, auto_w=True,
+                        max_iter=W_ITER, tol=tol, s2_floor=s2_eval)
+            w_start = rigid.w
         g = _kernel(u, s2g, metric, kernel) if transform == "nonrigid" else None
-        return _EMState(u=u, g=g, coef=np.zeros((len(u), d)), s2=s2, w=w)
+        return _EMState(u=u, g=g, coef=np.zeros((len(u), d)), s2=s2, w=w_start)
 
-    opts = dict(lam=lam, fixed_s2=fixed_s2, auto_w=auto_w, tol=tol)
+    opts = dict(lam=lam, fixed_s2=fixed_s2, auto_w=auto_w and transform != "nonrigid", tol=tol,
+                s2_floor=SIGMA2_FLOOR * s2_eval)
     if len(poses) > 1:
         trials = []
         for k, (a, t) in enumerate(poses):
@@ -454,9 +493,10 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
     from .density import _hellinger_sq, _l2_sq
 
     if metric == "alpha":
-        obj = float(np.sqrt(max(_l2_sq(theta, yn, s2, grad=False)[0], 0.0)) / sy ** (d / 2))
+        obj = float(np.sqrt(max(_l2_sq(theta, yn, s2_eval, grad=False)[0], 0.0)) / sy ** (d / 2))
     else:
-        obj = float(4.0 * np.arcsin(min(np.sqrt(max(_hellinger_sq(theta, yn, s2, grad=False)[0], 0.0)) / 2, 1.0)))
+        h2 = _hellinger_sq(theta, yn, s2_eval, grad=False)[0]
+        obj = float(4.0 * np.arcsin(min(np.sqrt(max(h2, 0.0)) / 2, 1.0)))
     # the pose in the input units: x -> A (x − m_x)/s_x · s_y + t̃ s_y + m_y
     a = chosen[0] * (sy / sx)
     t = my + sy * chosen[1] - a @ mx
@@ -467,4 +507,6 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
                               sigma2=s2 * sy ** 2, w=float(w), converged=ok, stop_reason=why, n_iter=it,
                               transform=transform, metric=metric,
                               sigma2_metric=(s2g * sy ** 2) if transform == "nonrigid" else None,
-                              _source=x, _target=y, _u=u, _coef=coef, _p=p, _frame=(my, sy), _n_steps=n_steps)
+                              sigma2_objective=s2_eval * sy ** 2,
+                              _source=x, _target=y, _u=u, _coef=coef, _p=p, _frame=(my, sy), _n_steps=n_steps,
+                              _kernel=kernel)
