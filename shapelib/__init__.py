@@ -7,7 +7,7 @@ Where each equation lives:
 * eq. (5), the GMM shape density, and closed-form L² quantities: :mod:`shapelib.geometry.gmm`
 * eq. (6) Fisher–Rao and eq. (22) α-order metrics: :mod:`shapelib.geometry.metrics`
   (quadrature rules: :mod:`shapelib.geometry.quadrature`)
-* eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.geodesic`;
+* eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.solver.geodesic`;
   certified distance brackets ``lower ≤ d ≤ upper`` to a relative width: :mod:`shapelib.solver.bracket`
 * σ against the landmarks' scale: :mod:`shapelib.geometry.scale`
 * comparison distances: :mod:`shapelib.geometry.procrustes`, :mod:`shapelib.comparison.splines`,

@@ -1,20 +1,22 @@
-"""One entry point for every shape distance in the study: :func:`distance`, :func:`pair_record`
+r"""One entry point for every shape distance in the study: :func:`distance`, :func:`pair_record`
 (the matrix of a whole population: :func:`shapelib.pairwise_distances`), over one registry of
 metrics (:func:`metric_info`, :func:`register_metric`).
 
 ``metric`` names and what they compute (keyword options in brackets):
 
 ``"alpha"``, ``"fisher_rao"``
-    Geodesic length under the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
+    Geodesic length :math:`\int_0^1 \sqrt{\dot\theta^\top g(\theta)\, \dot\theta}\, dt` under
+    the α-order (eq. 22) or Fisher–Rao (eq. 6) metric, from
     :func:`shapelib.geodesic` [``sigma2`` (required), ``n_steps``, ``tol``, ``max_iter``, ...];
     with ``rtol=x``, the upper end of the certified bracket of
-    :func:`shapelib.solver.bracket.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
+    :func:`shapelib.distance_bracket` [``sigma2``, ``n_steps``, ``max_n_steps``, ...].
 ``"alpha_bound"``
-    Closed-form lower bound ``‖p_u − p_v‖`` on the α geodesic distance (the L² distance of the
-    eq. 5 densities, :func:`shapelib.geometry.gmm.l2_distance`) [``sigma2``].
+    Closed-form lower bound :math:`\|p_u - p_v\|` on the α geodesic distance (the L² distance of
+    the eq. 5 densities, :func:`shapelib.l2_distance`) [``sigma2``].
 ``"fisher_rao_bound"``
-    Great-circle lower bound ``2 arccos ∫√(p_u p_v)`` on the Fisher–Rao geodesic distance
-    (:func:`shapelib.solver.geodesic.fisher_rao_lower_bound`) [``sigma2``, ``grid_spacing``, ``grid_margin``].
+    Great-circle lower bound :math:`2 \arccos \int \sqrt{p_u p_v}\, dx` on the Fisher–Rao
+    geodesic distance (:func:`shapelib.fisher_rao_lower_bound`) [``sigma2``,
+    ``grid_spacing``, ``grid_margin``].
 ``"diffeomorphism"``
     Landmark-diffeomorphism (Camion–Younes) geodesic length, :mod:`shapelib.comparison.diffeomorphism`
     [``lam`` (default 10), ``kernel_width``, ``n_steps``, ...].
@@ -35,6 +37,14 @@ metric, a one-line description); :func:`register_metric` adds one, after which e
 Every per-pair computation of the library (the pairwise engine :mod:`shapelib.pairwise`, the CLI,
 the notebooks) goes through :func:`pair_record`. Paper-specific conventions (alignment, scale,
 squared values) belong to the study notebooks.
+
+For the information metrics every value is certified by its bounds,
+
+.. math::
+
+    \text{lower} \le d(u, v) \le \text{upper},
+
+the ``lower`` and ``upper`` of :func:`pair_record`.
 """
 
 from __future__ import annotations
@@ -67,8 +77,17 @@ _FIXED = frozenset({"u", "v", "metric", "rtol"})
 
 @dataclass(frozen=True)
 class MetricInfo:
-    """One metric of the registry (what :func:`register_metric` records; cf. the ``MetricInfo``
-    records of :mod:`scipy.spatial.distance`).
+    r"""One metric of the registry (what :func:`shapelib.register_metric` records).
+
+    Cf. the ``MetricInfo`` records of :mod:`scipy.spatial.distance`. For the information metrics of
+    [1]_ the record ties the geodesic length to its closed-form lower bound,
+
+    .. math::
+
+        \ell(u, v) \le d(u, v),
+
+    with :math:`\ell` the metric named by ``lower_bound``, e.g.
+    ``metric_info("alpha").lower_bound == "alpha_bound"``.
 
     Attributes
     ----------
@@ -77,16 +96,16 @@ class MetricInfo:
     function : callable
         ``function(u, v, **params)``: the distance (a float), or for a path metric the path's
         result (with ``length``, ``lower_bound``, ``energy``, ``converged``, ``n_iter``, as
-        :class:`~shapelib.solver.geodesic.GeodesicResult`). Sent to Dask workers with each task, pickled
+        :class:`~shapelib.GeodesicResult`). Sent to Dask workers with each task, pickled
         by reference: a module-level function (or a :func:`functools.partial` of one) in a module
         the workers can import.
     symmetric : bool
         ``d(u, v) = d(v, u)``: the pairwise engine computes each unordered pair once.
     path : bool
-        A path metric (``function`` returns the geodesic; :func:`path_result`).
+        A path metric (``function`` returns the geodesic; :func:`~shapelib.distances.path_result`).
     bracket : callable or None
         ``bracket(u, v, *, rtol, **params)`` returning a certified bracket (``lower``, ``upper``,
-        ``energy``, ``converged``, ``n_iter``, as :class:`~shapelib.solver.bracket.DistanceBracket`): the
+        ``energy``, ``converged``, ``n_iter``, as :class:`~shapelib.DistanceBracket`): the
         metric can be certified to a relative tolerance (``rtol=``). None: it cannot.
     accepts : callable
         The function whose keyword options (its signature) are the metric's options; default
@@ -95,6 +114,26 @@ class MetricInfo:
         Name of the registered metric that bounds this one from below, if any.
     description : str
         One line, shown by ``shapelib distances --help``.
+
+    See Also
+    --------
+    shapelib.metric_info : The record of a name.
+    shapelib.register_metric : Add a record.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import shapelib as sl
+    >>> info = sl.metric_info("alpha")
+    >>> info.path, info.symmetric, info.lower_bound, info.bracket is not None
+    (True, True, 'alpha_bound', True)
+    >>> sl.metric_info("tps").symmetric
+    False
     """
 
     name: str
@@ -125,26 +164,74 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
                     bracket: Callable | None = None, accepts: Callable | None = None,
                     lower_bound: str | None = None, description: str = "",
                     replace: bool = False) -> MetricInfo:
-    """Add a metric to the registry: afterwards :func:`distance`, :func:`pair_record`,
-    :func:`shapelib.pairwise_distances` and ``shapelib distances --metric`` accept ``name``.
+    r"""Add a metric to the registry.
 
-    Parameters are the fields of :class:`MetricInfo`. For the pairwise engine on Dask the function
-    travels with each task, pickled by reference, so define it at module level in a module the
-    workers can import (the LocalCluster's workers inherit this process's ``sys.path``; for
-    ``dask worker`` processes put the module on their ``PYTHONPATH``). ``replace=True`` replaces
-    a metric of that name; without it a taken name is a ``ValueError``.
+    Afterwards :func:`shapelib.distance`, :func:`shapelib.pair_record`,
+    :func:`shapelib.pairwise_distances` and ``shapelib distances --metric`` accept ``name``. A
+    registered metric sits beside the information metrics of [1]_ (eqs. 6 and 22) and the
+    comparisons of its Table I: any function
+
+    .. math::
+
+        d : \mathbb{R}^{K \times d} \times \mathbb{R}^{K \times d} \to [0, \infty).
+
+    For the pairwise engine on Dask the function travels with each task, pickled by reference, so
+    define it at module level in a module the workers can import (the LocalCluster's workers
+    inherit this process's ``sys.path``; for ``dask worker`` processes put the module on their
+    ``PYTHONPATH``).
+
+    Parameters
+    ----------
+    name : str
+        What ``metric=`` will be given as (an identifier-like string).
+    function : callable
+        ``function(u, v, **params)``: the distance, or a path metric's result.
+    symmetric : bool, default True
+        ``d(u, v) = d(v, u)``.
+    path : bool, default False
+        ``function`` returns a geodesic result.
+    bracket : callable, optional
+        A certified bracket (``rtol=``).
+    accepts : callable, optional
+        The function whose keyword options are the metric's options (default ``function``).
+    lower_bound : str, optional
+        A registered metric bounding this one from below.
+    description : str
+        One line for ``shapelib distances --help``.
+    replace : bool, default False
+        Replace a metric of that name; without it a taken name is a ``ValueError``.
 
     Returns
     -------
     MetricInfo
+        The record stored.
+
+    Raises
+    ------
+    ValueError
+        For a name that is not an identifier, a taken name without ``replace``, a function,
+        bracket or accepts that is not callable, or an unknown ``lower_bound``.
+
+    See Also
+    --------
+    shapelib.MetricInfo : The fields.
+    shapelib.metric_info : Look a record up.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
 
     Examples
     --------
     >>> import numpy as np
+    >>> import shapelib as sl
     >>> def chebyshev(u, v):
     ...     return float(np.max(np.abs(np.asarray(u) - np.asarray(v))))
-    >>> info = register_metric("chebyshev", chebyshev, description="largest coordinate difference")
-    >>> distance([[0, 0], [1, 0]], [[0, 0], [1, 2]], metric="chebyshev")
+    >>> info = sl.register_metric("chebyshev", chebyshev, description="largest coordinate difference",
+    ...                           replace=True)
+    >>> sl.distance([[0, 0], [1, 0]], [[0, 0], [1, 2]], metric="chebyshev")
     2.0
     """
     if not isinstance(name, str) or not name.isidentifier():
@@ -165,8 +252,48 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
 
 
 def metric_info(metric) -> MetricInfo:
-    """The :class:`MetricInfo` of ``metric`` (a name, or a record, returned as is); ``ValueError``
-    naming an unknown one."""
+    r"""The :class:`~shapelib.MetricInfo` of a metric.
+
+    ``metric`` is a name, or a record (returned as is). The records of the information metrics of
+    [1]_ name their lower bounds (``"alpha_bound"``, ``"fisher_rao_bound"``):
+
+    .. math::
+
+        \|p_u - p_v\| \le d_\alpha(u, v), \qquad 2 \arccos \int \sqrt{p_u\, p_v}\, dx \le d_{FR}(u, v).
+
+    Parameters
+    ----------
+    metric : str or MetricInfo
+        The metric.
+
+    Returns
+    -------
+    MetricInfo
+        Its record.
+
+    Raises
+    ------
+    ValueError
+        Naming an unknown metric and listing the registered ones.
+
+    See Also
+    --------
+    shapelib.register_metric : Add a metric.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import shapelib as sl
+    >>> sl.metric_info("fisher_rao").lower_bound
+    'fisher_rao_bound'
+    >>> sl.metric_info(sl.metric_info("procrustes")).name
+    'procrustes'
+    """
     if isinstance(metric, MetricInfo):
         return metric
     try:
@@ -255,8 +382,11 @@ _BUILTIN = {}
 
 
 def is_builtin(info) -> bool:
-    """Whether the record ``info`` is shapelib's own metric of that name, not a replacement
-    registered with ``register_metric(..., replace=True)`` (the engine batches only its own bounds)."""
+    """Whether the record ``info`` is shapelib's own metric of that name.
+
+    Not a replacement registered with ``register_metric(..., replace=True)``: the engine batches
+    only its own bounds.
+    """
     return _BUILTIN.get(info.name) is info.function
 
 
@@ -292,9 +422,56 @@ del _name, _fn, _kw
 
 
 def path_result(u, v, *, metric: str, **params):
-    """The full :class:`~shapelib.solver.geodesic.GeodesicResult` of a path metric (``"alpha"``,
-    ``"fisher_rao"``: :func:`shapelib.geodesic`; ``"diffeomorphism"``:
-    :func:`shapelib.landmark_diffeomorphism`) — what :func:`distance` reduces to its length."""
+    r"""The full geodesic result of a path metric, which :func:`shapelib.distance` reduces to its length.
+
+    ``"alpha"``, ``"fisher_rao"``: :func:`shapelib.geodesic` (eqs. 8–12 of [1]_);
+    ``"diffeomorphism"``: :func:`shapelib.landmark_diffeomorphism` (eq. 3). The distance is the
+    path's length,
+
+    .. math::
+
+        d(u, v) \le \text{length} = \int_0^1 \sqrt{\dot\theta^\top g(\theta)\, \dot\theta}\, dt.
+
+    Parameters
+    ----------
+    u, v : array_like, shape (K, d)
+        Shapes in landmark correspondence.
+    metric : str, keyword-only
+        A path metric (:data:`~shapelib.distances.PATH_METRICS`).
+    **params
+        Options of that metric.
+
+    Returns
+    -------
+    GeodesicResult
+        The path, its length, energy, bound and convergence.
+
+    Raises
+    ------
+    ValueError
+        For a metric that is not a path metric, or options it does not take.
+
+    See Also
+    --------
+    shapelib.distance : The length alone.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.distances import path_result
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
+    >>> r = path_result(u, v, metric="alpha", sigma2=0.5, n_steps=4)
+    >>> r.path.shape, r.converged
+    ((5, 4, 2), True)
+    """
     info = metric_info(metric)
     if not info.path:
         raise ValueError(f"{info.name!r} is not a path metric; choose one of {PATH_METRICS}")
@@ -308,12 +485,58 @@ def target_function(metric, rtol):
 
 
 def check_metric_params(metric, params: dict, *, rtol=None) -> None:
-    """Raise ``ValueError`` naming an unknown ``metric``, an option it does not take, a missing
-    required option (``sigma2``) or an ``rtol`` it cannot honour.
+    r"""Check a metric's options against the function that computes it.
 
+    Raises ``ValueError`` naming an unknown ``metric``, an option it does not take, a missing
+    required option (``sigma2``, an :class:`~shapelib.InputError`) or an ``rtol`` it cannot honour.
     The options allowed are the keyword options of the function that computes the metric
     (:attr:`MetricInfo.accepts`; see the module docstring), so this check can never drift from the
-    functions themselves.
+    functions themselves. ``rtol`` must satisfy
+
+    .. math::
+
+        0 < \text{rtol} < \infty
+
+    for the certified metrics of [1]_ (eqs. 6 and 22) only.
+
+    Parameters
+    ----------
+    metric : str or MetricInfo
+        The metric.
+    params : dict
+        The options given.
+    rtol : float, optional
+        The relative tolerance asked for.
+
+    Returns
+    -------
+    None
+
+    Raises
+    ------
+    ValueError
+        As above (:class:`~shapelib.InputError` for a missing option).
+
+    See Also
+    --------
+    shapelib.distance : Checks its options with it.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> from shapelib.distances import check_metric_params
+    >>> check_metric_params("procrustes", {"kind": "full"}) is None
+    True
+    >>> try:
+    ...     check_metric_params("alpha", {})
+    ... except ValueError as exc:
+    ...     print(exc)
+    metric 'alpha' needs sigma2=...
     """
     info = metric_info(metric)
     metric = info.name
@@ -338,20 +561,62 @@ def check_metric_params(metric, params: dict, *, rtol=None) -> None:
 
 
 def distance(u, v, *, metric: str, rtol: float | None = None, **params) -> float:
-    """Distance between two landmark shapes under ``metric`` (see the module docstring).
+    r"""Distance between two landmark shapes under ``metric`` (see the module docstring).
+
+    For ``"alpha"`` and ``"fisher_rao"`` the geodesic length under the metric of eq. (22) or (6) of
+    [1]_; with ``rtol`` the upper end of a certified bracket,
+
+    .. math::
+
+        \text{lower} \le d(u, v) \le \text{upper}, \qquad \frac{\text{upper}}{\text{lower}} - 1 \le \text{rtol};
+
+    for the other metrics their closed form (Table I's comparisons).
 
     Parameters
     ----------
     u, v : array_like, shape (K, d)
         Shapes with landmarks in correspondence.
     metric : str
-        One of :data:`METRICS`.
+        One of :data:`~shapelib.distances.METRICS`.
     rtol : float, optional
         ``"alpha"``, ``"fisher_rao"`` only. ``None``: the length of the geodesic computed by
         :func:`shapelib.geodesic` (eqs. 8–12). A number: the upper end of the certified bracket
-        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.solver.bracket.distance_bracket`).
+        ``lower ≤ d ≤ upper`` with ``upper / lower − 1 ≤ rtol`` (:func:`shapelib.distance_bracket`).
     **params
         Options of that metric (e.g. ``sigma2`` for the information metrics).
+
+    Returns
+    -------
+    float
+        The distance.
+
+    Raises
+    ------
+    ValueError
+        For an unknown metric, an option it does not take, a missing required option (an
+        :class:`~shapelib.InputError`), an ``rtol`` it cannot honour, or bad shapes.
+
+    See Also
+    --------
+    shapelib.pair_record : The same with its bounds and diagnostics.
+    shapelib.pairwise_distances : The matrix of a population.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
+    >>> round(sl.distance(u, v, metric="procrustes"), 4)
+    0.1097
+    >>> round(sl.distance(u, v, metric="alpha", sigma2=0.5, rtol=1e-3), 4)
+    0.0464
     """
     if rtol is None:
         info = metric_info(metric)
@@ -362,27 +627,65 @@ def distance(u, v, *, metric: str, rtol: float | None = None, **params) -> float
 
 
 def pair_record(u, v, *, metric: str, rtol: float | None = None, **params) -> dict:
-    """Distance of one pair with its diagnostics — the one per-pair function of the library.
+    r"""Distance of one pair with its diagnostics — the one per-pair function of the library.
+
+    For the information metrics of [1]_ the record certifies the value:
+
+    .. math::
+
+        \text{lower} \le d(u, v) \le \text{upper} = \text{value}, \qquad
+        \text{upper}^2 \le \text{energy},
+
+    ``lower`` the closed-form bound (eqs. 5, 6, 22) and ``energy`` the path energy of eq. (8).
 
     Parameters
     ----------
     u, v : array_like, shape (K, d)
+        Shapes with landmarks in correspondence.
     metric : str or MetricInfo
-        A registered metric (:data:`METRICS`).
+        A registered metric (:data:`~shapelib.distances.METRICS`).
     rtol : float, optional
-        As in :func:`distance` (path metrics ``"alpha"``, ``"fisher_rao"`` only).
+        As in :func:`shapelib.distance` (path metrics ``"alpha"``, ``"fisher_rao"`` only).
     **params
         Options of that metric.
 
     Returns
     -------
     dict
-        ``value`` (the distance :func:`distance` returns), ``lower`` and ``upper`` (certified bounds:
-        the closed-form bound of eqs. 5/6 and the computed path's length for the information
-        metrics; ``lower = upper = value`` for the non-path metrics), ``energy`` (path energy,
-        eq. 8; NaN for non-path metrics, which have none), ``converged`` (bool; the geodesic
+        ``value`` (the distance :func:`shapelib.distance` returns), ``lower`` and ``upper``
+        (certified bounds: the closed-form bound of eqs. 5/6 and the computed path's length for the
+        information metrics; ``lower = upper = value`` for the non-path metrics), ``energy`` (path
+        energy, eq. 8; NaN for non-path metrics, which have none), ``converged`` (bool; the geodesic
         solver's certificate, or ``upper / lower − 1 ≤ rtol``; True for non-path metrics),
         ``n_iter`` (solver iterations, 0 for non-path metrics), ``seconds`` (wall time).
+
+    Raises
+    ------
+    ValueError
+        As :func:`shapelib.distance`.
+
+    See Also
+    --------
+    shapelib.distance : The value alone.
+    shapelib.pairwise_distances : Records of every pair of a population.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
+    >>> rec = sl.pair_record(u, v, metric="alpha", sigma2=0.5, rtol=1e-2)
+    >>> sorted(rec)
+    ['converged', 'energy', 'lower', 'n_iter', 'seconds', 'upper', 'value']
+    >>> rec["converged"], bool(rec["lower"] <= rec["value"] <= (1 + 1e-2) * rec["lower"])
+    (True, True)
     """
     info = metric_info(metric)
     check_metric_params(info, params, rtol=rtol)
@@ -410,6 +713,9 @@ POSE_DEPENDENT = ("alpha", "fisher_rao", "alpha_bound", "fisher_rao_bound", "dif
 
 
 def pose_dependent(metric: str, params: dict) -> bool:
-    """Whether ``metric`` with ``params`` depends on the pose of the shapes (:data:`POSE_DEPENDENT`;
-    ``"wendland"`` too with ``affine=False``, whose energy then includes the affine part)."""
+    """Whether ``metric`` with ``params`` depends on the pose of the shapes.
+
+    The metrics of ``POSE_DEPENDENT``; ``"wendland"`` too with ``affine=False``, whose energy then
+    includes the affine part.
+    """
     return metric in POSE_DEPENDENT or (metric == "wendland" and params.get("affine", True) is False)

@@ -9,9 +9,51 @@ __all__ = ["plot_trajectories", "plot_metric_panels", "plot_geodesic", "animate_
 
 
 def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
-    """Draw every landmark's trajectory along ``path`` (n+1, K, 2) as a solid black line, the
-    initial path ``init`` (default: the straight line between the ends) dashed grey, as in the
-    paper's Figs. 4 and 6; start landmarks as open circles, end landmarks as filled squares."""
+    """Draw every landmark's trajectory along a path, as in the paper's Figs. 4 and 6.
+
+    Each landmark's trajectory along ``path`` (a geodesic of eq. 8 of [1]_) as a solid black line,
+    the initial path ``init`` (default: the straight line between the ends) dashed grey; start
+    landmarks as open circles, end landmarks as filled squares.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Where to draw.
+    path : array_like, shape (n + 1, K, 2)
+        The path.
+    init : array_like, shape (n + 1, K, 2), optional
+        The initial path (default: the straight line between the ends).
+    lw : float, default 1.0
+        Line width of the trajectories.
+
+    Returns
+    -------
+    None
+
+    See Also
+    --------
+    shapelib.plotting.plot_geodesic : A whole figure of one geodesic.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import plot_trajectories
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> r = sl.geodesic(u, 1.1 * u - 0.05, sigma2=0.5, n_steps=4)
+    >>> fig, ax = plt.subplots()
+    >>> plot_trajectories(ax, r.path)
+    >>> len(ax.lines)
+    10
+    >>> plt.close(fig)
+    """
     path = np.asarray(path)
     init = np.linspace(path[0], path[-1], len(path)) if init is None else np.asarray(init)
     for j in range(path.shape[1]):
@@ -23,11 +65,51 @@ def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
 
 
 def plot_metric_panels(results: dict, *, figsize=(10, 4.5), lw: float = 1.0):
-    """Figs. 4 and 6 layout: (a) Fisher–Rao and (b) α-order trajectories side by side, each over
-    the dashed straight-line initialisation. ``results`` maps metric name to GeodesicResult.
+    """Figs. 4 and 6 layout: (a) Fisher–Rao and (b) α-order trajectories side by side.
 
-    One legend for both panels sits below them, outside the axes, so that it never covers a
-    trajectory or a landmark.
+    Each panel draws the geodesic of eq. (8) of [1]_ under one metric (eq. 6, eq. 22) over the
+    dashed straight-line initialisation. One legend for both panels sits below them, outside the
+    axes, so that it never covers a trajectory or a landmark.
+
+    Parameters
+    ----------
+    results : dict
+        ``{"fisher_rao": GeodesicResult, "alpha": GeodesicResult}``.
+    figsize : tuple, default (10, 4.5)
+        Figure size in inches.
+    lw : float, default 1.0
+        Line width of the trajectories.
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+        The figure.
+    axes : ndarray of matplotlib.axes.Axes
+        The two panels.
+
+    See Also
+    --------
+    shapelib.plotting.plot_trajectories : One panel.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import plot_metric_panels
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> results = {m: sl.geodesic(u, 1.1 * u - 0.05, metric=m, sigma2=0.5, n_steps=4)
+    ...            for m in ("fisher_rao", "alpha")}
+    >>> fig, axes = plot_metric_panels(results)
+    >>> [ax.get_title() for ax in axes]
+    ['(a) Fisher–Rao, σ² = 0.5', '(b) α-order entropy, σ² = 0.5']
+    >>> plt.close(fig)
     """
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
@@ -44,11 +126,55 @@ def plot_metric_panels(results: dict, *, figsize=(10, 4.5), lw: float = 1.0):
 
 
 def animate_geodesic(result, *, title="", closed=True, links=None):
-    """A matplotlib :class:`~matplotlib.animation.FuncAnimation` of the shapes along ``result.path``
-    (a :class:`~shapelib.solver.geodesic.GeodesicResult`), one frame per path point, forth and back;
-    ``closed`` draws each shape as a closed outline in landmark order, unless ``links`` (pairs of
-    0-based landmark indices, :func:`parse_links`; ``[]``: points only) says which landmarks to join.
-    Save it with ``anim.save(path, writer=...)``."""
+    """An animation of the shapes along a geodesic, one frame per path point, forth and back.
+
+    A matplotlib :class:`~matplotlib.animation.FuncAnimation` of the shapes along ``result.path``
+    (the intrinsic deformation of [1]_, a :class:`~shapelib.GeodesicResult`);
+    ``closed`` draws each shape as a closed outline in landmark order, unless ``links`` says which
+    landmarks to join. Save it with ``anim.save(path, writer=...)``.
+
+    Parameters
+    ----------
+    result : GeodesicResult
+        The geodesic.
+    title : str
+        Title (the time ``t`` is appended per frame).
+    closed : bool, default True
+        Close the outline (when ``links`` is None).
+    links : list of (int, int), optional
+        Pairs of 0-based landmark indices (:func:`~shapelib.plotting.parse_links`); ``[]``: points
+        only.
+
+    Returns
+    -------
+    matplotlib.animation.FuncAnimation
+        The animation (keep a reference until it is saved or shown).
+
+    See Also
+    --------
+    shapelib.plotting.plot_geodesic : A still figure.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import animate_geodesic
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> anim = animate_geodesic(sl.geodesic(u, 1.1 * u - 0.05, sigma2=0.5, n_steps=4), title="square")
+    >>> import os, tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     anim.save(os.path.join(tmp, "square.gif"), writer="pillow", dpi=30)
+    ...     os.path.getsize(os.path.join(tmp, "square.gif")) > 0
+    True
+    >>> plt.close("all")
+    """
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation
 
@@ -76,10 +202,47 @@ def animate_geodesic(result, *, title="", closed=True, links=None):
 
 
 def parse_links(text, n_landmarks: int) -> list[tuple[int, int]]:
-    """Which landmarks a drawing joins: ``"contour"`` (a closed outline in landmark order), or pairs
-    of landmark numbers counted from 1 as in the file, ``"1-2,2-3,5-1"`` (what geomorph's and Momocs'
-    ``links`` hold). Returns 0-based index pairs; ``ValueError`` naming a malformed pair or a
-    landmark number outside ``1..n_landmarks``."""
+    """Which landmarks a drawing joins, from text.
+
+    ``"contour"`` (a closed outline in landmark order), or pairs of landmark numbers counted from 1
+    as in the file, ``"1-2,2-3,5-1"`` (what geomorph's and Momocs' ``links`` hold). A drawing of the
+    landmarks of a shape θ of eq. (9) of [1]_.
+
+    Parameters
+    ----------
+    text : str
+        ``"contour"`` or comma-separated pairs ``"a-b"``.
+    n_landmarks : int
+        Number of landmarks of the shapes.
+
+    Returns
+    -------
+    list of (int, int)
+        0-based index pairs.
+
+    Raises
+    ------
+    ValueError
+        Naming a malformed pair or a landmark number outside ``1..n_landmarks``, or for no pairs.
+
+    See Also
+    --------
+    shapelib.plotting.plot_geodesic, shapelib.plotting.animate_geodesic
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> from shapelib.plotting import parse_links
+    >>> parse_links("1-2, 2-3", 3)
+    [(0, 1), (1, 2)]
+    >>> parse_links("contour", 3)
+    [(0, 1), (1, 2), (2, 0)]
+    """
     text = str(text).strip()
     if text.lower() == "contour":
         k = int(n_landmarks)
@@ -100,12 +263,54 @@ def parse_links(text, n_landmarks: int) -> list[tuple[int, int]]:
 
 
 def plot_geodesic(result, *, links=(), title: str = "", long_side: float = 6.0):
-    """One geodesic (Figs. 4 and 6 style) in a figure fitted to the shapes: every landmark's
-    trajectory (solid) over the straight line between the ends (dashed), start landmarks as open
-    circles, end landmarks as filled squares, and, if ``links`` are given (0-based pairs,
-    :func:`parse_links`), the start and end shapes drawn by joining those landmarks. A legend
-    below the axes; the figure's proportions follow the shapes' extent (a thin wing is drawn wide,
-    not lost in a square). Returns the figure."""
+    """One geodesic (Figs. 4 and 6 style) in a figure fitted to the shapes.
+
+    Every landmark's trajectory along the geodesic of eq. (8) of [1]_ (solid) over the straight
+    line between the ends (dashed), start landmarks as open circles, end landmarks as filled
+    squares, and, if ``links`` are given, the start and end shapes drawn by joining those
+    landmarks. A legend below the axes; the figure's proportions follow the shapes' extent (a thin
+    wing is drawn wide, not lost in a square).
+
+    Parameters
+    ----------
+    result : GeodesicResult
+        The geodesic.
+    links : sequence of (int, int)
+        0-based landmark pairs (:func:`~shapelib.plotting.parse_links`); empty: none drawn.
+    title : str
+        The axes' title.
+    long_side : float, default 6.0
+        Length of the figure's longer side, in inches.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+
+    See Also
+    --------
+    shapelib.plotting.plot_trajectories : The trajectories alone, on given axes.
+    shapelib.geodesic : What it draws.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import parse_links, plot_geodesic
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> r = sl.geodesic(u, 1.1 * u - 0.05, sigma2=0.5, n_steps=4)
+    >>> fig = plot_geodesic(r, links=parse_links("contour", 4), title="square")
+    >>> fig.axes[0].get_title()
+    'square'
+    >>> plt.close(fig)
+    """
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
@@ -151,7 +356,40 @@ def _draw_links(ax, shape, links, **style):
 
 
 def outline(shape, closed: bool = True) -> np.ndarray:
-    """The landmarks of ``shape`` in order, the first repeated at the end when ``closed``."""
+    """The landmarks of ``shape`` in order, the first repeated at the end when ``closed``.
+
+    Parameters
+    ----------
+    shape : ndarray, shape (K, d)
+        Landmarks (the means of eq. 5 of [1]_).
+    closed : bool, default True
+        Repeat the first landmark at the end.
+
+    Returns
+    -------
+    ndarray, shape (K + 1, d) or (K, d)
+        The outline's vertices.
+
+    See Also
+    --------
+    shapelib.plotting.plot_shapes_along
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.plotting import outline
+    >>> outline(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
+    array([[0., 0.],
+           [1., 0.],
+           [0., 1.],
+           [0., 0.]])
+    """
     return np.vstack([shape, shape[:1]]) if closed else shape
 
 
@@ -174,9 +412,56 @@ def _draw_shape(ax, shape, *, closed, **kw):
 
 def plot_shapes_along(ax, path, *, closed: bool | None = True, cmap: str = "viridis", every: int = 1, lw: float = 1.0,
                       landmarks: bool = True):
-    """The shapes along a path (n+1, K, d) — a geodesic, a mode of variation — as outlines coloured
-    from start to end (``cmap``), every ``every``-th one and always the ends; 3-D shapes need an
-    axes with ``projection="3d"``."""
+    """The shapes along a path as outlines coloured from start to end.
+
+    A geodesic (eq. 8 of [1]_), a mode of variation: every ``every``-th shape and always the ends,
+    coloured by ``cmap``; 3-D shapes need an axes with ``projection="3d"``.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Where to draw.
+    path : array_like, shape (n + 1, K, d)
+        The shapes.
+    closed : bool or None, default True
+        Closed outlines; False: open; None: landmarks only (no order).
+    cmap : str, default "viridis"
+        Colour map from start to end.
+    every : int, default 1
+        Draw every ``every``-th shape (the ends always).
+    lw : float, default 1.0
+        Line width (the ends drawn 1.6 times thicker).
+    landmarks : bool, default True
+        Mark the landmarks of the ends.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        ``ax``.
+
+    See Also
+    --------
+    shapelib.plotting.plot_deformation : The same geodesic as a deformed grid.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import plot_shapes_along
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> r = sl.geodesic(u, 1.1 * u - 0.05, sigma2=0.5, n_steps=4)
+    >>> fig, ax = plt.subplots()
+    >>> len(plot_shapes_along(ax, r.path, every=2).lines)
+    3
+    >>> plt.close(fig)
+    """
     import matplotlib.pyplot as plt
 
     path = np.asarray(path)
@@ -193,9 +478,35 @@ def plot_shapes_along(ax, path, *, closed: bool | None = True, cmap: str = "viri
 
 def deformation_grid(result, *, mag: float = 1.0, n_lines: int = 15, margin: float = 0.15, points_per_line: int = 60,
                      lam: float = 1e-3, grid_size: int = 48):
-    """A regular grid of the ambient plane around the start of a geodesic and the same grid
-    deformed along it by the paper's extrinsic warp (§III-E, :func:`shapelib.extrinsic_warp`),
-    the geodesic first magnified ``mag`` times (:func:`shapelib.solver.logexp.magnify`).
+    r"""A regular grid of the ambient plane deformed along a geodesic by the extrinsic warp.
+
+    The grid around the start of the geodesic is moved by the paper's likelihood-preserving flow
+    (§III-E of [1]_, :func:`shapelib.extrinsic_warp`), which minimises
+
+    .. math::
+
+        E(u, v) = \int \lambda \left[(\nabla^2 u)^2 + (\nabla^2 v)^2\right]
+        + \left(\frac{d \log L}{dt}\right)^2 dx \qquad \text{(eq. 26)}
+
+    on each segment, the geodesic first magnified ``mag`` times
+    (:func:`shapelib.solver.logexp.magnify`).
+
+    Parameters
+    ----------
+    result : GeodesicResult
+        A 2-D α or Fisher–Rao geodesic.
+    mag : float, default 1.0
+        Magnification of the geodesic (as geomorph's ``plotRefToTarget(mag=)``).
+    n_lines : int, default 15
+        Vertical grid lines (horizontal ones in proportion).
+    margin : float, default 0.15
+        Margin around the start shape, as a fraction of its extent.
+    points_per_line : int, default 60
+        Points per grid line.
+    lam : float, default 1e-3
+        λ of eq. (26).
+    grid_size : int, default 48
+        Flow grid points per axis.
 
     Returns
     -------
@@ -203,6 +514,33 @@ def deformation_grid(result, *, mag: float = 1.0, n_lines: int = 15, margin: flo
         Grid lines before and after (horizontal lines, then vertical ones).
     end : ndarray (K, 2)
         The end shape of the magnified geodesic.
+
+    Raises
+    ------
+    ValueError
+        For 3-D landmarks, or what :func:`shapelib.extrinsic_warp` raises.
+
+    See Also
+    --------
+    shapelib.plotting.plot_deformation : Draws it.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import deformation_grid
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> r = sl.geodesic(u, sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False),
+    ...                 sigma2=0.5, n_steps=4)
+    >>> grid, warped, end = deformation_grid(r, n_lines=5, grid_size=16)
+    >>> grid.shape == warped.shape, end.shape
+    (True, (4, 2))
     """
     from .comparison.warp import extrinsic_warp
     from .solver.logexp import magnify
@@ -226,9 +564,64 @@ def deformation_grid(result, *, mag: float = 1.0, n_lines: int = 15, margin: flo
 
 def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed: bool | None = True, lw: float = 0.6,
                      **grid_kw):
-    """The deformed grid of :func:`deformation_grid` with the start shape (grey, dashed) and the
-    magnified end shape (black) of the geodesic ``result``; ``mag`` as geomorph's
-    ``plotRefToTarget(mag=)``. Returns what :func:`deformation_grid` returns."""
+    r"""The deformed grid of a geodesic with its start and (magnified) end shapes.
+
+    The grid of :func:`~shapelib.plotting.deformation_grid` (the extrinsic warp of eq. 26 of [1]_),
+    the start shape (grey, dashed) and the magnified end shape (black); ``mag`` as geomorph's
+    ``plotRefToTarget(mag=)``. The flow minimises
+
+    .. math::
+
+        E(u, v) = \int \lambda \left[(\nabla^2 u)^2 + (\nabla^2 v)^2\right]
+        + \left(\frac{d \log L}{dt}\right)^2 dx.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Where to draw.
+    result : GeodesicResult
+        A 2-D α or Fisher–Rao geodesic.
+    mag : float, default 1.0
+        Magnification.
+    n_lines : int, default 15
+        Vertical grid lines.
+    closed : bool or None, default True
+        How to draw the shapes (None: landmarks only).
+    lw : float, default 0.6
+        Line width of the grid.
+    **grid_kw
+        Further options of :func:`~shapelib.plotting.deformation_grid`.
+
+    Returns
+    -------
+    grid, warped, end
+        What :func:`~shapelib.plotting.deformation_grid` returns.
+
+    See Also
+    --------
+    shapelib.extrinsic_warp : The warp.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import plot_deformation
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> r = sl.geodesic(u, sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False),
+    ...                 sigma2=0.5, n_steps=4)
+    >>> fig, ax = plt.subplots()
+    >>> grid, warped, end = plot_deformation(ax, r, mag=2.0, n_lines=5, grid_size=16)
+    >>> len(ax.lines) == len(warped) + 2
+    True
+    >>> plt.close(fig)
+    """
     grid, warped, end = deformation_grid(result, mag=mag, n_lines=n_lines, **grid_kw)
     for line in warped:
         ax.plot(line[:, 0], line[:, 1], "-", color="0.55", lw=lw)
@@ -241,9 +634,58 @@ def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed:
 
 
 def plot_mean(shapes, result, *, closed: bool | None = True, title: str = "", figsize=(5, 5)):
-    """The Fréchet mean (:class:`~shapelib.statistics.frechet.FrechetMeanResult`) over the shapes
-    it summarises (light grey), with the Procrustes mean it started from (dashed); 2-D or 3-D
-    landmarks. Returns the figure."""
+    r"""The Fréchet mean over the shapes it summarises, with the Procrustes mean it started from.
+
+    The Fréchet mean of the metric of eq. (22) or (6) of [1]_,
+
+    .. math::
+
+        \bar\theta = \arg\min_\theta \sum_{i=1}^{N} d(\theta, \theta_i)^2,
+
+    drawn over the shapes (light grey) with its start (dashed); 2-D or 3-D landmarks.
+
+    Parameters
+    ----------
+    shapes : array_like, shape (N, K, d)
+        The shapes.
+    result : FrechetMeanResult
+        From :func:`shapelib.frechet_mean` (its ``mean`` and ``init``).
+    closed : bool or None, default True
+        How to draw the shapes (None: landmarks only).
+    title : str
+        The axes' title.
+    figsize : tuple, default (5, 5)
+        Figure size in inches.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+
+    See Also
+    --------
+    shapelib.frechet_mean : What it draws.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import plot_mean
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    >>> shapes = sl.pose_align(np.c_[np.cos(t), np.sin(t)] + 0.05 * rng.standard_normal((6, 6, 2)))[0]
+    >>> fig = plot_mean(shapes, sl.frechet_mean(shapes, sigma2=0.5), title="mean")
+    >>> fig.axes[0].get_title()
+    'mean'
+    >>> plt.close(fig)
+    """
     import matplotlib.pyplot as plt
 
     d = np.asarray(result.mean).shape[1]
@@ -261,10 +703,55 @@ def plot_mean(shapes, result, *, closed: bool | None = True, title: str = "", fi
 
 
 def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | None = True, figscale: float = 2.6):
-    """Shapes along the tangent-PCA modes (:class:`~shapelib.statistics.tangent_pca.TangentPCAResult`):
-    one row per component, one column per standard deviation, each over the mean (grey, dashed);
-    the mode's explained variance in the row title; ``closed=None`` draws landmarks without an
-    outline. Returns the figure."""
+    r"""Shapes along the tangent-PCA modes: one row per component, one column per standard deviation.
+
+    Each mode is the geodesic :math:`\exp_{\bar\theta}(s\, \sqrt{\lambda_j}\, e_j)` from the mean
+    along the j-th principal direction of the log maps (metric of eq. 22 or 6 of [1]_), drawn over
+    the mean (grey, dashed); the mode's explained variance in the panel title; ``closed=None``
+    draws landmarks without an outline.
+
+    Parameters
+    ----------
+    pca : TangentPCAResult
+        From :func:`shapelib.tangent_pca`.
+    components : sequence of int, default (0, 1)
+        The modes (0-based).
+    sd : sequence of float, default (-2, 0, 2)
+        Standard deviations along each mode.
+    closed : bool or None, default True
+        How to draw the shapes.
+    figscale : float, default 2.6
+        Inches per panel.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+
+    See Also
+    --------
+    shapelib.tangent_pca : The modes.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import plot_modes
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    >>> shapes = sl.pose_align(np.c_[np.cos(t), np.sin(t)] + 0.05 * rng.standard_normal((6, 6, 2)))[0]
+    >>> fig = plot_modes(sl.tangent_pca(shapes, sigma2=0.5))
+    >>> len(fig.axes)
+    6
+    >>> plt.close(fig)
+    """
     import matplotlib.pyplot as plt
 
     d = pca.mean.shape[1]
@@ -288,9 +775,64 @@ def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | No
 
 def plot_mean_difference(test, *, mag: float = 3.0, closed: bool | None = True, every: int = 2, n_lines: int = 15,
                          figsize=(9, 4), **grid_kw):
-    """Two panels for a :class:`~shapelib.statistics.group.MeanDifferenceResult`: the shapes along
-    the geodesic between the two groups' Fréchet means, and the extrinsic-warp grid of that
-    geodesic magnified ``mag`` times; the permutation p-value in the title. Returns the figure."""
+    """Two panels for a test of a difference in mean shape.
+
+    For a :class:`~shapelib.statistics.group.MeanDifferenceResult`: the shapes along the geodesic
+    (eq. 8 of [1]_) between the two groups' Fréchet means, and the extrinsic-warp grid (eq. 26) of
+    that geodesic magnified ``mag`` times; the permutation p-value in the title.
+
+    Parameters
+    ----------
+    test : MeanDifferenceResult
+        From :func:`shapelib.mean_difference_test` (with ``group_means=True``).
+    mag : float, default 3.0
+        Magnification of the geodesic in the grid panel.
+    closed : bool or None, default True
+        How to draw the shapes.
+    every : int, default 2
+        Draw every ``every``-th shape along the geodesic.
+    n_lines : int, default 15
+        Grid lines.
+    figsize : tuple, default (9, 4)
+        Figure size in inches.
+    **grid_kw
+        Further options of :func:`~shapelib.plotting.deformation_grid`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+
+    Raises
+    ------
+    ValueError
+        If the test was run without the group means' geodesic.
+
+    See Also
+    --------
+    shapelib.mean_difference_test : The test.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import matplotlib.pyplot as plt
+    >>> import shapelib as sl
+    >>> from shapelib.plotting import plot_mean_difference
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    >>> shapes = sl.pose_align(np.c_[np.cos(t), np.sin(t)] + 0.05 * rng.standard_normal((6, 6, 2)))[0]
+    >>> test = sl.mean_difference_test(shapes, [0, 0, 0, 1, 1, 1], sigma2=0.5, n_permutations=19, geodesic_steps=4)
+    >>> fig = plot_mean_difference(test, mag=1.0, n_lines=5, grid_size=16)
+    >>> len(fig.axes)
+    2
+    >>> plt.close(fig)
+    """
     import matplotlib.pyplot as plt
 
     if test.geodesic is None:

@@ -1,33 +1,51 @@
-"""Spline bending energies, comparison distances of Table I that are not information metrics.
+r"""Spline bending energies, comparison distances of Table I that are not information metrics.
 
 Thin-plate spline bending energy (2-D: Bookstein 1989, paper ref. [5]; 3-D: biharmonic Green's function)
-    The TPS ``f`` with ``f(u_a) = v_a`` minimises ``∫ Σ_ij (∂_i∂_j f)²`` over ``R^d`` (per
-    coordinate; in 2-D ``∫ (f_xx² + 2 f_xy² + f_yy²)``). It is ``f(x) = Σ_a w_a U(|x − u_a|)`` plus
-    an affine part, with ``U`` the fundamental solution of the biharmonic operator ``Δ²`` in
-    ``R^d`` (up to a positive constant): ``U(r) = r² log r²`` in 2-D (Bookstein's form) and
-    ``U(r) = −r`` in 3-D (``Δ²(−r) = 8π δ`` there).
-    With the kernel matrix ``K_ab = U(|u_a − u_b|)``, ``P = [1, u]`` and
-    ``L = [[K, P], [Pᵀ, 0]]``, let ``B`` be the upper-left K×K block of ``L⁻¹`` (positive
-    semidefinite, null space the affine functions of ``u``). The bending energy is
-    ``tr(Dᵀ B D)`` with ``D = v − u`` the displacements (equal to ``tr(vᵀ B v)``, since ``B``
-    annihilates affine maps).
+    The TPS :math:`f` with :math:`f(u_a) = v_a` minimises
 
-    * 2-D (default kernel ``"r2logr2"``): for ``U(r) = r² log r`` the integral above equals
-      ``8π tr(DᵀBD)``; for ``U(r) = r² log r²`` ``16π tr(DᵀBD)`` holds with the B of that
-      kernel. The energy is scale invariant: scaling ``u`` and ``v`` by ``s`` leaves it unchanged.
-    * 3-D (default kernel ``"r"``, ``U(r) = −r``): the integral equals ``8π tr(DᵀBD)``
-      (checked by an independent quadrature of the interpolant's second derivatives in the
-      tests). The energy scales linearly with size: scaling ``u`` and ``v`` by ``s``
-      multiplies it by ``s``.
+    .. math::
+
+        J(f) = \int_{\mathbb{R}^d} \sum_{i,j} (\partial_i \partial_j f)^2\, dx
+
+    (per coordinate; in 2-D :math:`\int (f_{xx}^2 + 2 f_{xy}^2 + f_{yy}^2)`). It is
+    :math:`f(x) = \sum_a w_a U(|x - u_a|)` plus an affine part, with :math:`U` the fundamental
+    solution of the biharmonic operator :math:`\Delta^2` in :math:`\mathbb{R}^d` (up to a positive
+    constant): :math:`U(r) = r^2 \log r^2` in 2-D (Bookstein's form) and :math:`U(r) = -r` in 3-D
+    (:math:`\Delta^2(-r) = 8\pi\delta` there). With the kernel matrix
+    :math:`K_{ab} = U(|u_a - u_b|)`, :math:`P = [1, u]` and
+
+    .. math::
+
+        L = \begin{pmatrix} K & P \\ P^\top & 0 \end{pmatrix},
+
+    let :math:`B` be the upper-left K×K block of :math:`L^{-1}` (positive semidefinite, null
+    space the affine functions of :math:`u`). The bending energy is
+    :math:`\operatorname{tr}(D^\top B D)` with :math:`D = v - u` the displacements (equal to
+    :math:`\operatorname{tr}(v^\top B v)`, since :math:`B` annihilates affine maps).
+
+    * 2-D (default kernel ``"r2logr2"``): for :math:`U(r) = r^2 \log r` the integral above
+      equals :math:`8\pi \operatorname{tr}(D^\top B D)`; for :math:`U(r) = r^2 \log r^2`,
+      :math:`16\pi \operatorname{tr}(D^\top B D)` holds with the B of that kernel. The energy is
+      scale invariant: scaling ``u`` and ``v`` by ``s`` leaves it unchanged.
+    * 3-D (default kernel ``"r"``, :math:`U(r) = -r`): the integral equals
+      :math:`8\pi \operatorname{tr}(D^\top B D)` (checked by an independent quadrature of the
+      interpolant's second derivatives in the tests). The energy scales linearly with size:
+      scaling ``u`` and ``v`` by ``s`` multiplies it by ``s``.
 
     It is affine invariant in the target and not symmetric.
 
 Wendland spline bending energy (Fornefett, Rohr & Stiehl 2001, paper ref. [42])
     Same construction with the compactly supported, positive-definite Wendland function
-    ``ψ₃,₁(r) = (1 − r)₊⁴ (4r + 1)`` scaled to support radius ``a``: ``K_ab = ψ(|u_a − u_b| / a)``.
-    With ``affine=True`` the affine part is free (side conditions ``Pᵀ w = 0``), exactly as for
-    the TPS; with ``affine=False`` the energy is the native-space norm ``tr(Dᵀ K⁻¹ D)`` of the
-    displacement interpolant, which is *not* affine invariant.
+
+    .. math::
+
+        \psi_{3,1}(r) = (1 - r)_+^4 (4r + 1)
+
+    scaled to support radius :math:`a`: :math:`K_{ab} = \psi(|u_a - u_b| / a)`. With
+    ``affine=True`` the affine part is free (side conditions :math:`P^\top w = 0`), exactly as for
+    the TPS; with ``affine=False`` the energy is the native-space norm
+    :math:`\operatorname{tr}(D^\top K^{-1} D)` of the displacement interpolant, which is *not*
+    affine invariant.
 """
 
 from __future__ import annotations
@@ -55,7 +73,17 @@ _DEFAULT_KERNEL = {2: "r2logr2", 3: "r"}
 
 
 def tps_kernel(r: np.ndarray, *, kernel: str = "r2logr2") -> np.ndarray:
-    """Thin-plate spline radial function ``U(r)``.
+    r"""Thin-plate spline radial function ``U(r)``.
+
+    .. math::
+
+        U(r) = r^2 \log r^2 \quad (\text{"r2logr2"}), \qquad
+        U(r) = r^2 \log r \quad (\text{"r2logr"}), \qquad
+        U(r) = -r \quad (\text{"r"}),
+
+    the fundamental solution of the biharmonic operator in 2-D (the first two, Bookstein's form
+    first [1]_) and 3-D (the last), up to a positive constant; 0 at r = 0. The TPS is a
+    comparison of Table I of [2]_.
 
     Parameters
     ----------
@@ -69,6 +97,32 @@ def tps_kernel(r: np.ndarray, *, kernel: str = "r2logr2") -> np.ndarray:
     -------
     numpy.ndarray
         ``U(r)``, float64, same shape as ``r``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``kernel``.
+
+    See Also
+    --------
+    shapelib.comparison.splines.tps_bending_matrix : The matrix built from it.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Principal warps: thin-plate splines and the decomposition of deformations",
+       *IEEE Transactions on Pattern Analysis and Machine Intelligence* 11(6), 567–585, 1989.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.comparison.splines import tps_kernel
+    >>> tps_kernel(np.array([0.0, 1.0, 2.0])).round(4)
+    array([0.    , 0.    , 5.5452])
+    >>> tps_kernel(np.array([0.0, 2.0]), kernel="r")
+    array([-0., -2.])
     """
     if kernel not in _TPS_KERNELS:
         raise ValueError(f"kernel must be one of {', '.join(repr(k) for k in _TPS_KERNELS)}; got {kernel!r}")
@@ -120,21 +174,58 @@ def _check_distinct(u, name="u"):
 
 
 def tps_bending_matrix(u, *, kernel: str | None = None) -> np.ndarray:
-    """Bookstein's bending-energy matrix ``B`` (upper-left K×K block of ``L⁻¹``) of the landmarks ``u``.
+    r"""Bookstein's bending-energy matrix ``B`` (upper-left K×K block of ``L⁻¹``) of the landmarks ``u``.
+
+    .. math::
+
+        L = \begin{pmatrix} K & P \\ P^\top & 0 \end{pmatrix}, \qquad
+        K_{ab} = U(|u_a - u_b|), \quad P = [\mathbf{1}, u], \qquad
+        B = (L^{-1})_{1:K,\ 1:K}
+
+    [1]_; the bending energy of a displacement :math:`D` is :math:`\operatorname{tr}(D^\top B D)`
+    (Table I of [2]_).
 
     Parameters
     ----------
     u : array_like, shape (K, d)
         Landmarks (K >= d + 1, distinct, not all on one hyperplane).
     kernel : {"r2logr2", "r2logr", "r"}, optional
-        Radial function (see :func:`tps_kernel`). Default: the thin-plate kernel of the
-        dimension, ``"r2logr2"`` for d = 2 and ``"r"`` (``U(r) = −r``) for d = 3; other
-        dimensions need an explicit kernel.
+        Radial function (see :func:`~shapelib.comparison.splines.tps_kernel`). Default: the
+        thin-plate kernel of the dimension, ``"r2logr2"`` for d = 2 and ``"r"`` (``U(r) = −r``)
+        for d = 3; other dimensions need an explicit kernel.
 
     Returns
     -------
     numpy.ndarray, shape (K, K)
         Symmetric positive semidefinite; annihilates affine functions of ``u``.
+
+    Raises
+    ------
+    ValueError
+        Too few landmarks for an affine part, coincident landmarks (an
+        :class:`~shapelib.InputError` naming them), degenerate (collinear, coplanar) landmarks, or
+        no default kernel for the dimension.
+
+    See Also
+    --------
+    shapelib.tps_bending_energy : The energy of a map.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Principal warps: thin-plate splines and the decomposition of deformations",
+       *IEEE Transactions on Pattern Analysis and Machine Intelligence* 11(6), 567–585, 1989.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.comparison.splines import tps_bending_matrix
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> b = tps_bending_matrix(u)
+    >>> bool(np.allclose(b @ np.c_[np.ones(4), u], 0.0))  # affine maps cost nothing
+    True
     """
     u = as_shape(u, name="u", dims=None)  # any d with an explicit kernel
     kernel = _default_kernel(kernel, u.shape[1])
@@ -150,7 +241,19 @@ def _check_affine_count(u):
 
 
 def tps_bending_energy(u, v, *, kernel: str | None = None) -> float:
-    """Thin-plate spline bending energy ``tr(Dᵀ B D)`` of the map taking ``u`` onto ``v`` (see module doc).
+    r"""Thin-plate spline bending energy ``tr(Dᵀ B D)`` of the map taking ``u`` onto ``v`` (see module doc).
+
+    With Bookstein's bending-energy matrix :math:`B` of the source landmarks [1]_ and the
+    displacements :math:`D = v - u`,
+
+    .. math::
+
+        E_{\mathrm{TPS}}(u \to v) = \operatorname{tr}(D^\top B D)
+        = \frac{1}{16\pi} \int_{\mathbb{R}^2} \sum_{i,j} (\partial_i \partial_j f)^2\, dx
+        \quad (\text{2-D, } U = r^2 \log r^2),
+
+    the smoothness term :math:`\|Lf\|^2` of the spline matching model of eq. (1) of [2]_ with the
+    thin-plate operator, and a comparison measure of its Table I (not a metric: not symmetric).
 
     Parameters
     ----------
@@ -158,15 +261,47 @@ def tps_bending_energy(u, v, *, kernel: str | None = None) -> float:
         Source and target landmarks, d = 2 or 3 with the default kernel (K >= d + 1,
         distinct, not all on one line in 2-D or one plane in 3-D).
     kernel : {"r2logr2", "r2logr", "r"}, optional
-        Radial function (see :func:`tps_kernel`). Default: ``"r2logr2"`` for d = 2 (scale
-        invariant energy) and ``"r"`` (``U(r) = −r``) for d = 3 (energy linear in size);
-        other dimensions need an explicit kernel.
+        Radial function (see :func:`~shapelib.comparison.splines.tps_kernel`). Default:
+        ``"r2logr2"`` for d = 2 (scale invariant energy) and ``"r"`` (``U(r) = −r``) for d = 3
+        (energy linear in size); other dimensions need an explicit kernel.
 
     Returns
     -------
     float
         The bending energy; ``∫ Σ_ij (∂_i∂_j f)²`` of the interpolant is ``16π`` times it
         for ``"r2logr2"`` (2-D) and ``8π`` times it for ``"r2logr"`` (2-D) and ``"r"`` (3-D).
+
+    Raises
+    ------
+    ValueError
+        For shapes that do not match or are not finite, or what
+        :func:`~shapelib.comparison.splines.tps_bending_matrix` raises.
+
+    See Also
+    --------
+    shapelib.wendland_bending_energy : The compactly supported counterpart.
+    shapelib.distance : Every distance through one entry point (``metric="tps"``).
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Principal warps: thin-plate splines and the decomposition of deformations",
+       *IEEE Transactions on Pattern Analysis and Machine Intelligence* 11(6), 567–585, 1989.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    An affine map bends nothing; moving one corner does.
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> bool(abs(sl.tps_bending_energy(u, 2.0 * u @ np.array([[1.0, 0.3], [0.0, 1.0]]) + 1.0)) < 1e-12)
+    True
+    >>> v = np.array([[0.0, 0.0], [1.2, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> round(sl.tps_bending_energy(u, v), 6)
+    0.007213
     """
     u, v = as_shape_pair(u, v, dims=None)  # any d with an explicit kernel
     b = tps_bending_matrix(u, kernel=kernel)
@@ -175,22 +310,108 @@ def tps_bending_energy(u, v, *, kernel: str | None = None) -> float:
 
 
 def wendland_psi31(r) -> np.ndarray:
-    """Wendland's ψ₃,₁(r) = (1 − r)₊⁴ (4r + 1): C², positive definite in up to 3 dimensions."""
+    r"""Wendland's ψ₃,₁: C², positive definite in up to 3 dimensions, compactly supported.
+
+    .. math::
+
+        \psi_{3,1}(r) = (1 - r)_+^4\, (4r + 1)
+
+    [1]_; the basis of the Wendland spline of Table I of [2]_.
+
+    Parameters
+    ----------
+    r : array_like
+        Distances in units of the support radius (>= 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        :math:`\psi_{3,1}(r)`, 0 for :math:`r \ge 1`.
+
+    See Also
+    --------
+    shapelib.wendland_bending_energy : The bending energy built on it.
+
+    References
+    ----------
+    .. [1] H. Wendland, "Piecewise polynomial, positive definite and compactly supported radial functions
+       of minimal degree", *Advances in Computational Mathematics* 4, 389–396, 1995.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> from shapelib.comparison.splines import wendland_psi31
+    >>> wendland_psi31([0.0, 0.5, 1.0, 2.0])
+    array([1.    , 0.1875, 0.    , 0.    ])
+    """
     r = np.asarray(r, dtype=np.float64)
     return np.where(r < 1, (1 - r) ** 4 * (4 * r + 1), 0.0)
 
 
 def wendland_bending_energy(u, v, *, support: float | None = None, affine: bool = True) -> float:
-    """Wendland ψ₃,₁ spline bending energy of the map taking ``u`` onto ``v`` (see module doc).
+    r"""Wendland ψ₃,₁ spline bending energy of the map taking ``u`` onto ``v`` (see module doc).
+
+    The construction of the TPS energy with :math:`K_{ab} = \psi_{3,1}(|u_a - u_b| / a)` [1]_:
+
+    .. math::
+
+        E_W(u \to v) = \operatorname{tr}(D^\top B D), \qquad D = v - u,
+
+    with :math:`B` the upper-left block of the inverse of the bordered kernel matrix (``affine=True``)
+    or :math:`B = K^{-1}` (``affine=False``): the term :math:`\|Lf\|^2` of eq. (1) of [2]_ with
+    the operator whose Green's function is :math:`\psi_{3,1}`, and a comparison measure of its
+    Table I (not symmetric).
 
     Parameters
     ----------
     u, v : array_like, shape (K, d)
+        Source and target landmarks.
     support : float, optional
         Support radius ``a`` of ψ(r/a); default: the diameter of ``u`` (every basis function
         reaches every landmark).
     affine : bool
         Leave the affine part free (side conditions), as for the TPS.
+
+    Returns
+    -------
+    float
+        The bending energy (≥ 0).
+
+    Raises
+    ------
+    ValueError
+        For shapes that do not match or are not finite, too few landmarks for an affine part,
+        coincident landmarks (an :class:`~shapelib.InputError`), a non-positive ``support`` or a
+        zero diameter.
+
+    Warns
+    -----
+    PoseWarning
+        With ``affine=False``, when the shapes are not aligned (the energy then includes the
+        affine part).
+
+    See Also
+    --------
+    shapelib.tps_bending_energy : The thin-plate counterpart.
+
+    References
+    ----------
+    .. [1] H. Wendland, "Piecewise polynomial, positive definite and compactly supported radial functions
+       of minimal degree", *Advances in Computational Mathematics* 4, 389–396, 1995.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = np.array([[0.0, 0.0], [1.2, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> round(sl.wendland_bending_energy(u, v), 6)
+    0.010597
     """
     u, v = as_shape_pair(u, v)
     if not affine:  # the energy then includes the affine part, so it depends on pose

@@ -1,20 +1,27 @@
-"""Extrinsic deformation (paper §III-E, eqs. 23–26): warp the ambient space along a geodesic.
+r"""Extrinsic deformation (paper §III-E, eqs. 23–26): warp the ambient space along a geodesic.
 
 Along a geodesic θ(t) the points x(t) of the ambient space move with a flow (u, v) that keeps
-their likelihood under the GMM constant (eq. 24),
+their likelihood under the GMM (eq. 23) constant (eq. 24),
 
-    d log L / dt = ∇_θ log p(x | θ) · θ̇ + ∇_x log p(x | θ) · (u, v) = 0,
+.. math::
 
-regularised by the thin-plate (Laplacian) energy (eq. 25); the flow minimises (eq. 26)
+    \frac{d \log L}{dt} = \nabla_\theta \log p(x \mid \theta) \cdot \dot\theta
+    + \nabla_x \log p(x \mid \theta) \cdot (u, v) = 0, \qquad \text{(eq. 24)}
 
-    E(u, v) = ∫ λ [(∇²u)² + (∇²v)²] + (d log L / dt)² dx.
+regularised by the thin-plate (Laplacian) energy (eq. 25); the flow minimises
 
-With responsibilities ``w_a(x) = N_a(x) / (K p(x))``:
-``∇_x log p = −Σ_a w_a (x − φ_a)/σ²`` and ``∇_{φ_a} log p = w_a (x − φ_a)/σ²``.
-We discretise E on a regular grid (5-point Laplacian with reflecting borders), solve the
-sparse normal equations for each segment of the geodesic (landmark velocities constant on a
-segment, shape at its midpoint) and move the points by the interpolated flow. As the paper
-notes, the result is not guaranteed to be a diffeomorphism.
+.. math::
+
+    E(u, v) = \int \lambda \left[(\nabla^2 u)^2 + (\nabla^2 v)^2\right]
+    + \left(\frac{d \log L}{dt}\right)^2 dx. \qquad \text{(eq. 26)}
+
+With responsibilities :math:`w_a(x) = N_a(x) / (K p(x))`:
+:math:`\nabla_x \log p = -\sum_a w_a (x - \phi_a)/\sigma^2` and
+:math:`\nabla_{\phi_a} \log p = w_a (x - \phi_a)/\sigma^2`. We discretise E on a regular grid
+(5-point Laplacian with reflecting borders), solve the sparse normal equations for each segment
+of the geodesic (landmark velocities constant on a segment, shape at its midpoint) and move the
+points by the interpolated flow. As the paper notes, the result is not guaranteed to be a
+diffeomorphism.
 """
 
 from __future__ import annotations
@@ -45,8 +52,58 @@ def _laplacian(nx, ny, hx, hy):
 
 
 def likelihood_flow(theta, velocity, sigma2, axes, *, lam: float):
-    """The flow (u, v) of eq. (26) on the grid ``axes`` (x-axis, y-axis) for shape ``theta`` (K, 2)
-    moving with landmark velocities ``velocity``; returns an array (nx, ny, 2)."""
+    r"""The flow (u, v) of eq. (26) on a grid for a shape moving with given landmark velocities.
+
+    Minimises, over the grid values of the flow, the discretised energy of [1]_
+
+    .. math::
+
+        E(u, v) = \sum_{\text{nodes}} \lambda \left[(\nabla^2 u)^2 + (\nabla^2 v)^2\right]
+        + \left(\nabla_\theta \log p \cdot \dot\theta + \nabla_x \log p \cdot (u, v)\right)^2
+        \qquad \text{(eqs. 24–26)}
+
+    by its sparse normal equations (5-point Laplacian with reflecting borders).
+
+    Parameters
+    ----------
+    theta : ndarray, shape (K, 2)
+        The shape.
+    velocity : ndarray, shape (K, 2)
+        Its landmark velocities.
+    sigma2 : float
+        σ² of eq. (5).
+    axes : sequence of two ndarray
+        Grid coordinates along x and y (regular).
+    lam : float, keyword-only
+        λ of eq. (26).
+
+    Returns
+    -------
+    ndarray, shape (nx, ny, 2)
+        The flow (u, v) at the grid nodes.
+
+    See Also
+    --------
+    shapelib.extrinsic_warp : Moves points with it along a geodesic.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    A translation of every landmark carries the ambient space with it:
+
+    >>> import numpy as np
+    >>> from shapelib.comparison.warp import likelihood_flow
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> axes = [np.linspace(-1.0, 2.0, 12)] * 2
+    >>> flow = likelihood_flow(u, np.tile([1.0, 0.0], (4, 1)), 0.5, axes, lam=1e-3)
+    >>> flow.shape, bool(np.allclose(flow[6, 6], [1.0, 0.0]))
+    ((12, 12, 2), True)
+    """
     xx, yy = np.meshgrid(axes[0], axes[1], indexing="ij")
     nodes = np.column_stack([xx.ravel(), yy.ravel()])
     r = nodes[:, None, :] - theta[None]  # (N, K, 2)
@@ -69,7 +126,16 @@ def likelihood_flow(theta, velocity, sigma2, axes, *, lam: float):
 
 def extrinsic_warp(points, geodesic_result: GeodesicResult, *, lam: float = 1e-3, grid_size: int = 64,
                    margin: float | None = None) -> np.ndarray:
-    """Move ``points`` (M, 2) along the likelihood-preserving flow of a geodesic (§III-E).
+    r"""Move ``points`` along the likelihood-preserving flow of a geodesic (§III-E, eqs. 23–26).
+
+    On each segment of the geodesic the flow :math:`(u, v)` minimising eq. (26) of [1]_,
+
+    .. math::
+
+        E(u, v) = \int \lambda \left[(\nabla^2 u)^2 + (\nabla^2 v)^2\right]
+        + \left(\frac{d \log L}{dt}\right)^2 dx,
+
+    is solved on a grid around the shapes and the points are moved by it (midpoint rule in time).
 
     Parameters
     ----------
@@ -88,6 +154,33 @@ def extrinsic_warp(points, geodesic_result: GeodesicResult, *, lam: float = 1e-3
     -------
     ndarray, shape (n_steps + 1, M, 2)
         The points at every time of the path.
+
+    Raises
+    ------
+    ValueError
+        For points or a path not in 2-D, a non-positive ``lam``, or a result without σ² (not a GMM
+        geodesic).
+
+    See Also
+    --------
+    shapelib.geodesic : The geodesic that drives it.
+    shapelib.diffeomorphism_warp : The landmark-diffeomorphism counterpart (Fig. 9).
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
+    >>> r = sl.geodesic(u, v, sigma2=0.5, n_steps=4)
+    >>> sl.extrinsic_warp([[0.5, 0.5], [0.5, -0.2]], r, grid_size=24).shape
+    (5, 2, 2)
     """
     x = as_shape(points, name="points").copy()
     if x.shape[1] != 2 or geodesic_result.path.shape[2] != 2:

@@ -1,20 +1,30 @@
-"""The closed-form lower bounds of a whole population as matrix products.
+r"""The closed-form lower bounds of a whole population as matrix products.
 
 Both lower bounds the library certifies geodesic distances with are inner products of functions
 of one shape each, so the N × N matrix of a population is a handful of matrix products instead
 of N(N − 1)/2 separate pairs.
 
-α-order bound (eq. 22's metric is the pull-back of L²; :func:`shapelib.geometry.gmm.l2_distance`)
-    ``‖p_i − p_j‖² = ⟨p_i, p_i⟩ + ⟨p_j, p_j⟩ − 2⟨p_i, p_j⟩`` with the closed-form overlap
-    ``⟨p_i, p_j⟩ = (4πσ²)^{-d/2} / K² · Σ_ab g(x_ia − x_jb)``, ``g(z) = exp(−|z|²/4σ²)``. The self
+α-order bound (eq. 22's metric is the pull-back of L²; :func:`shapelib.l2_distance`)
+    With the closed-form overlap :math:`g(z) = \exp(-|z|^2/4\sigma^2)`,
+
+    .. math::
+
+        \|p_i - p_j\|^2 = \langle p_i, p_i\rangle + \langle p_j, p_j\rangle - 2\langle p_i, p_j\rangle,
+        \qquad \langle p_i, p_j\rangle = \frac{(4\pi\sigma^2)^{-d/2}}{K^2} \sum_{a,b} g(x_{ia} - x_{jb}).
+
+    The self
     terms are one per shape, so a pair costs its K² cross Gaussians. Shapes of a population are
     close, though, and that difference cancels: at the study's scale the squared distance is
     typically 10⁻³ of ``⟨p_i, p_i⟩`` and down to 10⁻⁸ (:mod:`shapelib.geometry.gmm`, "Near
     shapes"). So the overlaps are taken around a reference shape ``m`` (the mean landmarks):
-    with ``q = p − p_m`` and offsets ``δ = x − m``,
-    ``‖p_i − p_j‖² = ‖q_i‖² + ‖q_j‖² − 2⟨q_i, q_j⟩``, where
+    with :math:`q = p - p_m` and offsets :math:`\delta = x - m`,
+    :math:`\|p_i - p_j\|^2 = \|q_i\|^2 + \|q_j\|^2 - 2\langle q_i, q_j\rangle`, where
 
-        (K² (4πσ²)^{d/2}) ⟨q_i, q_j⟩ = Σ_ab A_i,ab B_j,ab − Σ_ab g(x_ia − x_jb) expm1(−δ_ia·δ_jb / 2σ²)
+    .. math::
+
+        K^2 (4\pi\sigma^2)^{d/2} \langle q_i, q_j\rangle = \sum_{a,b} A_{i,ab} B_{j,ab}
+        - \sum_{a,b} g(x_{ia} - x_{jb})\,
+        \operatorname{expm1}\!\left(-\frac{\delta_{ia} \cdot \delta_{jb}}{2\sigma^2}\right)
 
     is the sum of the mixed second differences of ``g`` around ``r = m_a − m_b`` (``A``, ``B``:
     ``√g(r)`` times ``expm1`` of per-shape exponents; :func:`_alpha_factors`). The first sum is one
@@ -25,17 +35,22 @@ of N(N − 1)/2 separate pairs.
     count (``benchmarks/bench_pairwise.py`` measures both). Now the difference cancels only as far
     as two shapes are closer to each other than to ``m``: the pairs where it has cancelled more
     than one digit (:data:`ALPHA_NEAR_CENTRED`) are recomputed pair by pair without any
-    cancellation, exactly as :func:`~shapelib.geometry.gmm.l2_distance` does. The expansion needs
+    cancellation, exactly as :func:`~shapelib.l2_distance` does. The expansion needs
     every landmark within √2 σ of ``m`` (beyond, the two sums grow like ``exp(|δ|²/2σ²)`` and
     cancel each other); pairs with a shape further out — at small σ, most of them — use the plain
     overlaps, which at such σ barely cancel (:data:`ALPHA_NEAR_PLAIN`). Either way the result
-    agrees with :func:`~shapelib.geometry.gmm.l2_distance` to ~1e-13 relative
+    agrees with :func:`~shapelib.l2_distance` to ~1e-13 relative
     (``tests/test_bound_matrices.py`` asks 1e-12).
 
-Fisher–Rao bound (``2√p`` on the sphere of radius 2; :func:`shapelib.solver.geodesic.fisher_rao_lower_bound`)
-    ``4 arcsin(‖ψ_i − ψ_j‖ / 4)``, ``ψ = 2√p``, by the trapezoid rule on one grid covering every
-    shape (:func:`shapelib.geometry.quadrature.make_grid`): with ``S`` the N × M matrix of ψ at the
-    M nodes and ``w`` the node weight, ``‖ψ_i − ψ_j‖² = w (S Sᵀ)_ii + w (S Sᵀ)_jj − 2 w (S Sᵀ)_ij``.
+Fisher–Rao bound (``2√p`` on the sphere of radius 2; :func:`shapelib.fisher_rao_lower_bound`)
+    .. math::
+
+        d_{ij} = 4 \arcsin\frac{\|\psi_i - \psi_j\|}{4}, \qquad \psi = 2\sqrt{p},
+
+    by the trapezoid rule on one grid covering every shape
+    (:func:`shapelib.geometry.quadrature.make_grid`): with ``S`` the N × M matrix of ψ at the
+    M nodes and ``w`` the node weight,
+    :math:`\|\psi_i - \psi_j\|^2 = w (S S^\top)_{ii} + w (S S^\top)_{jj} - 2 w (S S^\top)_{ij}`.
     On the tensor grid each shape's density is a product of per-axis factors, so a row of ``S``
     is itself one matrix product ``F_x F_yᵀ`` (2-D; 3-D: ``(F_x ⊙ F_y) F_zᵀ``), and ``S Sᵀ`` is one
     symmetric rank-M update (BLAS ``syrk``), accumulated over chunks of nodes so the memory stays
@@ -314,16 +329,24 @@ def _alpha_matrices(x, y, s2s, *, n_threads):
 
 
 def alpha_bound_matrix(shapes, *, sigma2, n_threads: int | None = None) -> np.ndarray:
-    """All pairwise α-order lower bounds ``‖p_i − p_j‖`` of a population (eqs. 5, 22).
+    r"""All pairwise α-order lower bounds ``‖p_i − p_j‖`` of a population (eqs. 5, 22).
 
-    Equal, pair by pair, to :func:`shapelib.geometry.gmm.l2_distance` (to ~1e-13 relative; see the
-    module docstring for how), computed as blocks of Gaussian overlaps.
+    The α-order metric of eq. (22) is the pull-back of the flat L² metric on densities [1]_, so the
+    L² distance of two shapes' mixtures (eq. 5) bounds their geodesic distance from below:
+
+    .. math::
+
+        D_{ij} = \|p_i - p_j\|_{L^2} \le d_\alpha(x_i, x_j).
+
+    Equal, pair by pair, to :func:`shapelib.l2_distance` (to ~1e-13 relative; see the module
+    docstring for how), computed as blocks of Gaussian overlaps.
 
     Parameters
     ----------
     shapes : array_like, shape (N, K, d)
-    sigma2 : float
-        σ² of eq. (5).
+        The population, landmarks in correspondence (aligned: the bound depends on pose).
+    sigma2 : float, keyword-only
+        σ² > 0 of eq. (5).
     n_threads : int, optional
         Threads (default: every core available to the process).
 
@@ -331,16 +354,96 @@ def alpha_bound_matrix(shapes, *, sigma2, n_threads: int | None = None) -> np.nd
     -------
     ndarray, shape (N, N)
         Symmetric, zero diagonal.
+
+    Raises
+    ------
+    ValueError
+        If ``shapes`` is not a finite ``(N, K, d)`` array, ``sigma2`` is not positive or
+        ``n_threads`` is not a positive integer.
+
+    See Also
+    --------
+    shapelib.l2_distance : The same bound for one pair.
+    shapelib.fisher_rao_bound_matrix : The Fisher–Rao counterpart.
+    shapelib.bound_matrix_sweep : The matrix for several σ² at once.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> rng = np.random.default_rng(0)
+    >>> square = 2.0 * np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> shapes = square + 0.1 * rng.standard_normal((3, 4, 2))
+    >>> m = sl.alpha_bound_matrix(shapes, sigma2=0.5)
+    >>> m.round(4)
+    array([[0.    , 0.0326, 0.0254],
+           [0.0326, 0.    , 0.0306],
+           [0.0254, 0.0306, 0.    ]])
+    >>> bool(np.isclose(m[0, 1], sl.l2_distance(shapes[0], shapes[1], 0.5)))
+    True
     """
     x = as_shapes(shapes, name="shapes")
     return _alpha_matrices(x, None, np.array([check_sigma2(sigma2)]), n_threads=_threads(n_threads))[0]
 
 
 def alpha_bound_block(rows, cols, *, sigma2, n_threads: int | None = None) -> np.ndarray:
-    """The ``(R, C)`` block of α bounds ``‖p_i − p_j‖`` between ``rows`` (R, K, d) and ``cols`` (C, K, d).
+    r"""The ``(R, C)`` block of α bounds ``‖p_i − p_j‖`` between two sets of shapes.
 
-    A block of :func:`alpha_bound_matrix` (blocks assemble to the full matrix): what the pairwise
-    engine hands a worker.
+    A block of :func:`~shapelib.alpha_bound_matrix` (blocks assemble to the
+    full matrix): what the pairwise engine hands a worker. Each entry is the closed-form L² distance
+    of eq. (5)'s mixtures, the lower bound on the α-order distance of eq. (22) [1]_:
+
+    .. math::
+
+        B_{rc} = \|p(\cdot \mid x_r) - p(\cdot \mid y_c)\|_{L^2}.
+
+    Parameters
+    ----------
+    rows : array_like, shape (R, K, d)
+        Shapes of the block's rows.
+    cols : array_like, shape (C, K, d)
+        Shapes of its columns (same K and d).
+    sigma2 : float, keyword-only
+        σ² > 0 of eq. (5).
+    n_threads : int, optional
+        Threads (default: every core available to the process).
+
+    Returns
+    -------
+    ndarray, shape (R, C)
+        The bounds.
+
+    Raises
+    ------
+    ValueError
+        If the sets differ in K or d, are not finite, or ``sigma2`` is not positive.
+
+    See Also
+    --------
+    shapelib.alpha_bound_matrix : The symmetric matrix of one population.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.bound_matrices import alpha_bound_block
+    >>> rng = np.random.default_rng(0)
+    >>> shapes = 2.0 * np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) + 0.1 * rng.standard_normal((3, 4, 2))
+    >>> block = alpha_bound_block(shapes[:1], shapes[1:], sigma2=0.5)
+    >>> block.shape, bool(np.allclose(block, sl.alpha_bound_matrix(shapes, sigma2=0.5)[:1, 1:]))
+    ((1, 2), True)
     """
     x, y = _pair_of_sets(rows, cols)
     return _alpha_matrices(x, y, np.array([check_sigma2(sigma2)]), n_threads=_threads(n_threads))[0]
@@ -440,34 +543,72 @@ def _check_grid_options(grid_spacing, grid_margin):
 
 def fisher_rao_bound_matrix(shapes, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
                             grid_margin: float = DEFAULT_MARGIN, n_threads: int | None = None) -> np.ndarray:
-    """All pairwise Fisher–Rao lower bounds ``2 arccos ∫ √(p_i p_j) dx`` of a population (eqs. 5, 6).
+    r"""All pairwise Fisher–Rao lower bounds ``2 arccos ∫ √(p_i p_j) dx`` of a population (eqs. 5, 6).
 
-    The great-circle bound of :func:`shapelib.solver.geodesic.fisher_rao_lower_bound` for every
-    pair, as one Gram matrix of ``ψ = 2√p`` on a grid covering all the shapes (module docstring:
-    how, and how closely it agrees with the per-pair function).
+    The Fisher–Rao metric of eq. (6) is the pull-back of the L² metric by :math:`\theta \mapsto
+    2\sqrt{p}`, which maps onto the sphere of radius 2 [1]_ [2]_; no path of mixtures is shorter than
+    the great circle:
+
+    .. math::
+
+        D_{ij} = 2 \arccos \int \sqrt{p_i\, p_j}\, dx
+        = 4 \arcsin\frac{\|\psi_i - \psi_j\|}{4} \le d_{FR}(x_i, x_j), \qquad \psi = 2\sqrt{p}.
+
+    The great-circle bound of :func:`shapelib.fisher_rao_lower_bound` for every pair, as one Gram
+    matrix of ψ on a grid covering all the shapes (module docstring: how, and how closely it agrees
+    with the per-pair function).
 
     Parameters
     ----------
     shapes : array_like, shape (N, K, d)
         d = 2 or 3. Shapes that share their extent (aligned, e.g. :func:`shapelib.to_centroid_size`)
         keep the common grid as small as one pair's.
-    sigma2 : float
-        σ² of eq. (5).
-    grid_spacing, grid_margin : float
-        Quadrature step and margin in units of σ (:mod:`shapelib.geometry.quadrature`).
+    sigma2 : float, keyword-only
+        σ² > 0 of eq. (5).
+    grid_spacing : float, default 0.35
+        Quadrature step in units of σ (:mod:`shapelib.geometry.quadrature`).
+    grid_margin : float, default 6.0
+        Quadrature margin beyond the shapes, in units of σ.
     n_threads : int, optional
         BLAS threads (default: every core available to the process).
 
     Returns
     -------
     ndarray, shape (N, N)
-        Symmetric, zero diagonal, values in [0, 2π].
+        Symmetric, zero diagonal, values in [0, π].
 
     Raises
     ------
     ValueError
-        Bad shapes or options, or a grid above :data:`shapelib.geometry.quadrature.MAX_ENTRIES`
-        (the message says what to change).
+        Bad shapes or options, or a grid above ``shapelib.geometry.quadrature.MAX_ENTRIES``
+        nodes × landmarks (the message says what to change).
+
+    See Also
+    --------
+    shapelib.fisher_rao_lower_bound : The same bound for one pair.
+    shapelib.alpha_bound_matrix : The closed-form α-order counterpart.
+    shapelib.bound_matrix_sweep : The matrix for several σ² at once.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] S. Amari and H. Nagaoka, *Methods of Information Geometry*, American Mathematical Society and
+       Oxford University Press, 2000.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> rng = np.random.default_rng(0)
+    >>> square = 2.0 * np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> shapes = square + 0.1 * rng.standard_normal((3, 4, 2))
+    >>> m = sl.fisher_rao_bound_matrix(shapes, sigma2=0.5)
+    >>> m.round(3)
+    array([[0.   , 0.203, 0.144],
+           [0.203, 0.   , 0.187],
+           [0.144, 0.187, 0.   ]])
     """
     x = as_shapes(shapes, name="shapes")
     spacing, margin = _check_grid_options(grid_spacing, grid_margin)
@@ -477,8 +618,62 @@ def fisher_rao_bound_matrix(shapes, *, sigma2, grid_spacing: float = DEFAULT_SPA
 
 def fisher_rao_bound_block(rows, cols, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
                            grid_margin: float = DEFAULT_MARGIN, n_threads: int | None = None) -> np.ndarray:
-    """The ``(R, C)`` block of Fisher–Rao bounds between ``rows`` (R, K, d) and ``cols`` (C, K, d),
-    on one grid covering both (what the pairwise engine hands a worker)."""
+    r"""The ``(R, C)`` block of Fisher–Rao bounds between two sets of shapes, on one grid covering both.
+
+    What the pairwise engine hands a worker; each entry is the great-circle bound of eq. (6)'s
+    metric [1]_,
+
+    .. math::
+
+        B_{rc} = 2 \arccos \int \sqrt{p(x \mid x_r)\, p(x \mid y_c)}\, dx.
+
+    Parameters
+    ----------
+    rows : array_like, shape (R, K, d)
+        Shapes of the block's rows.
+    cols : array_like, shape (C, K, d)
+        Shapes of its columns (same K and d).
+    sigma2 : float, keyword-only
+        σ² > 0 of eq. (5).
+    grid_spacing : float, default 0.35
+        Quadrature step in units of σ.
+    grid_margin : float, default 6.0
+        Quadrature margin in units of σ.
+    n_threads : int, optional
+        BLAS threads (default: every core available to the process).
+
+    Returns
+    -------
+    ndarray, shape (R, C)
+        The bounds.
+
+    Raises
+    ------
+    ValueError
+        Bad shapes or options, or a grid too large (as
+        :func:`~shapelib.fisher_rao_bound_matrix`).
+
+    See Also
+    --------
+    shapelib.fisher_rao_bound_matrix : The symmetric matrix of one population.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.bound_matrices import fisher_rao_bound_block
+    >>> rng = np.random.default_rng(0)
+    >>> shapes = 2.0 * np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) + 0.1 * rng.standard_normal((3, 4, 2))
+    >>> block = fisher_rao_bound_block(shapes[:1], shapes[1:], sigma2=0.5)
+    >>> block.shape, bool(np.allclose(block, sl.fisher_rao_bound_matrix(shapes, sigma2=0.5)[:1, 1:], rtol=1e-7))
+    ((1, 2), True)
+    """
     x, y = _pair_of_sets(rows, cols)
     spacing, margin = _check_grid_options(grid_spacing, grid_margin)
     return _fr_matrix(x, y, check_sigma2(sigma2), spacing=spacing, margin=margin, n_threads=_threads(n_threads))
@@ -490,9 +685,57 @@ def fisher_rao_bound_block(rows, cols, *, sigma2, grid_spacing: float = DEFAULT_
 
 
 def bound_block(metric: str, rows, cols=None, *, n_threads: int | None = None, **params) -> np.ndarray:
-    """``metric`` (one of :data:`BOUND_METRICS`) between ``rows`` and ``cols`` (``None``: ``rows``
-    with itself, the symmetric matrix), with that metric's options (``sigma2``; Fisher–Rao also
-    ``grid_spacing``, ``grid_margin``)."""
+    r"""A closed-form bound between ``rows`` and ``cols``, by the metric's name.
+
+    ``metric`` is one of ``BOUND_METRICS``: ``"alpha_bound"``, the L² distance
+    :math:`\|p_i - p_j\|` (eq. 22's bound), or ``"fisher_rao_bound"``, the great circle
+    :math:`2\arccos\int\sqrt{p_i p_j}\,dx` (eq. 6's bound) [1]_. ``cols=None`` gives ``rows``
+    with itself, the symmetric matrix.
+
+    Parameters
+    ----------
+    metric : {"alpha_bound", "fisher_rao_bound"}
+        Which bound.
+    rows : array_like, shape (R, K, d)
+        Shapes of the rows.
+    cols : array_like, shape (C, K, d), optional
+        Shapes of the columns; ``None``: ``rows`` with itself.
+    n_threads : int, optional
+        Threads (default: every core available to the process).
+    **params
+        The metric's options: ``sigma2``; Fisher–Rao also ``grid_spacing``, ``grid_margin``.
+
+    Returns
+    -------
+    ndarray, shape (R, C) or (R, R)
+        The bounds.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``metric``, or what the bound's own function raises.
+
+    See Also
+    --------
+    shapelib.alpha_bound_matrix, shapelib.fisher_rao_bound_matrix
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.geometry.bound_matrices import bound_block
+    >>> rng = np.random.default_rng(0)
+    >>> shapes = 2.0 * np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) + 0.1 * rng.standard_normal((3, 4, 2))
+    >>> bool(np.array_equal(bound_block("alpha_bound", shapes, sigma2=0.5),
+    ...                     sl.alpha_bound_matrix(shapes, sigma2=0.5)))
+    True
+    """
     if metric == "alpha_bound":
         if cols is None:
             return alpha_bound_matrix(rows, n_threads=n_threads, **params)
@@ -506,25 +749,64 @@ def bound_block(metric: str, rows, cols=None, *, n_threads: int | None = None, *
 
 def bound_matrix_sweep(shapes, *, metric: str, sigma2s, grid_spacing: float = DEFAULT_SPACING,
                        grid_margin: float = DEFAULT_MARGIN, n_threads: int | None = None) -> np.ndarray:
-    """A bound's matrix for every σ² of ``sigma2s``: ``out[s]`` is the matrix at ``sigma2s[s]``.
+    r"""A bound's matrix for every σ² of ``sigma2s``: ``out[s]`` is the matrix at ``sigma2s[s]``.
 
-    Equal to calling :func:`alpha_bound_matrix` / :func:`fisher_rao_bound_matrix` once per value;
-    the α bound computes each block's squared landmark distances once for all the values.
+    Equal to calling :func:`shapelib.alpha_bound_matrix` or :func:`shapelib.fisher_rao_bound_matrix`
+    once per value; the α bound computes each block's squared landmark distances once for all the
+    values (only the exponentials change with σ²). For each σ² the matrix holds
+
+    .. math::
+
+        \|p_i - p_j\|_{L^2} \quad \text{(eq. 22's bound)} \qquad \text{or} \qquad
+        2 \arccos \int \sqrt{p_i\, p_j}\, dx \quad \text{(eq. 6's bound)}
+
+    of the mixtures of eq. (5) at that σ² [1]_: what choosing σ² from data needs.
 
     Parameters
     ----------
     shapes : array_like, shape (N, K, d)
-    metric : {"alpha_bound", "fisher_rao_bound"}
-    sigma2s : sequence of float
+        The population, landmarks in correspondence.
+    metric : {"alpha_bound", "fisher_rao_bound"}, keyword-only
+        Which bound.
+    sigma2s : sequence of float, keyword-only
         σ² values (eq. 5), each > 0.
-    grid_spacing, grid_margin : float
-        Fisher–Rao quadrature step and margin in units of σ.
+    grid_spacing : float, default 0.35
+        Fisher–Rao quadrature step in units of σ.
+    grid_margin : float, default 6.0
+        Fisher–Rao quadrature margin in units of σ.
     n_threads : int, optional
         Threads (default: every core available to the process).
 
     Returns
     -------
     ndarray, shape (len(sigma2s), N, N)
+        One symmetric, zero-diagonal matrix per σ².
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``metric``, an empty or non-positive ``sigma2s``, or bad shapes.
+
+    See Also
+    --------
+    shapelib.alpha_bound_matrix, shapelib.fisher_rao_bound_matrix
+    shapelib.estimate_sigma2 : The σ² of the landmarks' own scatter.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> rng = np.random.default_rng(0)
+    >>> shapes = 2.0 * np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) + 0.1 * rng.standard_normal((3, 4, 2))
+    >>> out = sl.bound_matrix_sweep(shapes, metric="alpha_bound", sigma2s=[0.1, 0.5, 1.5])
+    >>> out.shape, bool(np.allclose(out[1], sl.alpha_bound_matrix(shapes, sigma2=0.5)))
+    ((3, 3, 3), True)
     """
     x = as_shapes(shapes, name="shapes")
     s2s = _sigma2s(sigma2s)

@@ -1,32 +1,48 @@
-"""The shape representation: an equal-weight isotropic Gaussian mixture (paper eq. 5).
+r"""The shape representation: an equal-weight isotropic Gaussian mixture (paper eq. 5).
 
-A landmark shape ``θ = (φ_1, …, φ_K)``, ``φ_a ∈ R^d``, is the density
+A landmark shape :math:`\theta = (\phi_1, \dots, \phi_K)`, :math:`\phi_a \in \mathbb{R}^d`, is
+the density
 
-    p(x | θ) = (1/K) Σ_a N(x; φ_a, σ² I)                                   (eq. 5)
+.. math::
+
+    p(x \mid \theta) = \frac{1}{K} \sum_{a=1}^{K} \mathcal{N}(x; \phi_a, \sigma^2 I)
+    \qquad \text{(eq. 5)}
 
 with σ² a free parameter. This module holds the density itself and the closed-form
 Gaussian overlaps it implies:
 
-    G(Δ) = ∫ N(x; a, σ²I) N(x; b, σ²I) dx = (4πσ²)^{-d/2} exp(−|Δ|² / (4σ²)),  Δ = a − b,
+.. math::
 
-which give the L² inner product of two mixtures, ⟨p_u, p_v⟩ = (1/K²) Σ_ab G(u_a − v_b), and
-hence the L² distance ‖p_u − p_v‖ in closed form. Because the α-order metric (eq. 22) is
-the pull-back of the flat L² metric on densities, ‖p_u − p_v‖ is a lower bound on the
-α-order geodesic distance.
+    G(\Delta) = \int \mathcal{N}(x; a, \sigma^2 I)\, \mathcal{N}(x; b, \sigma^2 I)\, dx
+    = (4\pi\sigma^2)^{-d/2} \exp\!\left(-\frac{|\Delta|^2}{4\sigma^2}\right),
+    \qquad \Delta = a - b,
 
-Near shapes. ``‖p_u − p_v‖² = ⟨p_u, p_u⟩ + ⟨p_v, p_v⟩ − 2⟨p_u, p_v⟩`` loses the digits the three
-terms share: shapes of one population are close (at the study's scale and σ the squared
-distance is typically 10⁻³ and down to 10⁻⁸ of ``⟨p_u, p_u⟩``), so the difference keeps only
-~13 and down to ~8 correct digits. Each landmark pair's four overlaps form a mixed second
-difference of ``g(x) = exp(−|x|²/4σ²)``: with ``r = u_a − u_b``, ``δ = v − u``,
+which give the L² inner product of two mixtures,
+:math:`\langle p_u, p_v \rangle = K^{-2} \sum_{ab} G(u_a - v_b)`, and hence the L² distance
+:math:`\|p_u - p_v\|` in closed form. Because the α-order metric (eq. 22) is the pull-back of
+the flat L² metric on densities, :math:`\|p_u - p_v\|` is a lower bound on the α-order geodesic
+distance.
 
-    g(r) − g(r − δ_b) − g(r + δ_a) + g(r + δ_a − δ_b)
-        = g(r) expm1(α) expm1(β) − g(v_a − v_b) expm1(−δ_a·δ_b / 2σ²),
-    α = −(2 r·δ_a + |δ_a|²) / 4σ²,  β = (2 r·δ_b − |δ_b|²) / 4σ²,
+Near shapes. :math:`\|p_u - p_v\|^2 = \langle p_u, p_u\rangle + \langle p_v, p_v\rangle - 2\langle p_u, p_v\rangle`
+loses the digits the three terms share: shapes of one population are close (at the study's scale
+and σ the squared distance is typically 10⁻³ and down to 10⁻⁸ of :math:`\langle p_u, p_u\rangle`),
+so the difference keeps only ~13 and down to ~8 correct digits. Each landmark pair's four overlaps
+form a mixed second difference of :math:`g(x) = \exp(-|x|^2/4\sigma^2)`: with
+:math:`r = u_a - u_b`, :math:`\delta = v - u`,
 
-whose terms are O(|δ|²) themselves (:func:`_l2_sq_near`); :func:`l2_distance` uses it when the
+.. math::
+
+    g(r) - g(r - \delta_b) - g(r + \delta_a) + g(r + \delta_a - \delta_b)
+    = g(r)\, \operatorname{expm1}(\alpha)\, \operatorname{expm1}(\beta)
+      - g(v_a - v_b)\, \operatorname{expm1}\!\left(-\frac{\delta_a \cdot \delta_b}{2\sigma^2}\right),
+
+    \alpha = -\frac{2 r \cdot \delta_a + |\delta_a|^2}{4\sigma^2}, \qquad
+    \beta = \frac{2 r \cdot \delta_b - |\delta_b|^2}{4\sigma^2},
+
+whose terms are :math:`O(|\delta|^2)` themselves (``_l2_sq_near``); :func:`l2_distance` uses it when the
 plain difference has lost more than three digits (:data:`L2_NEAR`) and the landmarks moved by at
-most √2 σ (beyond that the two terms grow like ``exp(|δ|²/2σ²)`` and cancel each other instead).
+most √2 σ (beyond that the two terms grow like :math:`\exp(|\delta|^2/2\sigma^2)` and cancel each
+other instead).
 """
 
 from __future__ import annotations
@@ -68,16 +84,15 @@ def _point_sets(a, b, names):
 
 
 def gmm_log_density(x, theta, sigma2) -> np.ndarray:
-    """``log p(x | θ)`` of eq. (5) at the points ``x`` (M, d), computed stably (log-sum-exp)."""
-    x, theta = _point_sets(x, theta, ("x", "theta"))
-    s2 = check_sigma2(sigma2)
-    k, d = theta.shape
-    log_n = -_sqdist(x, theta) / (2 * s2) - 0.5 * d * np.log(2 * np.pi * s2)
-    return logsumexp(log_n, axis=1) - np.log(k)
+    r"""Log of the GMM shape density of eq. (5), computed stably (log-sum-exp).
 
+    The logarithm of the shape density of [1]_, without leaving log space:
 
-def gmm_density(x, theta, sigma2) -> np.ndarray:
-    """The GMM shape density of eq. (5).
+    .. math::
+
+        \log p(x \mid \theta) = \operatorname{logsumexp}_a
+        \left(-\frac{|x - \phi_a|^2}{2\sigma^2}\right) - \frac{d}{2}\log(2\pi\sigma^2) - \log K
+        \qquad \text{(log of eq. 5)}
 
     Parameters
     ----------
@@ -91,13 +106,151 @@ def gmm_density(x, theta, sigma2) -> np.ndarray:
     Returns
     -------
     ndarray, shape (M,)
-        ``p(x | θ) = (1/K) Σ_a (2πσ²)^{-d/2} exp(−|x − φ_a|² / (2σ²))``.
+        :math:`\log p(x_m \mid \theta)`; finite far from every landmark, where
+        :func:`gmm_density` underflows to 0.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` and ``theta`` differ in dimension, contain non-finite values, or ``sigma2`` is not
+        a positive number.
+
+    See Also
+    --------
+    gmm_density : The density itself.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.geometry.gmm import gmm_log_density
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0]])
+    >>> bool(np.isfinite(gmm_log_density([[100.0, 100.0]], theta, 0.01)[0]))
+    True
+    >>> float(np.round(gmm_log_density([[0.5, 0.0]], theta, 0.5)[0], 4))
+    -1.3947
+    """
+    x, theta = _point_sets(x, theta, ("x", "theta"))
+    s2 = check_sigma2(sigma2)
+    k, d = theta.shape
+    log_n = -_sqdist(x, theta) / (2 * s2) - 0.5 * d * np.log(2 * np.pi * s2)
+    return logsumexp(log_n, axis=1) - np.log(k)
+
+
+def gmm_density(x, theta, sigma2) -> np.ndarray:
+    r"""The GMM shape density of eq. (5).
+
+    A shape of K landmarks is the equal-weight mixture of K isotropic Gaussians centred on its
+    landmarks [1]_:
+
+    .. math::
+
+        p(x \mid \theta) = \frac{1}{K} \sum_{a=1}^{K} \frac{1}{(2\pi\sigma^2)^{d/2}}
+        \exp\!\left(-\frac{|x - \phi_a|^2}{2\sigma^2}\right) \qquad \text{(eq. 5)}
+
+    Parameters
+    ----------
+    x : array_like, shape (M, d)
+        Points where the density is evaluated.
+    theta : array_like, shape (K, d)
+        Landmarks: the means of the K equally weighted components.
+    sigma2 : float
+        Isotropic variance σ² > 0 shared by all components.
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        :math:`p(x_m \mid \theta)` at each point.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` and ``theta`` differ in dimension, contain non-finite values, or ``sigma2`` is not
+        a positive number.
+
+    See Also
+    --------
+    shapelib.geometry.gmm.gmm_log_density : Its logarithm, stable far from the landmarks.
+    shapelib.l2_distance : Closed-form L² distance between two such densities.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    One landmark: the density at its centre is :math:`1/(2\pi\sigma^2)` in the plane.
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> p = sl.gmm_density([[0.0, 0.0]], [[0.0, 0.0]], 0.5)
+    >>> bool(np.isclose(p[0], 1 / (2 * np.pi * 0.5)))
+    True
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> sl.gmm_density([[0.0, 0.0], [5.0, 5.0]], theta, 0.5).round(4)
+    array([0.1842, 0.    ])
     """
     return np.exp(gmm_log_density(x, theta, sigma2))
 
 
 def gaussian_overlap(a, b, sigma2) -> np.ndarray:
-    """Matrix of overlaps ``G_ij = ∫ N(x; a_i, σ²I) N(x; b_j, σ²I) dx = (4πσ²)^{-d/2} e^{−|a_i − b_j|²/(4σ²)}``."""
+    r"""Matrix of overlaps of two sets of isotropic Gaussians of variance σ².
+
+    .. math::
+
+        G_{ij} = \int \mathcal{N}(x; a_i, \sigma^2 I)\, \mathcal{N}(x; b_j, \sigma^2 I)\, dx
+        = (4\pi\sigma^2)^{-d/2} \exp\!\left(-\frac{|a_i - b_j|^2}{4\sigma^2}\right)
+
+    the building block of every closed-form L² quantity of the mixtures of eq. (5) and of the
+    α-order metric (eq. 22) [1]_.
+
+    Parameters
+    ----------
+    a : array_like, shape (M, d)
+        Centres of the first Gaussians.
+    b : array_like, shape (N, d)
+        Centres of the second Gaussians (any number, same dimension).
+    sigma2 : float
+        σ² > 0 of eq. (5).
+
+    Returns
+    -------
+    ndarray, shape (M, N)
+        The overlaps :math:`G_{ij}`.
+
+    Raises
+    ------
+    ValueError
+        If ``a`` and ``b`` differ in dimension, contain non-finite values, or ``sigma2`` is not
+        positive.
+
+    See Also
+    --------
+    shapelib.geometry.gmm.l2_inner : The mean of these overlaps over landmark pairs.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.geometry.gmm import gaussian_overlap
+    >>> g = gaussian_overlap([[0.0, 0.0]], [[0.0, 0.0], [1.0, 0.0]], 0.5)
+    >>> g.shape
+    (1, 2)
+    >>> bool(np.isclose(g[0, 0], 1 / (4 * np.pi * 0.5)))
+    True
+    """
     a, b = _point_sets(a, b, ("a", "b"))
     return overlap_matrix(a, b, check_sigma2(sigma2))
 
@@ -109,23 +262,109 @@ def overlap_matrix(a: np.ndarray, b: np.ndarray, s2: float) -> np.ndarray:
 
 
 def l2_inner(u, v, sigma2) -> float:
-    """Closed-form L² inner product ``∫ p(x|u) p(x|v) dx = (1/(K_u K_v)) Σ_ab G(u_a − v_b)``."""
+    r"""Closed-form L² inner product of the GMM densities (eq. 5) of two shapes.
+
+    .. math::
+
+        \langle p_u, p_v \rangle = \int p(x \mid u)\, p(x \mid v)\, dx
+        = \frac{1}{K_u K_v} \sum_{a, b} G(u_a - v_b)
+
+    with :math:`G` the Gaussian overlap (:func:`gaussian_overlap`) [1]_.
+
+    Parameters
+    ----------
+    u : array_like, shape (K_u, d)
+        Landmarks of the first shape.
+    v : array_like, shape (K_v, d)
+        Landmarks of the second shape (any number, same dimension).
+    sigma2 : float
+        σ² > 0 of eq. (5).
+
+    Returns
+    -------
+    float
+        The inner product (positive).
+
+    Raises
+    ------
+    ValueError
+        If the shapes differ in dimension, contain non-finite values, or ``sigma2`` is not
+        positive.
+
+    See Also
+    --------
+    shapelib.l2_distance : The distance these inner products give.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.geometry.gmm import l2_inner
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0]])
+    >>> round(l2_inner(u, u, 0.5), 4)
+    0.1278
+    """
     return float(gaussian_overlap(u, v, sigma2).mean())
 
 
 def l2_distance(u, v, sigma2) -> float:
-    """Closed-form L² distance ``‖p_u − p_v‖`` between the GMM densities of two shapes.
+    r"""Closed-form L² distance between the GMM densities (eq. 5) of two shapes.
 
-    This is the lower bound certified by :func:`shapelib.geodesic` for the α-order metric:
-    the α-order metric of eq. (22) is the pull-back of the L² metric, so every path from
-    ``u`` to ``v`` is at least this long.
+    .. math::
+
+        \|p_u - p_v\| = \left(\langle p_u, p_u\rangle + \langle p_v, p_v\rangle
+        - 2\langle p_u, p_v\rangle\right)^{1/2}
+
+    This is the lower bound certified by :func:`shapelib.geodesic` for the α-order metric: the
+    α-order metric of eq. (22) is the pull-back of the L² metric,
+    :math:`\dot\theta^\top g^\alpha \dot\theta = \int (\partial_t p)^2 dx`, so every path from ``u``
+    to ``v`` is at least this long [1]_. For near shapes the difference is computed without
+    cancellation (module docstring), so it keeps its relative accuracy.
 
     Parameters
     ----------
     u, v : array_like, shape (K, d)
         Shapes in landmark correspondence.
     sigma2 : float
-        σ² of eq. (5).
+        σ² > 0 of eq. (5).
+
+    Returns
+    -------
+    float
+        :math:`\|p_u - p_v\| \ge 0`.
+
+    Raises
+    ------
+    ValueError
+        If the shapes differ in shape, contain non-finite values, or ``sigma2`` is not positive.
+
+    See Also
+    --------
+    shapelib.alpha_metric : The metric whose geodesic distance this bounds from below.
+    shapelib.alpha_bound_matrix : The same bound for every pair of a population.
+    shapelib.gmm_density : The densities compared.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> v = u + [[0.0, 0.0], [0.1, 0.0], [0.0, 0.0]]
+    >>> sl.l2_distance(u, u, 0.5)
+    0.0
+    >>> round(sl.l2_distance(u, v, 0.5), 5)
+    0.01328
     """
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)

@@ -1,27 +1,47 @@
-"""Riemannian metrics on the GMM shape parameters: α-order entropy (closed form) and Fisher–Rao.
+r"""Riemannian metrics on the GMM shape parameters: α-order entropy (closed form) and Fisher–Rao.
 
-Parameters are ordered as in eq. (9): ``θ = (φ_1^1, φ_1^2, φ_2^1, …)``, i.e. the ``(K, d)``
-landmark array flattened row by row. With ``N_a(x) = N(x; φ_a, σ²I)`` and ``r_a = x − φ_a``,
-the density (eq. 5) has ``∂p/∂φ_a = N_a r_a / (K σ²)``.
+Parameters are ordered as in eq. (9): :math:`\theta = (\phi_1^1, \phi_1^2, \phi_2^1, \dots)`,
+i.e. the ``(K, d)`` landmark array flattened row by row. With
+:math:`N_a(x) = \mathcal{N}(x; \phi_a, \sigma^2 I)` and :math:`r_a = x - \phi_a`, the density
+(eq. 5) has :math:`\partial p / \partial \phi_a = N_a r_a / (K \sigma^2)`.
 
 α-order entropy metric, α = 2 (eq. 22)
-    ``g_ij = ∫ ∂_i p ∂_j p dx``. With ``Δ = φ_a − φ_b`` and the overlap ``G(Δ)`` of
-    :mod:`shapelib.geometry.gmm`, the (a, b) block is
+    With :math:`\Delta = \phi_a - \phi_b` and the overlap :math:`G(\Delta)` of
+    :mod:`shapelib.geometry.gmm`, the (a, b) block of
 
-        g_ab = G(Δ) / (K² σ⁴) · [ (σ²/2) I − Δ Δᵀ / 4 ],
+    .. math::
 
-    so the diagonal blocks are ``I / (2 K² σ² (4πσ²)^{d/2})`` and, as the paper notes, the
-    off-diagonal entries *within* a landmark vanish. Since ``θ̇ᵀ g θ̇ = ∫ (∂_t p)² dx``, the
-    metric is the flat L² metric pulled back to the parameters.
+        g^\alpha_{ij} = \int \frac{\partial p}{\partial \theta_i}
+        \frac{\partial p}{\partial \theta_j}\, dx \qquad \text{(eq. 22)}
+
+    is
+
+    .. math::
+
+        g^\alpha_{ab} = \frac{G(\Delta)}{K^2 \sigma^4}
+        \left[\frac{\sigma^2}{2} I - \frac{\Delta \Delta^\top}{4}\right],
+
+    so the diagonal blocks are :math:`I / (2 K^2 \sigma^2 (4\pi\sigma^2)^{d/2})` and, as the paper
+    notes, the off-diagonal entries *within* a landmark vanish. Since
+    :math:`\dot\theta^\top g^\alpha \dot\theta = \int (\partial_t p)^2 dx`, the metric is the flat
+    L² metric pulled back to the parameters.
 
 Fisher–Rao metric (eq. 6)
-    ``g_ij = ∫ (1/p) ∂_i p ∂_j p dx = ∫ ∂_i ψ ∂_j ψ dx`` with ``ψ = 2√p``: the pull-back of
-    the L² metric by ``θ ↦ 2√p``, which maps into the sphere of radius 2. It has no closed
-    form; it is integrated on a grid (:mod:`shapelib.geometry.quadrature`). Bounds used in the tests:
-    ``g ≼ I/(Kσ²)`` (the complete-data information) and ``g = I/σ²`` exactly when K = 1.
+    .. math::
+
+        g_{ij} = \int \frac{1}{p} \frac{\partial p}{\partial \theta_i}
+        \frac{\partial p}{\partial \theta_j}\, dx
+        = \int \frac{\partial \psi}{\partial \theta_i} \frac{\partial \psi}{\partial \theta_j}\, dx,
+        \qquad \psi = 2\sqrt{p} \qquad \text{(eq. 6)}
+
+    the pull-back of the L² metric by :math:`\theta \mapsto 2\sqrt{p}`, which maps into the
+    sphere of radius 2. It has no closed form; it is integrated on a grid
+    (:mod:`shapelib.geometry.quadrature`). Bounds used in the tests:
+    :math:`g \preceq I/(K\sigma^2)` (the complete-data information) and :math:`g = I/\sigma^2`
+    exactly when K = 1.
 
 The α formulas below (quadratic form, gradient, second derivatives) are written once here, in
-numpy; the geodesic solver runs compiled versions of the same sums (:mod:`shapelib.geometry._kernels`,
+numpy; the geodesic solver runs compiled versions of the same sums (``shapelib.geometry._kernels``,
 numba), which ``tests/test_kernels.py`` checks against these to ~1e-12.
 """
 
@@ -71,20 +91,70 @@ def _alpha_metric_blocks(c, delta, s2: float) -> np.ndarray:
 
 
 def alpha_metric(theta, sigma2) -> np.ndarray:
-    """The α-order (α = 2) entropy metric tensor of eq. (22), in closed form.
+    r"""The α-order (α = 2) entropy metric tensor of eq. (22), in closed form.
+
+    The Havrda–Charvát entropy with α = 2 turns the φ-entropy metric of Burbea and Rao (eq. 19) into
+    the correlation of the density's partial derivatives [1]_ [2]_:
+
+    .. math::
+
+        g^\alpha_{ij}(\theta) = \int_{\mathbb{R}^d} \frac{\partial p(x \mid \theta)}{\partial \theta_i}
+        \frac{\partial p(x \mid \theta)}{\partial \theta_j}\, dx \qquad \text{(eq. 22)}
+
+    For the mixture of eq. (5) each (a, b) block of landmarks is, with
+    :math:`\Delta = \phi_a - \phi_b` and :math:`G` the Gaussian overlap,
+
+    .. math::
+
+        g^\alpha_{ab} = \frac{G(\Delta)}{K^2}
+        \left[\frac{I}{2\sigma^2} - \frac{\Delta\Delta^\top}{4\sigma^4}\right],
+        \qquad G(\Delta) = (4\pi\sigma^2)^{-d/2} e^{-|\Delta|^2/4\sigma^2}.
 
     Parameters
     ----------
     theta : array_like, shape (K, d)
         Landmarks (GMM means).
     sigma2 : float
-        σ² of eq. (5).
+        σ² > 0 of eq. (5).
 
     Returns
     -------
     ndarray, shape (K d, K d)
-        ``g_ij = ∫ ∂p/∂θ_i ∂p/∂θ_j dx``, parameters ordered as in eq. (9). Symmetric positive
-        semi-definite.
+        :math:`g^\alpha`, parameters ordered as in eq. (9) (the landmarks flattened row by row).
+        Symmetric positive semi-definite.
+
+    Raises
+    ------
+    ValueError
+        If ``theta`` is not a finite ``(K, d)`` array or ``sigma2`` is not positive.
+
+    See Also
+    --------
+    shapelib.alpha_quadratic_form : :math:`\dot\theta^\top g^\alpha \dot\theta` without the matrix.
+    shapelib.fisher_rao_metric : The Fisher–Rao metric of eq. (6).
+    shapelib.geodesic : Geodesics under this metric.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] J. Burbea and C. R. Rao, "Entropy differential metric, distance and divergence measures in
+       probability spaces: a unified approach", *Journal of Multivariate Analysis* 12(4), 575–596, 1982.
+
+    Examples
+    --------
+    For one landmark the tensor is :math:`I / (2\sigma^2 (4\pi\sigma^2)^{d/2})`:
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> g = sl.alpha_metric([[0.0, 0.0]], 0.5)
+    >>> bool(np.allclose(g, np.eye(2) / (2 * 0.5 * 4 * np.pi * 0.5)))
+    True
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> g = sl.alpha_metric(theta, 0.5)
+    >>> g.shape, bool(np.allclose(g, g.T)), bool(np.linalg.eigvalsh(g).min() > -1e-12)
+    ((6, 6), True, True)
     """
     theta = as_shape(theta, name="theta")
     return alpha_tensor_batch(theta[None], check_sigma2(sigma2))[0]
@@ -109,7 +179,63 @@ def _alpha_qform(theta: np.ndarray, vel: np.ndarray, s2: float) -> np.ndarray:
 
 
 def alpha_quadratic_form(theta, velocity, sigma2) -> float:
-    """``θ̇ᵀ g_α(θ) θ̇ = ∫ (∂_t p)² dx`` without forming the ``(Kd, Kd)`` matrix (eq. 8 integrand)."""
+    r"""The α-order metric's quadratic form :math:`\dot\theta^\top g^\alpha(\theta)\, \dot\theta`, without the matrix.
+
+    The integrand of the path energy (eq. 8) under the metric of eq. (22) [1]_: for a shape ``theta``
+    moving with landmark velocities ``velocity``,
+
+    .. math::
+
+        \dot\theta^\top g^\alpha(\theta)\, \dot\theta = \int (\partial_t p)^2\, dx
+        = \sum_{a,b} \frac{G(\Delta_{ab})}{K^2}
+        \left[\frac{V_a \cdot V_b}{2\sigma^2}
+        - \frac{(\Delta_{ab} \cdot V_a)(\Delta_{ab} \cdot V_b)}{4\sigma^4}\right],
+
+    with :math:`\Delta_{ab} = \phi_a - \phi_b`; O(K²) memory, the ``(Kd, Kd)`` matrix never formed.
+
+    Parameters
+    ----------
+    theta : array_like, shape (K, d)
+        Landmarks (GMM means).
+    velocity : array_like, shape (K, d)
+        Landmark velocities :math:`\dot\theta`, in the layout of ``theta``.
+    sigma2 : float
+        σ² > 0 of eq. (5).
+
+    Returns
+    -------
+    float
+        The quadratic form, ≥ 0.
+
+    Raises
+    ------
+    ValueError
+        If ``velocity`` does not have the shape of ``theta``, an array is not finite, or ``sigma2``
+        is not positive.
+
+    See Also
+    --------
+    shapelib.alpha_metric : The tensor itself.
+    shapelib.fisher_rao_quadratic_form : The same under the Fisher–Rao metric.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    It equals :math:`v^\top g^\alpha v` with the matrix of :func:`shapelib.alpha_metric`:
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> v = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
+    >>> q = sl.alpha_quadratic_form(theta, v, 0.5)
+    >>> bool(np.isclose(q, v.ravel() @ sl.alpha_metric(theta, 0.5) @ v.ravel()))
+    True
+    """
     theta = as_shape(theta, name="theta")
     vel = as_shape(velocity, name="velocity")
     if vel.shape != theta.shape:
@@ -207,23 +333,72 @@ def _fr_gram(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
 
 
 def fisher_rao_metric(theta, sigma2, *, spacing: float = DEFAULT_SPACING, margin: float = DEFAULT_MARGIN) -> np.ndarray:
-    """The Fisher–Rao metric tensor of eq. (6) for the GMM of eq. (5), by quadrature.
+    r"""The Fisher–Rao metric tensor of eq. (6) for the GMM of eq. (5), by quadrature.
 
-    ``g_ij = ∫ (1/p) ∂_i p ∂_j p dx`` is computed as ``∫ ∂_i ψ ∂_j ψ dx`` with ``ψ = 2√p``
-    (numerically stable in the tails) by the trapezoid rule on a grid of step ``spacing·σ``
-    reaching ``margin·σ`` beyond the landmarks (see :mod:`shapelib.geometry.quadrature` for accuracy).
+    The Fisher information of the landmark coordinates, a Riemannian metric on the shapes [1]_ [2]_:
+
+    .. math::
+
+        g_{ij}(\theta) = \int p(x \mid \theta)\, \frac{\partial \log p(x \mid \theta)}{\partial \theta_i}
+        \frac{\partial \log p(x \mid \theta)}{\partial \theta_j}\, dx
+        = \int \frac{\partial \psi}{\partial \theta_i} \frac{\partial \psi}{\partial \theta_j}\, dx,
+        \qquad \psi = 2\sqrt{p} \qquad \text{(eq. 6)}
+
+    It has no closed form for a mixture: the right-hand form (numerically stable in the tails) is
+    integrated by the trapezoid rule on a grid of step ``spacing·σ`` reaching ``margin·σ`` beyond the
+    landmarks (see :mod:`shapelib.geometry.quadrature` for its accuracy).
 
     Parameters
     ----------
     theta : array_like, shape (K, d)
+        Landmarks (GMM means).
     sigma2 : float
-    spacing, margin : float, keyword-only
-        Grid step and margin in units of σ.
+        σ² > 0 of eq. (5).
+    spacing : float, default 0.35
+        Grid step in units of σ.
+    margin : float, default 6.0
+        Grid margin beyond the landmarks, in units of σ.
 
     Returns
     -------
     ndarray, shape (K d, K d)
-        Symmetric positive semi-definite; ``I/σ²`` for K = 1, and ``≼ I/(Kσ²)`` in general.
+        Symmetric positive semi-definite, parameters ordered as in eq. (9); :math:`I/\sigma^2` for
+        K = 1, and :math:`\preceq I/(K\sigma^2)` in general.
+
+    Raises
+    ------
+    ValueError
+        If ``theta`` is not a finite ``(K, d)`` array, ``sigma2``, ``spacing`` or ``margin`` is not
+        positive, or the grid would exceed
+        ``shapelib.geometry.quadrature.MAX_ENTRIES`` nodes × landmarks.
+
+    See Also
+    --------
+    shapelib.fisher_rao_quadratic_form : :math:`\dot\theta^\top g\, \dot\theta` without the matrix.
+    shapelib.alpha_metric : The closed-form α-order metric of eq. (22).
+    shapelib.geometry.quadrature.make_grid : The integration grid.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] S. Amari and H. Nagaoka, *Methods of Information Geometry*, American Mathematical Society and
+       Oxford University Press, 2000.
+
+    Examples
+    --------
+    One landmark: the Fisher information of a Gaussian mean, :math:`I/\sigma^2`.
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> g = sl.fisher_rao_metric([[0.0, 0.0]], 0.5)
+    >>> bool(np.allclose(g, np.eye(2) / 0.5, rtol=1e-6))
+    True
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> g = sl.fisher_rao_metric(theta, 0.5)
+    >>> g.shape, bool(np.all(np.linalg.eigvalsh(np.eye(6) / (3 * 0.5) - g) > -1e-9))
+    ((6, 6), True)
     """
     theta = as_shape(theta, name="theta")
     s2 = check_sigma2(sigma2)
@@ -247,7 +422,62 @@ def _fr_qform(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.n
 
 def fisher_rao_quadratic_form(theta, velocity, sigma2, *, spacing: float = DEFAULT_SPACING,
                               margin: float = DEFAULT_MARGIN) -> float:
-    """``θ̇ᵀ g_FR(θ) θ̇ = ∫ (∂_t p)² / p dx`` by quadrature, without forming the matrix."""
+    r"""The Fisher–Rao quadratic form :math:`\dot\theta^\top g(\theta)\, \dot\theta`, by quadrature, no matrix.
+
+    The integrand of the path energy (eq. 8) under the metric of eq. (6) [1]_:
+
+    .. math::
+
+        \dot\theta^\top g(\theta)\, \dot\theta = \int \frac{(\partial_t p)^2}{p}\, dx
+        = \int (\partial_t \psi)^2\, dx, \qquad \psi = 2\sqrt{p},
+
+    integrated on the grid of :func:`shapelib.fisher_rao_metric`.
+
+    Parameters
+    ----------
+    theta : array_like, shape (K, d)
+        Landmarks (GMM means).
+    velocity : array_like, shape (K, d)
+        Landmark velocities :math:`\dot\theta`, in the layout of ``theta``.
+    sigma2 : float
+        σ² > 0 of eq. (5).
+    spacing : float, default 0.35
+        Grid step in units of σ.
+    margin : float, default 6.0
+        Grid margin beyond the landmarks, in units of σ.
+
+    Returns
+    -------
+    float
+        The quadratic form, ≥ 0.
+
+    Raises
+    ------
+    ValueError
+        If ``velocity`` does not have the shape of ``theta``, an array is not finite, a parameter
+        is not positive, or the grid is too large (as :func:`shapelib.fisher_rao_metric`).
+
+    See Also
+    --------
+    shapelib.fisher_rao_metric : The tensor itself.
+    shapelib.alpha_quadratic_form : The same under the α-order metric.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> v = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
+    >>> q = sl.fisher_rao_quadratic_form(theta, v, 0.5)
+    >>> bool(np.isclose(q, v.ravel() @ sl.fisher_rao_metric(theta, 0.5) @ v.ravel()))
+    True
+    """
     theta = as_shape(theta, name="theta")
     vel = as_shape(velocity, name="velocity")
     if vel.shape != theta.shape:

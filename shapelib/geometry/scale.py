@@ -44,7 +44,44 @@ SIGMA_RATIO_MIN = 0.2
 
 
 class ScaleWarning(UserWarning):
-    """σ does not fit the scale of the landmarks (see :mod:`shapelib.geometry.scale`)."""
+    r"""σ does not fit the scale of the landmarks (see :mod:`shapelib.geometry.scale`).
+
+    σ² of eq. (5) [1]_ is a squared length in the landmarks' units. The geodesics, brackets and
+    bounds warn with this category when σ is below ``SIGMA_RATIO_MIN`` (0.2) times the mean
+    nearest-landmark spacing,
+
+    .. math::
+
+        \frac{\sigma}{\bar h} < 0.2, \qquad \bar h = \frac{1}{K} \sum_a \min_{b \ne a} |x_a - x_b|,
+
+    (the Gaussians of neighbouring landmarks do not overlap) or above the shapes' extent (each
+    shape is one blob); the message says what :func:`shapelib.estimate_sigma2` gives for the shapes.
+
+    See Also
+    --------
+    shapelib.sigma_ratio : The ratio of σ to the spacing.
+    shapelib.to_centroid_size : Bring shapes to the study's scale.
+    shapelib.estimate_sigma2 : The σ² the data suggest.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> t = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    >>> u = 300.0 * np.c_[np.cos(t), np.sin(t)]  # pixel units: σ² = 0.5 is far too small
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     _ = sl.distance(u, 1.1 * u, metric="alpha_bound", sigma2=0.5)
+    >>> any(issubclass(w.category, sl.ScaleWarning) for w in caught)
+    True
+    """
 
 
 def _as_collection(shapes) -> np.ndarray:
@@ -55,11 +92,18 @@ def _as_collection(shapes) -> np.ndarray:
 
 
 def landmark_spacing(shapes) -> float:
-    """Mean distance from each landmark to its nearest other landmark of the same shape.
+    r"""Mean distance from each landmark to its nearest other landmark of the same shape.
+
+    .. math::
+
+        \bar h = \frac{1}{N K} \sum_{i=1}^{N} \sum_{a=1}^{K} \min_{b \ne a} |x_{ia} - x_{ib}|
+
+    the length σ of eq. (5) [1]_ is compared with (:func:`shapelib.sigma_ratio`).
 
     Parameters
     ----------
     shapes : array_like, shape (K, d) or (N, K, d)
+        One shape or a population.
 
     Returns
     -------
@@ -69,7 +113,23 @@ def landmark_spacing(shapes) -> float:
     Raises
     ------
     ValueError
-        For fewer than two landmarks (no spacing to measure).
+        For fewer than two landmarks (no spacing to measure), or non-finite input.
+
+    See Also
+    --------
+    shapelib.sigma_ratio : The ratio of σ to this spacing.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import shapelib as sl
+    >>> sl.landmark_spacing([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.0, 2.0]])
+    1.0
     """
     x = _as_collection(shapes)
     if x.shape[1] < 2:
@@ -78,11 +138,49 @@ def landmark_spacing(shapes) -> float:
 
 
 def sigma_ratio(shapes, sigma2) -> float:
-    """σ in units of the mean nearest-landmark spacing, ``√σ² / landmark_spacing(shapes)``.
+    r"""σ in units of the mean nearest-landmark spacing.
 
-    The paper's corpus callosum settings (centroid size 20, σ² = 0.1, 0.5, 1.5) give 1.1, 2.6
-    and 4.5; below :data:`SIGMA_RATIO_MIN` the Gaussians of neighbouring landmarks no longer
-    overlap. ``inf`` if all landmarks coincide pairwise.
+    .. math::
+
+        r = \frac{\sqrt{\sigma^2}}{\bar h}
+
+    with :math:`\bar h` of :func:`shapelib.landmark_spacing`. The paper's corpus callosum settings
+    [1]_ (centroid size 20, σ² = 0.1, 0.5, 1.5) give 1.1, 2.6 and 4.5; below ``SIGMA_RATIO_MIN``
+    (0.2) the Gaussians of neighbouring landmarks no longer overlap.
+
+    Parameters
+    ----------
+    shapes : array_like, shape (K, d) or (N, K, d)
+        One shape or a population.
+    sigma2 : float
+        σ² > 0 of eq. (5).
+
+    Returns
+    -------
+    float
+        :math:`r`; ``inf`` if all landmarks coincide pairwise.
+
+    Raises
+    ------
+    ValueError
+        For a non-positive ``sigma2``, fewer than two landmarks or non-finite input.
+
+    See Also
+    --------
+    shapelib.landmark_spacing : The spacing.
+    shapelib.ScaleWarning : The warning this ratio decides.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import shapelib as sl
+    >>> sl.sigma_ratio([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.0, 2.0]], 0.25)
+    0.5
     """
     s = np.sqrt(check_sigma2(sigma2))
     spacing = landmark_spacing(shapes)
@@ -90,20 +188,54 @@ def sigma_ratio(shapes, sigma2) -> float:
 
 
 def to_centroid_size(shapes, size: float = PAPER_CENTROID_SIZE) -> np.ndarray:
-    """Shapes at the study's scale: generalised-Procrustes aligned (rotations only), centred,
-    each scaled to centroid size ``size``.
+    r"""Shapes at the study's scale: aligned (rotations only), centred, each at centroid size ``size``.
+
+    Generalised Procrustes alignment without scaling, then every shape scaled to
+
+    .. math::
+
+        S(x_i) = \|x_i - \bar x_i\|_F = \text{size},
+
+    the centroid size 20 at which the σ² values of Table I of [1]_ fit the corpus callosum shapes.
 
     Parameters
     ----------
     shapes : array_like, shape (N, K, d) or (K, d)
         A single shape is only centred and scaled.
-    size : float
+    size : float, default 20.0
         Centroid size (Frobenius norm of the centred landmarks) of every output shape.
 
     Returns
     -------
     ndarray
         Same shape as the input.
+
+    Raises
+    ------
+    ValueError
+        For a non-positive ``size``, fewer than two landmarks, a shape of zero size, or
+        non-finite input.
+
+    See Also
+    --------
+    shapelib.generalized_procrustes : The alignment.
+    shapelib.centroid_size : The size measure.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> rng = np.random.default_rng(0)
+    >>> shapes = rng.standard_normal((4, 10, 2)) * [3.0, 1.0]
+    >>> out = sl.to_centroid_size(shapes)
+    >>> out.shape, [round(sl.centroid_size(s), 9) for s in out]
+    ((4, 10, 2), [20.0, 20.0, 20.0, 20.0])
     """
     size = check_positive(size, name="size")
     if np.ndim(shapes) == 2:
@@ -113,13 +245,63 @@ def to_centroid_size(shapes, size: float = PAPER_CENTROID_SIZE) -> np.ndarray:
 
 
 def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
-    """Warn (:class:`ScaleWarning`) when σ does not fit the landmarks' scale.
+    r"""Warn (:class:`~shapelib.ScaleWarning`) when σ does not fit the landmarks' scale.
 
-    Warns when σ is below :data:`SIGMA_RATIO_MIN` times the mean nearest-landmark
-    spacing (the Gaussians of neighbouring landmarks do not overlap: the metric is nearly flat
-    and lengths and gradients underflow), or when σ exceeds the largest extent of the shapes
-    (every shape is one blob). Returns ``σ / spacing``. ``stacklevel`` is counted from this
-    function, as :func:`warnings.warn` counts it (3: the caller of its caller).
+    Warns when
+
+    .. math::
+
+        \frac{\sigma}{\bar h} < 0.2 \qquad \text{or} \qquad
+        \sigma > \max_i \operatorname{extent}(x_i),
+
+    :math:`\bar h` the mean nearest-landmark spacing: below, the Gaussians of neighbouring landmarks
+    of eq. (5) [1]_ do not overlap (the metric is nearly flat and lengths and gradients underflow);
+    above, every shape is one blob (0.2 is ``SIGMA_RATIO_MIN``).
+
+    Parameters
+    ----------
+    shapes : array_like, shape (K, d) or (N, K, d)
+        The shapes a computation is asked of.
+    sigma2 : float
+        σ² > 0 of eq. (5).
+    stacklevel : int, default 3
+        Counted from this function, as :func:`warnings.warn` counts it (3: the caller of its caller).
+
+    Returns
+    -------
+    float
+        :math:`\sigma / \bar h` (``inf`` for single landmarks or coincident ones).
+
+    Raises
+    ------
+    ValueError
+        For a non-positive ``sigma2`` or non-finite input.
+
+    Warns
+    -----
+    ScaleWarning
+        When σ does not fit; the message says what to change and what
+        :func:`shapelib.estimate_sigma2` gives.
+
+    See Also
+    --------
+    shapelib.sigma_ratio : The ratio alone.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from shapelib.geometry.scale import check_scale
+    >>> square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("error")
+    ...     check_scale(square, 0.25)
+    0.5
     """
     x = _as_collection(shapes)
     sigma2 = check_sigma2(sigma2)
@@ -156,10 +338,60 @@ FISHER_RAO_RATIO_MIN = float(1.0 / np.sqrt(8.0 * np.log(1.0 / np.finfo(np.float6
 
 
 def check_fisher_rao_scale(shapes, sigma2, *, metric: str = "fisher_rao", ratio: float | None = None) -> None:
-    """Raise ``ValueError`` before any work when σ is below :data:`FISHER_RAO_RATIO_MIN` times the
-    mean nearest-landmark spacing: the Fisher–Rao metric (eq. 6) and its bound would see isolated
-    points whose densities underflow between them (a division by zero, or a meaningless value).
-    ``ratio``: σ / spacing if already known (:func:`check_scale` returns it)."""
+    r"""Raise ``ValueError`` before any work when σ is too small for the Fisher–Rao quadrature.
+
+    The Fisher–Rao metric (eq. 6 of [1]_) and its bound divide by :math:`\sqrt{p}`; when
+
+    .. math::
+
+        \frac{\sigma}{\bar h} < \frac{1}{\sqrt{8 \ln(1/\varepsilon)}} \approx 0.059
+
+    (:math:`\varepsilon` the float64 machine epsilon, :math:`\bar h` the mean nearest-landmark
+    spacing), the Gaussians of neighbouring landmarks do not overlap even in double precision: the
+    density underflows between them and the quadrature has nothing to resolve.
+
+    Parameters
+    ----------
+    shapes : array_like, shape (K, d) or (N, K, d)
+        The shapes.
+    sigma2 : float
+        σ² > 0 of eq. (5).
+    metric : str, default "fisher_rao"
+        The metric's name, for the message.
+    ratio : float, optional
+        σ / spacing if already known (:func:`~shapelib.geometry.scale.check_scale` returns it).
+
+    Returns
+    -------
+    None
+
+    Raises
+    ------
+    ValueError
+        When σ is below the threshold; the message gives the smallest σ² that works.
+
+    See Also
+    --------
+    shapelib.fisher_rao_metric : The metric that needs it.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> from shapelib.geometry.scale import check_fisher_rao_scale
+    >>> square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+    >>> check_fisher_rao_scale(square, 0.25) is None
+    True
+    >>> try:
+    ...     check_fisher_rao_scale(square, 1e-4)
+    ... except ValueError as exc:
+    ...     print(str(exc)[:40])
+    fisher_rao: sigma2 = 0.0001 is too small
+    """
     sigma2 = check_sigma2(sigma2)
     if ratio is None:
         x = _as_collection(shapes)
@@ -206,18 +438,30 @@ SIGMA2_METHODS = ("scatter", "predictive")
 
 @dataclass(frozen=True)
 class Sigma2Estimate:
-    """σ² of eq. (5) estimated from a population (:func:`estimate_sigma2`).
+    r"""σ² of eq. (5) estimated from a population (:func:`shapelib.estimate_sigma2`).
+
+    For ``"scatter"`` the estimate and its standard error are
+
+    .. math::
+
+        \hat\sigma^2 = \frac{1}{\mathrm{df}} \sum_{i,a} |x_{ia} - \bar x_a|^2, \qquad
+        \operatorname{se}(\hat\sigma^2) = \hat\sigma^2 \sqrt{2/\mathrm{df}}
+
+    (:mod:`shapelib.geometry.sigma2`); the paper [1]_ fixes σ² by hand.
 
     Attributes
     ----------
     sigma2 : float
         The estimate, in squared units of the landmark coordinates.
     method : {"scatter", "predictive"}
+        The estimator.
     standard_error : float or None
-        Its sampling standard error (``"scatter"``: ``σ̂² √(2/df)``; ``None`` for ``"predictive"``).
+        Its sampling standard error (``"scatter"``: :math:`\hat\sigma^2 \sqrt{2/\mathrm{df}}`;
+        ``None`` for ``"predictive"``).
     spacing : float
-        Mean nearest-landmark spacing of the shapes (:func:`landmark_spacing`).
+        Mean nearest-landmark spacing of the shapes (:func:`shapelib.landmark_spacing`).
     n_shapes, n_landmarks, dim : int
+        The population's size.
     landmark_range : tuple of float or None
         ``"scatter"``: the smallest and largest σ of a single landmark, over σ — how unequal
         the landmarks' variability is (eq. 5 gives all of them one σ).
@@ -225,6 +469,33 @@ class Sigma2Estimate:
         Share of the scatter of the shapes as given that is pose (position, orientation): the
         estimate is computed after superimposing them rigidly, but the distances see the shapes
         as given, so a large share means: align them first.
+    sigma : float
+        :math:`\sqrt{\hat\sigma^2}` (property).
+    sigma_over_spacing : float
+        σ in units of ``spacing`` (property).
+
+    See Also
+    --------
+    shapelib.estimate_sigma2 : What returns it.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> rng = np.random.default_rng(1)
+    >>> t = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    >>> shapes = 3.0 * np.c_[np.cos(t), np.sin(t)] + 0.5 * rng.standard_normal((20, 12, 2))
+    >>> est = sl.estimate_sigma2(shapes)
+    >>> est.method, est.n_shapes, round(est.sigma, 2)
+    ('scatter', 20, 0.45)
+    >>> print(est.summary().splitlines()[0][:30])
+    sigma2 = 0.204 ± 0.014 (landma
     """
 
     sigma2: float
@@ -246,6 +517,10 @@ class Sigma2Estimate:
         return self.sigma / self.spacing if self.spacing > 0 else float("inf")
 
     def summary(self) -> str:
+        """What the estimate means, in a few lines: σ² with its standard error, σ against the landmark
+        spacing, how unequal the landmarks are, and advice when the shapes are not aligned or σ is below
+        the spacing's regime.
+        """
         what = {"scatter": "landmark scatter: the maximum-likelihood variance of each landmark around the "
                            "mean shape, per coordinate",
                 "predictive": "held-out prediction: half the variance at which one shape's mixture best "
@@ -269,27 +544,65 @@ class Sigma2Estimate:
 
 
 def estimate_sigma2(shapes, *, method: str = "scatter") -> Sigma2Estimate:
-    """σ² of the GMM shape (eq. 5) from a population of shapes (:mod:`shapelib.geometry.sigma2`).
+    r"""σ² of the GMM shape (eq. 5) from a population of shapes (:mod:`shapelib.geometry.sigma2`).
 
     ``"scatter"`` (default): the maximum-likelihood σ² of the landmarks around the mean shape, each
-    landmark a noisy observation of its mixture component (shapes superimposed rigidly first). With it, the overlap of two shapes'
-    Gaussians at corresponding landmarks is the density of the difference of two corresponding
-    landmarks under the model: displacements of the size the population shows count as typical.
-    ``"predictive"``: half the σ² at which one shape's mixture best predicts another's landmarks
-    (no correspondence used; low once neighbouring Gaussians overlap).
+    landmark a noisy observation of its mixture component (shapes superimposed rigidly first):
+
+    .. math::
+
+        \hat\sigma^2 = \frac{\sum_{i,a} |x_{ia} - \bar x_a|^2}{(N - 1) K d - N d(d + 1)/2}.
+
+    With it, the overlap of two shapes' Gaussians at corresponding landmarks is the density of the
+    difference of two corresponding landmarks under the model: displacements of the size the
+    population shows count as typical. ``"predictive"``: half the σ² at which one shape's mixture
+    best predicts another's landmarks (no correspondence used; low once neighbouring Gaussians
+    overlap). The paper [1]_ fixes σ² by hand and names estimating it from the data as its next step.
 
     Parameters
     ----------
     shapes : array_like, shape (N, K, d)
         The shapes the distances will be computed on — aligned, at that scale (σ² is in squared
         coordinate units); N ≥ 2.
-    method : {"scatter", "predictive"}
+    method : {"scatter", "predictive"}, default "scatter"
+        The estimator.
 
     Returns
     -------
     Sigma2Estimate
-        ``.sigma2``, ``.summary()`` says what the number means and warns when the shapes are not
+        ``.sigma2``; ``.summary()`` says what the number means and warns when the shapes are not
         aligned or σ is below the landmark spacing's regime.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``method``, fewer than two shapes, too few landmarks to estimate anything
+        beyond the pose, or identical shapes.
+
+    See Also
+    --------
+    shapelib.Sigma2Estimate : The result.
+    shapelib.geometry.sigma2.scatter_sigma2 : The scatter estimator itself.
+    shapelib.bound_matrix_sweep : Distances over a range of σ².
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    Noisy copies of a circle with landmark noise σ = 0.5:
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> rng = np.random.default_rng(1)
+    >>> t = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    >>> shapes = 3.0 * np.c_[np.cos(t), np.sin(t)] + 0.5 * rng.standard_normal((20, 12, 2))
+    >>> est = sl.estimate_sigma2(shapes)
+    >>> round(est.sigma2, 2), round(est.standard_error, 3)
+    (0.2, 0.014)
     """
     if method not in SIGMA2_METHODS:
         raise ValueError(f"method must be one of {SIGMA2_METHODS}; got {method!r}")

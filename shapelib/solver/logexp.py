@@ -1,4 +1,4 @@
-"""Logarithm and exponential maps of the α-order and Fisher–Rao metrics, by discrete geodesic calculus.
+r"""Logarithm and exponential maps of the α-order and Fisher–Rao metrics, by discrete geodesic calculus.
 
 The statistics of a population of shapes (Fréchet mean, tangent PCA, geodesic regression) need
 two maps at a base shape ``θ₀``: the **logarithm** ``log_θ₀(θ)``, the initial velocity of the
@@ -8,11 +8,17 @@ path energy the geodesic solver minimises (eq. 8 on piecewise-linear paths throu
 points, :mod:`shapelib.solver.energy`), following the variational time discretisation of
 geodesic calculus (Rumpf & Wirth, *IMA J. Numer. Anal.* 35, 2015):
 
-* ``log_θ₀(θ) = n (θ₁ − θ₀)``, where ``θ₀, θ₁, …, θₙ = θ`` is the discrete geodesic
+* :math:`\log_{\theta_0}(\theta) = n (\theta_1 - \theta_0)`, where
+  :math:`\theta_0, \theta_1, \dots, \theta_n = \theta` is the discrete geodesic
   (:func:`shapelib.solver.minimise.minimise_path`);
-* ``exp_θ₀(v)``: set ``θ₁ = θ₀ + v / n`` and solve the discrete Euler–Lagrange equations
-  ``∂_b S(θ_{t−1}, θ_t) + ∂_a S(θ_t, θ_{t+1}) = 0`` for ``θ₂, …, θₙ`` one point at a time
-  (``S(a, b)`` the energy of one segment), by Newton's method.
+* :math:`\exp_{\theta_0}(v)`: set :math:`\theta_1 = \theta_0 + v / n` and solve the discrete
+  Euler–Lagrange equations for :math:`\theta_2, \dots, \theta_n` one point at a time
+  (:math:`S(a, b)` the energy of one segment), by Newton's method:
+
+.. math::
+
+    \partial_b S(\theta_{t-1}, \theta_t) + \partial_a S(\theta_t, \theta_{t+1}) = 0, \qquad
+    S(a, b) = \frac{1}{n} \sum_k w_k\, Q\big(a + \tau_k (b - a),\ n (b - a)\big).
 
 The two are inverse to each other at the same ``n``: the discrete geodesic satisfies the discrete
 Euler–Lagrange equations at every interior point, so the recursion started from its first
@@ -73,11 +79,40 @@ DEFAULT_LOG_STEPS = 4
 
 @dataclass(frozen=True)
 class GeodesicOptions:
-    """How the log and exp maps are computed (one picklable record, passed to every worker).
+    r"""How the log and exp maps are computed (one picklable record, passed to every worker).
+
+    The maps are taken on the discrete path energy of eq. (8) of [1]_ under the α-order (eq. 22) or
+    Fisher–Rao (eq. 6) metric,
+
+    .. math::
+
+        E_n = \sum_{t=0}^{n-1} S(\theta_t, \theta_{t+1}),
+
+    with ``n = n_steps`` segments; the options are validated when the record is made.
+
+    Parameters
+    ----------
+    metric : {"alpha", "fisher_rao"}
+        The metric.
+    sigma2 : float
+        σ² of the GMM representation (eq. 5).
+    n_steps : int, default 4
+        Time steps ``n`` of the discrete geodesics.
+    tol : float, default 1e-6
+        Stop of each path solve (:func:`shapelib.geodesic`'s ``tol``).
+    max_iter : int, default 200
+        Levenberg–Marquardt iterations per path solve.
+    rcond : float, default 1e-6
+        Relative cut-off of the retained subspace, in (0, 1).
+    grid_spacing, grid_margin : float
+        Fisher–Rao quadrature grid (:mod:`shapelib.geometry.quadrature`).
+    window : int, default 5
+        Iterations over which the energy decrease is measured.
 
     Attributes
     ----------
     metric : {"alpha", "fisher_rao"}
+        The metric.
     sigma2 : float
         σ² of the GMM representation (eq. 5).
     n_steps : int
@@ -93,6 +128,29 @@ class GeodesicOptions:
         Fisher–Rao quadrature grid (:mod:`shapelib.geometry.quadrature`).
     window : int
         Iterations over which the energy decrease is measured.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``metric``, a non-positive ``sigma2``, ``n_steps``, ``tol``, ``window`` or
+        grid option, a negative ``max_iter``, or ``rcond`` outside (0, 1).
+
+    See Also
+    --------
+    shapelib.log_map, shapelib.exp_map
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> from shapelib.solver.logexp import GeodesicOptions
+    >>> opts = GeodesicOptions("alpha", 0.5)
+    >>> opts.n_steps, opts.replace(n_steps=8).n_steps, opts.model().name
+    (4, 8, 'alpha')
     """
 
     metric: str
@@ -121,11 +179,11 @@ class GeodesicOptions:
         check_positive(self.grid_margin, name="grid_margin")
 
     def model(self):
-        """The :class:`~shapelib.solver.path_metric.PathMetric` of these options."""
+        """The :class:`~shapelib.PathMetric` of these options."""
         return path_metric(self.metric, self.sigma2, grid_spacing=self.grid_spacing, grid_margin=self.grid_margin)
 
     def replace(self, **changes) -> "GeodesicOptions":
-        """A copy with ``changes`` applied."""
+        """A copy with ``changes`` applied (validated again)."""
         kw = {f: getattr(self, f) for f in self.__dataclass_fields__}
         kw.update(changes)
         return GeodesicOptions(**kw)
@@ -138,25 +196,61 @@ class GeodesicOptions:
 
 @dataclass
 class TangentSpace:
-    """The tangent space at ``base`` with the metric ``g(base)`` and its retained subspace.
+    r"""The tangent space at ``base`` with the metric ``g(base)`` and its retained subspace.
 
-    ``g = U Λ Uᵀ`` (eigenvalues descending). The retained subspace is spanned by the columns of
-    ``U`` whose eigenvalue exceeds ``rcond · λ_max``; its **coordinates** ``z = Λ_r^{1/2} U_rᵀ v``
-    are isometric (``zᵀz' = vᵀ g v'`` for vectors in the subspace), so Euclidean statistics of ``z``
-    are metric statistics of ``v``. Since ``U`` is orthogonal in both the Euclidean and the metric
-    inner product, :meth:`project` is the orthogonal projection onto the subspace in both.
+    With the metric tensor of eq. (22) or (6) of [1]_ at the base, :math:`g = U \Lambda U^\top`
+    (eigenvalues descending), the retained subspace is spanned by the columns of :math:`U` whose
+    eigenvalue exceeds :math:`\text{rcond} \cdot \lambda_{\max}`; its **coordinates**
+
+    .. math::
+
+        z = \Lambda_r^{1/2} U_r^\top v, \qquad z^\top z' = v^\top g\, v'
+        \quad \text{for } v, v' \text{ in the subspace},
+
+    are isometric, so Euclidean statistics of ``z`` are metric statistics of ``v``. Since ``U`` is
+    orthogonal in both the Euclidean and the metric inner product, :meth:`project` is the orthogonal
+    projection onto the subspace in both.
 
     Attributes
     ----------
-    base : ndarray (K, d)
-    metric_tensor : ndarray (K d, K d)
-    eigenvalues : ndarray (K d,)
+    base : ndarray, shape (K, d)
+        The base shape.
+    metric_tensor : ndarray, shape (K d, K d)
+        :math:`g(\text{base})`.
+    eigenvalues : ndarray, shape (K d,)
         Descending.
-    eigenvectors : ndarray (K d, K d)
+    eigenvectors : ndarray, shape (K d, K d)
         Columns, in the order of ``eigenvalues``.
     rank : int
         Dimension of the retained subspace.
     rcond : float
+        The relative cut-off.
+    shape : tuple
+        ``base.shape`` (property).
+    basis : ndarray, shape (K d, rank)
+        :math:`U_r`, the retained eigenvectors (property).
+
+    See Also
+    --------
+    shapelib.tangent_space : What builds it.
+    shapelib.log_map : Tangent vectors from shapes.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> ts = sl.tangent_space(square, sigma2=0.5)
+    >>> v = np.array([[0.0, 0.0], [0.1, 0.0], [0.1, 0.1], [0.0, 0.0]])
+    >>> z = ts.coords(v)
+    >>> ts.rank, bool(np.isclose(z @ z, ts.inner(v, v)))
+    (8, True)
     """
 
     base: np.ndarray
@@ -222,8 +316,64 @@ class TangentSpace:
 def tangent_space(base, *, metric: str = "alpha", sigma2=None, rcond: float = DEFAULT_RCOND,
                   grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN,
                   options: GeodesicOptions | None = None) -> TangentSpace:
-    """The :class:`TangentSpace` at ``base``: ``g(base)`` (eq. 22 or eq. 6), its eigenvectors and the
-    retained subspace (eigenvalues above ``rcond`` of the largest)."""
+    r"""The tangent space at ``base``: the metric tensor, its eigenvectors and the retained subspace.
+
+    :math:`g(\text{base})` is the α-order metric of eq. (22) or the Fisher–Rao metric of eq. (6) of
+    [1]_; the retained subspace holds the eigenvectors with
+
+    .. math::
+
+        \lambda_i > \text{rcond} \cdot \lambda_{\max},
+
+    the directions in which the density of eq. (5) actually changes (module docstring: the flat
+    directions).
+
+    Parameters
+    ----------
+    base : array_like, shape (K, d)
+        The base shape.
+    metric : {"alpha", "fisher_rao"}, default "alpha"
+        The metric.
+    sigma2 : float
+        σ² > 0 of eq. (5).
+    rcond : float, default 1e-6
+        Relative eigenvalue cut-off of the retained subspace.
+    grid_spacing, grid_margin : float
+        Fisher–Rao quadrature grid (:mod:`shapelib.geometry.quadrature`).
+    options : GeodesicOptions, optional
+        All of the above in one record (then the other options are ignored).
+
+    Returns
+    -------
+    TangentSpace
+        The metric, its eigen-decomposition and the retained subspace.
+
+    Raises
+    ------
+    ValueError
+        For bad options, a non-finite ``base``, or a metric tensor that is zero (σ² far too small
+        for the landmarks).
+
+    See Also
+    --------
+    shapelib.alpha_metric, shapelib.fisher_rao_metric
+    shapelib.log_map : Tangent vectors to measure in it.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> ts = sl.tangent_space(square, sigma2=0.5)
+    >>> ts.metric_tensor.shape, ts.rank, bool(np.allclose(ts.metric_tensor, sl.alpha_metric(square, 0.5)))
+    ((8, 8), 8, True)
+    """
     opts = options if options is not None else GeodesicOptions(metric, sigma2, rcond=rcond, grid_spacing=grid_spacing,
                                                                 grid_margin=grid_margin)
     base = as_shape(base, name="base")
@@ -245,21 +395,51 @@ def tangent_space(base, *, metric: str = "alpha", sigma2=None, rcond: float = DE
 
 @dataclass
 class LogResult:
-    """A log map and the discrete geodesic it is read from.
+    r"""A log map and the discrete geodesic it is read from.
+
+    .. math::
+
+        \log_{\theta_0}(\theta) = n\, (\theta_1 - \theta_0)
+
+    on the discrete geodesic :math:`\theta_0, \dots, \theta_n = \theta` minimising the path energy of
+    eq. (8) of [1]_.
 
     Attributes
     ----------
-    vector : ndarray (K, d)
-        ``log_base(shape) = n (θ₁ − θ₀)``.
-    path : ndarray (n + 1, K, d)
+    vector : ndarray, shape (K, d)
+        :math:`\log_{\text{base}}(\text{shape}) = n (\theta_1 - \theta_0)`.
+    path : ndarray, shape (n + 1, K, d)
         The discrete geodesic from ``base`` to ``shape`` (a warm start for the next solve).
     energy : float
         Its path energy (eq. 8), ≈ the squared geodesic distance.
     converged : bool
+        Whether the path solver converged.
     n_iter : int
+        Its iterations.
     stop_reason : str
-        A :class:`~shapelib.solver.result.StopReason` value.
+        A :class:`~shapelib.StopReason` value.
     seconds : float
+        Wall-clock time.
+
+    See Also
+    --------
+    shapelib.log_map : What returns it (``return_result=True``).
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
+    >>> res = sl.log_map(u, v, sigma2=0.5, return_result=True)
+    >>> res.converged, res.path.shape, bool(np.allclose(res.vector, 4 * (res.path[1] - res.path[0])))
+    (True, (5, 4, 2), True)
     """
 
     vector: np.ndarray
@@ -271,6 +451,7 @@ class LogResult:
     seconds: float = 0.0
 
     def summary(self) -> str:
+        """One line: energy, iterations, convergence and stop reason."""
         return (f"log map: energy {self.energy:.6g}, {self.n_iter} iterations, converged {self.converged} "
                 f"({self.stop_reason})")
 
@@ -292,16 +473,49 @@ def _solve_log(model, base, shape, opts: GeodesicOptions, init) -> LogResult:
 
 
 def log_maps(base, shapes, *, options: GeodesicOptions, inits=None) -> list:
-    """Log maps of every shape of ``shapes`` (N, K, d) at ``base``, in this process.
+    r"""Log maps of every shape of ``shapes`` at ``base``, in this process.
 
-    ``base`` is one shape (K, d) or one per shape (N, K, d) (the residuals of a regression).
-    ``inits``: a sequence of N warm-start paths (or None entries), e.g. the paths of the previous
-    iteration moved to the new base. This is the unit of work the statistics hand to an executor
-    (:func:`shapelib.statistics.population_logs.population_logs`); inputs are assumed validated.
+    For each shape :math:`\theta_i`, :math:`\log_{\text{base}}(\theta_i) = n(\theta_{i,1} - \theta_{i,0})`
+    on its discrete geodesic (eq. 8 of [1]_). ``base`` is one shape (K, d) or one per shape
+    (N, K, d) (the residuals of a regression). This is the unit of work the statistics hand to an
+    executor (:func:`shapelib.statistics.population_logs.population_logs`); inputs are assumed
+    validated.
+
+    Parameters
+    ----------
+    base : array_like, shape (K, d) or (N, K, d)
+        The base shape(s).
+    shapes : array_like, shape (N, K, d)
+        The shapes.
+    options : GeodesicOptions, keyword-only
+        Metric, σ² and solver options.
+    inits : sequence, optional
+        N warm-start paths (or None entries), e.g. the paths of the previous iteration moved to the
+        new base.
 
     Returns
     -------
     list of LogResult
+        One per shape.
+
+    See Also
+    --------
+    shapelib.log_map : One checked log map.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.solver.logexp import GeodesicOptions, log_maps
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> logs = log_maps(u, np.stack([u, 1.1 * u - 0.05]), options=GeodesicOptions("alpha", 0.5))
+    >>> len(logs), float(logs[0].energy), bool(logs[1].energy > 0)
+    (2, 0.0, True)
     """
     shapes = np.asarray(shapes, dtype=np.float64)
     base = np.asarray(base, dtype=np.float64)
@@ -323,24 +537,35 @@ def _check_entry(base, other, s2, metric, names):
 def log_map(base, shape, *, metric: str = "alpha", sigma2, n_steps: int = DEFAULT_LOG_STEPS, tol: float = 1e-8,
             max_iter: int = 500, init=None, grid_spacing: float = DEFAULT_SPACING,
             grid_margin: float = DEFAULT_MARGIN, return_result: bool = False):
-    """Riemannian logarithm: the initial velocity of the geodesic from ``base`` to ``shape``.
+    r"""Riemannian logarithm: the initial velocity of the geodesic from ``base`` to ``shape``.
 
-    ``log_base(shape) = n (θ₁ − θ₀)`` on the discrete geodesic ``θ₀ = base, θ₁, …, θₙ = shape``
-    that minimises the path energy (eq. 8; :func:`shapelib.geodesic`). ``exp_map(base,
-    log_map(base, shape))`` returns ``shape`` (at the same ``n_steps``) up to the flat
-    directions (module docstring). Its metric norm ``√(vᵀ g(base) v)`` is the geodesic distance
-    up to the discretisation.
+    Read off the discrete geodesic :math:`\theta_0 = \text{base}, \theta_1, \dots, \theta_n =
+    \text{shape}` that minimises the path energy of eq. (8) of [1]_ (:func:`shapelib.geodesic`),
+    following the discrete geodesic calculus of Rumpf and Wirth [2]_:
+
+    .. math::
+
+        \log_{\text{base}}(\text{shape}) = n\, (\theta_1 - \theta_0), \qquad
+        \|\log_{\text{base}}(\text{shape})\|_{g(\text{base})} \approx d(\text{base}, \text{shape}).
+
+    ``exp_map(base, log_map(base, shape))`` returns ``shape`` (at the same ``n_steps``) up to the
+    flat directions (module docstring). Its metric norm is the geodesic distance up to the
+    discretisation.
 
     Parameters
     ----------
     base, shape : array_like, shape (K, d)
         Landmarks in correspondence, d = 2 or 3.
     metric : {"alpha", "fisher_rao"}
+        α-order (eq. 22) or Fisher–Rao (eq. 6) metric.
     sigma2 : float
+        σ² of eq. (5).
     n_steps : int
         Time steps of the discrete geodesic (the log vector's error is O(1/n)).
-    tol, max_iter
-        Path solver stop (:func:`shapelib.geodesic`).
+    tol : float
+        Path solver tolerance (:func:`shapelib.geodesic`).
+    max_iter : int
+        Path solver iterations.
     init : array_like (n_steps + 1, K, d), optional
         Warm start.
     grid_spacing, grid_margin : float
@@ -351,6 +576,44 @@ def log_map(base, shape, *, metric: str = "alpha", sigma2, n_steps: int = DEFAUL
     Returns
     -------
     ndarray (K, d) or LogResult
+        The tangent vector at ``base``.
+
+    Raises
+    ------
+    ValueError
+        For shapes that do not match or are not finite, a dimension other than 2 or 3, an unknown
+        ``metric`` or a non-positive option.
+
+    Warns
+    -----
+    GeodesicWarning
+        When the path solver stops without converging.
+    ScaleWarning
+        When σ does not fit the landmarks' spacing.
+
+    See Also
+    --------
+    shapelib.exp_map : The inverse map.
+    shapelib.tangent_space : Norms and coordinates of tangent vectors.
+    shapelib.frechet_mean : The mean shape these maps give.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] M. Rumpf and B. Wirth, "Variational time discretization of geodesic calculus", *IMA
+       Journal of Numerical Analysis* 35(3), 1011–1046, 2015.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
+    >>> vec = sl.log_map(u, v, sigma2=0.5)
+    >>> vec.shape, bool(np.allclose(sl.exp_map(u, vec, sigma2=0.5), v, atol=1e-6))
+    ((4, 2), True)
     """
     base, shape = _check_entry(base, shape, sigma2, metric, ("base", "shape"))
     opts = GeodesicOptions(metric, sigma2, n_steps=n_steps, tol=tol, max_iter=max_iter, grid_spacing=grid_spacing,
@@ -369,8 +632,58 @@ def log_map(base, shape, *, metric: str = "alpha", sigma2, n_steps: int = DEFAUL
 
 
 def segment_derivatives(model, a, b, n, ctx, *, hessian: bool):
-    """``∂S/∂a``, ``∂S/∂b`` of the segment energy ``S(a, b) = (1/n) Σ_k w_k Q(a + τ_k(b − a), n(b − a))``
-    and, with ``hessian``, the mixed block ``∂²S/∂a∂b`` (rows a, columns b)."""
+    r"""Derivatives of the energy of one path segment.
+
+    The segment energy of the discrete path energy (eq. 8 of [1]_, 3-point Gauss–Legendre in time):
+
+    .. math::
+
+        S(a, b) = \frac{1}{n} \sum_k w_k\, Q\big(a + \tau_k (b - a),\ n (b - a)\big),
+        \qquad Q(\theta, v) = v^\top g(\theta)\, v,
+
+    returned as :math:`\partial S/\partial a`, :math:`\partial S/\partial b` and, with ``hessian``,
+    the mixed block :math:`\partial^2 S / \partial a\, \partial b` (rows a, columns b).
+
+    Parameters
+    ----------
+    model : PathMetric
+        The metric.
+    a, b : ndarray, shape (K, d)
+        The segment's ends.
+    n : int
+        Number of segments of the path.
+    ctx : object
+        ``model.prepare(...)`` of the points involved.
+    hessian : bool, keyword-only
+        Also return the mixed second derivative.
+
+    Returns
+    -------
+    da, db : ndarray, shape (K, d)
+        The gradients.
+    mixed : ndarray, shape (K d, K d) or None
+        The mixed block (None without ``hessian``).
+
+    See Also
+    --------
+    shapelib.solver.logexp.exp_path : The recursion that solves for ``b``.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.solver.logexp import segment_derivatives
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> da, db, mixed = segment_derivatives(sl.path_metric("alpha", 0.5), u, 1.1 * u, 4, None, hessian=True)
+    >>> da.shape, mixed.shape
+    ((4, 2), (8, 8))
+    """
     k, d = a.shape
     tau, w = GL3_NODES, GL3_WEIGHTS
     theta = a[None] + tau[:, None, None] * (b - a)[None]
@@ -453,9 +766,59 @@ def _el_step(model, prev, cur, n, rcond, tol, max_newton, info):
 
 def exp_path(base, vector, *, options: GeodesicOptions, n_steps: int | None = None, newton_tol: float = 1e-5,
              max_newton: int = 30):
-    """The discrete geodesic ``θ₀ = base, θ₁ = base + v/n, θ₂, …, θₙ`` of :func:`exp_map` and a
-    convergence record ``{"converged", "newton_iters", "residuals"}`` (inputs validated by the
-    caller). ``n_steps`` overrides ``options.n_steps``."""
+    r"""The discrete geodesic of :func:`shapelib.exp_map` and a convergence record.
+
+    :math:`\theta_0 = \text{base}`, :math:`\theta_1 = \text{base} + v/n`, then each
+    :math:`\theta_{t+1}` solves the discrete Euler–Lagrange equation of the path energy (eq. 8 of
+    [1]_) at :math:`\theta_t`,
+
+    .. math::
+
+        \partial_b S(\theta_{t-1}, \theta_t) + \partial_a S(\theta_t, \theta_{t+1}) = 0,
+
+    by Newton's method with truncated-SVD steps (inputs validated by the caller).
+
+    Parameters
+    ----------
+    base : array_like, shape (K, d)
+        The start.
+    vector : array_like, shape (K, d)
+        The initial velocity.
+    options : GeodesicOptions, keyword-only
+        Metric, σ², ``n_steps`` and ``rcond``.
+    n_steps : int, optional
+        Overrides ``options.n_steps``.
+    newton_tol : float, default 1e-5
+        Relative residual at which a Newton solve stops.
+    max_newton : int, default 30
+        Newton iterations per point.
+
+    Returns
+    -------
+    path : ndarray, shape (n + 1, K, d)
+        The discrete geodesic.
+    info : dict
+        ``{"converged", "newton_iters", "residuals"}``.
+
+    See Also
+    --------
+    shapelib.exp_map : The checked end point.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.solver.logexp import GeodesicOptions, exp_path
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> path, info = exp_path(u, 0.1 * u, options=GeodesicOptions("alpha", 0.5))
+    >>> path.shape, info["converged"]
+    ((5, 4, 2), True)
+    """
     n = options.n_steps if n_steps is None else n_steps
     model = options.model()
     base = np.asarray(base, dtype=np.float64)
@@ -477,31 +840,83 @@ def exp_path(base, vector, *, options: GeodesicOptions, n_steps: int | None = No
 def exp_map(base, vector, *, metric: str = "alpha", sigma2, n_steps: int = DEFAULT_LOG_STEPS,
             rcond: float = DEFAULT_RCOND, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN,
             return_result: bool = False):
-    """Riemannian exponential: the shape reached at ``t = 1`` by the geodesic leaving ``base`` with
-    velocity ``vector``.
+    r"""Riemannian exponential: the end at ``t = 1`` of the geodesic leaving ``base`` with velocity ``vector``.
 
-    Discrete geodesic shooting on the path energy of :func:`shapelib.geodesic`: ``θ₁ = base +
-    vector / n``, then each ``θ_{t+1}`` solves the discrete Euler–Lagrange equation at ``θ_t``
-    (the path energy is stationary there), by Newton's method whose linear systems drop the
-    directions with singular values below ``rcond`` of the largest: along those (landmarks
-    sliding on the contour) the landmarks keep their velocity. No ``g⁻¹`` is formed. The inverse
-    of :func:`log_map` at the same ``n_steps``.
+    Discrete geodesic shooting on the path energy of eq. (8) of [1]_ [2]_:
+    :math:`\theta_1 = \text{base} + v / n`, then each :math:`\theta_{t+1}` solves the discrete
+    Euler–Lagrange equation at :math:`\theta_t` (the path energy is stationary there),
+
+    .. math::
+
+        \partial_b S(\theta_{t-1}, \theta_t) + \partial_a S(\theta_t, \theta_{t+1}) = 0,
+        \qquad \exp_{\text{base}}(v) = \theta_n,
+
+    by Newton's method whose linear systems drop the directions with singular values below
+    ``rcond`` of the largest: along those (landmarks sliding on the contour) the landmarks keep their
+    velocity. No :math:`g^{-1}` is formed. The inverse of :func:`shapelib.log_map` at the same
+    ``n_steps``.
 
     Parameters
     ----------
     base : array_like (K, d)
+        The start shape.
     vector : array_like (K, d)
         Initial velocity (a tangent vector at ``base``).
-    metric, sigma2, n_steps, rcond, grid_spacing, grid_margin
-        As in :func:`log_map`; ``rcond`` is the truncation.
+    metric : {"alpha", "fisher_rao"}
+        α-order (eq. 22) or Fisher–Rao (eq. 6) metric.
+    sigma2 : float
+        σ² of eq. (5).
+    n_steps : int
+        Time steps of the discrete geodesic.
+    rcond : float
+        The truncation: singular values below ``rcond`` times the largest are dropped.
+    grid_spacing, grid_margin : float
+        Fisher–Rao quadrature.
     return_result : bool
-        Return a :class:`~shapelib.solver.result.GeodesicResult` of the whole discrete geodesic
+        Return a :class:`~shapelib.GeodesicResult` of the whole discrete geodesic
         (its ``path``, ``length``, ``energy``; usable by :func:`shapelib.extrinsic_warp`) instead
         of the end point.
 
     Returns
     -------
     ndarray (K, d) or GeodesicResult
+        The end point, or the whole discrete geodesic.
+
+    Raises
+    ------
+    ValueError
+        For arrays that do not match or are not finite, a dimension other than 2 or 3, an unknown
+        ``metric`` or a bad option.
+
+    Warns
+    -----
+    GeodesicWarning
+        When a Newton solve of the recursion stops before its tolerance.
+    ScaleWarning
+        When σ does not fit the landmarks' spacing.
+
+    See Also
+    --------
+    shapelib.log_map : The inverse map.
+    shapelib.solver.geodesic.shoot : The continuous geodesic ODE (eq. 11) by RK4.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] M. Rumpf and B. Wirth, "Variational time discretization of geodesic calculus", *IMA
+       Journal of Numerical Analysis* 35(3), 1011–1046, 2015.
+
+    Examples
+    --------
+    A single landmark moves in flat space: the exponential is a straight step.
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> end = sl.exp_map([[0.0, 0.0]], [[0.3, -0.2]], sigma2=0.5)
+    >>> bool(np.allclose(end, [[0.3, -0.2]]))
+    True
     """
     base, vector = _check_entry(base, vector, sigma2, metric, ("base", "vector"))
     opts = GeodesicOptions(metric, sigma2, n_steps=n_steps, rcond=rcond, grid_spacing=grid_spacing,
@@ -517,9 +932,49 @@ def exp_map(base, vector, *, metric: str = "alpha", sigma2, n_steps: int = DEFAU
 
 
 def path_as_result(path, *, options: GeodesicOptions, log=None) -> GeodesicResult:
-    """A :class:`GeodesicResult` for a discrete geodesic computed outside the path solver (e.g. by
-    :func:`exp_path`): its length and energy under ``options``' metric; ``lower_bound`` the
-    metric's closed-form bound between the ends."""
+    r"""A :class:`~shapelib.GeodesicResult` for a discrete geodesic computed outside the path solver.
+
+    E.g. by :func:`~shapelib.solver.logexp.exp_path`: its length and energy (eq. 8 of [1]_) under
+    ``options``' metric, and ``lower_bound`` the metric's closed-form bound between the ends,
+
+    .. math::
+
+        \text{lower bound} \le d(\theta_0, \theta_n) \le \text{length}.
+
+    Parameters
+    ----------
+    path : array_like, shape (n + 1, K, d)
+        The path.
+    options : GeodesicOptions, keyword-only
+        Its metric and σ².
+    log : dict, optional
+        Extra entries of the result's log.
+
+    Returns
+    -------
+    GeodesicResult
+        ``converged`` True, ``n_iter`` 0, ``stop_reason`` ``"trivial"``.
+
+    See Also
+    --------
+    shapelib.GeodesicResult
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.solver.logexp import GeodesicOptions, path_as_result
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> r = sl.geodesic(u, 1.1 * u - 0.05, sigma2=0.5, n_steps=4)
+    >>> bool(np.isclose(path_as_result(r.path, options=GeodesicOptions("alpha", 0.5)).length, r.length))
+    True
+    """
     from .energy import path_energy
 
     model = options.model()
@@ -534,25 +989,60 @@ def path_as_result(path, *, options: GeodesicOptions, log=None) -> GeodesicResul
 
 
 def magnify(result: GeodesicResult, mag: float, *, rcond: float = DEFAULT_RCOND) -> GeodesicResult:
-    """The geodesic of ``result`` scaled to ``mag`` times its length from its start: the discrete
-    geodesic ``exp_start(mag · log_start(end))`` with the same step size, so its first ``n`` points
-    retrace ``result.path`` and it continues beyond the end (``mag > 1``) or stops short of it
-    (``mag < 1``) — the magnified deformation of geomorph's ``plotRefToTarget(mag=)``, along the
-    geodesic instead of a thin-plate spline.
+    r"""The geodesic of ``result`` scaled to ``mag`` times its length from its start.
+
+    The discrete geodesic
+
+    .. math::
+
+        \exp_{\theta_0}\big(\text{mag} \cdot \log_{\theta_0}(\theta_n)\big)
+
+    with the same step size, so its first ``n`` points retrace ``result.path`` and it continues
+    beyond the end (``mag > 1``) or stops short of it (``mag < 1``) — the magnified deformation of
+    geomorph's ``plotRefToTarget(mag=)``, along the geodesic of eq. (8) of [1]_ instead of a
+    thin-plate spline.
 
     Parameters
     ----------
     result : GeodesicResult
-        An α or Fisher–Rao geodesic (:func:`shapelib.geodesic`, :func:`exp_map` with
+        An α or Fisher–Rao geodesic (:func:`shapelib.geodesic`, :func:`shapelib.exp_map` with
         ``return_result=True``).
     mag : float
         Magnification (> 0).
     rcond : float
-        Truncation of the exponential map (:func:`exp_map`).
+        Truncation of the exponential map (:func:`shapelib.exp_map`).
 
     Returns
     -------
     GeodesicResult
+        The magnified discrete geodesic (``round(mag · n)`` steps).
+
+    Raises
+    ------
+    ValueError
+        For a non-positive ``mag`` or a result of another metric.
+
+    See Also
+    --------
+    shapelib.exp_map, shapelib.log_map
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.solver.logexp import magnify
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
+    >>> r = sl.geodesic(u, v, sigma2=0.5, n_steps=4)
+    >>> twice = magnify(r, 2.0)
+    >>> twice.path.shape, bool(np.allclose(twice.path[:5], r.path, atol=1e-6))
+    ((9, 4, 2), True)
     """
     mag = check_positive(mag, name="mag")
     if result.metric not in METRICS or result.sigma2 is None:

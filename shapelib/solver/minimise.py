@@ -1,17 +1,17 @@
-"""The path solver: Levenberg–Marquardt (a trust-region Newton method) on the discrete path energy
-of any :class:`~shapelib.solver.path_metric.PathMetric`, with a certified stop.
+r"""The path solver: Levenberg–Marquardt (a trust-region Newton method) on the discrete path energy
+of any :class:`~shapelib.PathMetric`, with a certified stop.
 
 The pieces, each its own function:
 
-* :func:`damped_newton_step` — the subproblem: solve ``(H + λ s I) x = −g`` on the
-  block-tridiagonal Hessian (``s`` its mean diagonal), doubling λ until the shifted matrix is
-  positive definite;
+* :func:`damped_newton_step` — the subproblem: solve :math:`(H + \lambda s I)\, x = -g` on the
+  block-tridiagonal Hessian (:math:`s` its mean diagonal), doubling λ until the shifted matrix
+  is positive definite;
 * :func:`newton_certificate` — where the exact Hessian is positive definite, the Newton
-  decrement ``½ gᵀH⁻¹g`` estimates the energy still to gain; below ``tol · E`` the path is a
-  certified local minimum;
+  decrement :math:`\tfrac12 g^\top H^{-1} g` estimates the energy still to gain; below
+  :math:`\text{tol} \cdot E` the path is a certified local minimum;
 * :func:`accept_step` — the accept loop: a trial step is kept if it lowers the energy; the
   damping follows the ratio of actual to predicted decrease;
-* the stop rules, each reported as a :class:`~shapelib.solver.result.StopReason`.
+* the stop rules, each reported as a :class:`~shapelib.StopReason`.
 
 :func:`minimise_path` runs them; :func:`shapelib.geodesic`, :func:`shapelib.distance_bracket` and
 :func:`shapelib.landmark_diffeomorphism` call it.
@@ -39,13 +39,23 @@ MAX_FACTORISATIONS = 60
 
 
 def damped_newton_step(hess, grad, lam: float, scale: float, *, budget: int = MAX_FACTORISATIONS):
-    """Solve the damped subproblem ``(H + lam·scale·I) x = −grad`` on the block-tridiagonal ``H``.
+    r"""Solve the damped subproblem ``(H + lam·scale·I) x = −grad`` on the block-tridiagonal ``H``.
+
+    The Levenberg–Marquardt step [1]_ on the discrete path energy of eq. (8) of [2]_,
+
+    .. math::
+
+        (H + \lambda s I)\, x = -g,
+
+    with ``lam`` doubled after each failed factorisation (:math:`H + \lambda s I` not positive
+    definite).
 
     Parameters
     ----------
     hess : tuple (diag, upper)
         Blocks of ``H`` as :func:`shapelib.solver.energy.path_energy` returns them.
     grad : ndarray, shape (n - 1, q)
+        The gradient at the interior points.
     lam, scale : float
         Damping and its scale (the mean diagonal entry of ``H``).
     budget : int
@@ -59,6 +69,27 @@ def damped_newton_step(hess, grad, lam: float, scale: float, *, budget: int = MA
         The damping that succeeded (or the last tried).
     tries : int
         Failed factorisations.
+
+    See Also
+    --------
+    shapelib.solver.linalg.block_cholesky : The factorisation.
+
+    References
+    ----------
+    .. [1] J. Nocedal and S. J. Wright, *Numerical Optimization*, 2nd ed., Springer, 2006.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.solver.minimise import damped_newton_step
+    >>> diag = np.array([[[2.0]], [[2.0]]])
+    >>> upper = np.array([[[-1.0]]])
+    >>> step, lam, tries = damped_newton_step((diag, upper), np.array([[1.0], [0.0]]), 0.0, 1.0)
+    >>> step.ravel().round(6), tries
+    (array([-0.666667, -0.333333]), 0)
     """
     hd, ho = hess
     tries = 0
@@ -72,17 +103,57 @@ def damped_newton_step(hess, grad, lam: float, scale: float, *, budget: int = MA
 
 
 def newton_certificate(hess, grad, energy: float, tol: float, damped_step=None):
-    """The undamped Newton step and decrement ``½ gᵀH⁻¹g``, where ``H`` is positive definite.
+    r"""The undamped Newton step and decrement ``½ gᵀH⁻¹g``, where ``H`` is positive definite.
 
-    For ``H ≻ 0`` and ``μ > 0``, ``gᵀH⁻¹g ≥ gᵀ(H + μI)⁻¹g``: when the decrement of
-    ``damped_step`` already exceeds ``tol · E`` the certificate cannot pass, and the unshifted
-    factorisation (which fails in most iterations of a non-convex solve) is skipped.
+    .. math::
+
+        \delta = \tfrac12\, g^\top H^{-1} g,
+
+    the energy a Newton step on the quadratic model would still gain [1]_: the path solver of
+    eq. (8) of [2]_ stops when :math:`\delta < \text{tol} \cdot E`. For :math:`H \succ 0` and
+    :math:`\mu > 0`, :math:`g^\top H^{-1} g \ge g^\top (H + \mu I)^{-1} g`: when the decrement of
+    ``damped_step`` already exceeds :math:`\text{tol} \cdot E` the certificate cannot pass, and the
+    unshifted factorisation (which fails in most iterations of a non-convex solve) is skipped.
+
+    Parameters
+    ----------
+    hess : tuple (diag, upper)
+        Blocks of the exact Hessian.
+    grad : ndarray, shape (n - 1, q)
+        The gradient.
+    energy : float
+        The current energy :math:`E`.
+    tol : float
+        The certificate's relative tolerance.
+    damped_step : ndarray, optional
+        A step already solved with damping (for the shortcut above).
 
     Returns
     -------
     step : ndarray or None
+        The Newton step.
     decrement : float or None
         None where ``H`` is not positive definite or the factorisation was skipped.
+
+    See Also
+    --------
+    shapelib.StopReason : ``NEWTON_DECREMENT`` is this certificate.
+
+    References
+    ----------
+    .. [1] J. Nocedal and S. J. Wright, *Numerical Optimization*, 2nd ed., Springer, 2006.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.solver.minimise import newton_certificate
+    >>> diag, upper = np.array([[[2.0]], [[2.0]]]), np.array([[[-1.0]]])
+    >>> step, dec = newton_certificate((diag, upper), np.array([[1.0], [0.0]]), 1.0, 1e-6)
+    >>> round(dec, 6)
+    0.333333
     """
     if damped_step is not None and -0.5 * float(np.sum(grad * damped_step)) >= tol * energy * (1 + 1e-6):
         return None, None
@@ -96,8 +167,46 @@ def newton_certificate(hess, grad, energy: float, tol: float, damped_step=None):
 
 @dataclass
 class StepOutcome:
-    """What :func:`accept_step` did: the new path and energy if ``accepted``, the damping for the
-    next iteration and the actual energy decrease."""
+    r"""What :func:`~shapelib.solver.minimise.accept_step` did.
+
+    The new path and energy if ``accepted``, the damping for the next iteration and the actual
+    decrease of the path energy (eq. 8 of [1]_),
+
+    .. math::
+
+        \text{decrease} = E_n(\text{path}_{\text{old}}) - E_n(\text{path}_{\text{new}}) > 0
+        \quad \text{when accepted}.
+
+    Attributes
+    ----------
+    accepted : bool
+        Whether a step lowered the energy.
+    path : ndarray, shape (n + 1, K, d)
+        The new path (the old one if not accepted).
+    energy : float
+        Its energy.
+    decrease : float
+        The actual energy decrease (0 if not accepted).
+    lam : float
+        The damping for the next iteration.
+
+    See Also
+    --------
+    shapelib.solver.minimise.accept_step
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.solver.minimise import StepOutcome
+    >>> StepOutcome(False, np.zeros((2, 1, 2)), 1.0, 0.0, 1e-3).accepted
+    False
+    """
 
     accepted: bool
     path: np.ndarray
@@ -108,12 +217,67 @@ class StepOutcome:
 
 def accept_step(model, path, energy, hess, grad, lam, scale, *, pending=None,
                 budget: int = MAX_FACTORISATIONS) -> StepOutcome:
-    """Levenberg–Marquardt accept loop: try damped steps until one lowers the energy.
+    r"""Levenberg–Marquardt accept loop: try damped steps until one lowers the energy.
 
-    ``pending`` is a step already solved at ``lam`` (:func:`damped_newton_step`). A step that
-    lowers the energy is accepted and the damping divided by 3 (ratio ρ of actual to predicted
-    decrease above 0.75), kept (0.25–0.75) or multiplied by 4 (below 0.25); a rejected step
-    multiplies it by 10; a failed factorisation doubles it. ``budget`` attempts in all.
+    A step lowering the path energy of eq. (8) of [2]_ is accepted and the damping updated from the
+    ratio of actual to predicted decrease [1]_,
+
+    .. math::
+
+        \rho = \frac{E(\theta) - E(\theta + x)}{-g^\top x - \tfrac12 x^\top H x}, \qquad
+        \lambda \leftarrow \begin{cases} \lambda / 3 & \rho > 0.75 \\ \lambda & 0.25 \le \rho \le 0.75 \\
+        4 \lambda & \rho < 0.25 \end{cases}
+
+    a rejected step multiplies it by 10; a failed factorisation doubles it. ``budget`` attempts in
+    all.
+
+    Parameters
+    ----------
+    model : PathMetric
+        The metric.
+    path : ndarray, shape (n + 1, K, d)
+        The current path.
+    energy : float
+        Its energy.
+    hess : tuple (diag, upper)
+        Blocks of the Hessian.
+    grad : ndarray, shape (n - 1, q)
+        The gradient.
+    lam, scale : float
+        Damping and its scale.
+    pending : ndarray, optional
+        A step already solved at ``lam`` (:func:`~shapelib.solver.minimise.damped_newton_step`).
+    budget : int
+        Attempts allowed.
+
+    Returns
+    -------
+    StepOutcome
+        The new path, its energy, the decrease and the next damping.
+
+    See Also
+    --------
+    shapelib.solver.minimise.minimise_path : The loop around it.
+
+    References
+    ----------
+    .. [1] J. Nocedal and S. J. Wright, *Numerical Optimization*, 2nd ed., Springer, 2006.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.solver.energy import path_energy
+    >>> from shapelib.solver.minimise import accept_step
+    >>> model = sl.path_metric("alpha", 0.5)
+    >>> path = np.array([[[0.0, 0.0]], [[0.8, 0.3]], [[1.0, 0.0]]])  # a bent path of one landmark
+    >>> e, grad, hess = path_energy(model, path, hessian="exact")
+    >>> out = accept_step(model, path, e, hess, grad.reshape(1, -1), 1e-3, 1.0)
+    >>> out.accepted, bool(out.energy < e)
+    (True, True)
     """
     hd, ho = hess
     n = len(path) - 1
@@ -147,7 +311,16 @@ def _energy_window_met(energies, window: int, tol: float) -> bool:
 
 def minimise_path(model: PathMetric, u, v, *, n_steps, tol, max_iter, window, init, warn, length_scale,
                   sigma2=None, hessian=None, stacklevel=2, target_energy=None, lower_bound=None) -> GeodesicResult:
-    """Minimise the piecewise-linear path energy of ``model`` between ``u`` and ``v``.
+    r"""Minimise the piecewise-linear path energy of ``model`` between ``u`` and ``v``.
+
+    The discrete energy of eq. (8) of [1]_ (:mod:`shapelib.solver.energy`),
+
+    .. math::
+
+        \min_{\theta_1, \dots, \theta_{n-1}} E_n(\theta_0 = u, \theta_1, \dots, \theta_{n-1}, \theta_n = v),
+
+    by Levenberg–Marquardt steps [2]_ on the block-tridiagonal Hessian, stopped by the Newton
+    decrement, the energy window, ``target_energy`` or ``max_iter`` (module docstring).
 
     Parameters
     ----------
@@ -156,12 +329,28 @@ def minimise_path(model: PathMetric, u, v, *, n_steps, tol, max_iter, window, in
         exact Newton steps and the Newton-decrement certificate unless ``hessian="model"``.
     u, v : ndarray, shape (K, d)
         The fixed ends (validated by the caller).
-    n_steps, tol, max_iter, window, init, warn
-        As in :func:`shapelib.geodesic`.
+    n_steps : int
+        Time steps of the path.
+    tol : float
+        Convergence tolerance (as :func:`shapelib.geodesic`).
+    max_iter : int
+        Maximum Levenberg–Marquardt iterations.
+    window : int
+        Iterations over which the energy decrease is measured.
+    init : array_like, shape (n_steps + 1, K, d), optional
+        Initial path (default: the straight line).
+    warn : bool
+        Emit a :class:`~shapelib.GeodesicWarning` when it stops before converging.
     length_scale : float
         Unit of ``max_step_over_sigma`` (σ, or the kernel width of diffeomorphisms).
+    sigma2 : float, optional
+        σ² recorded in the result.
+    hessian : {"exact", "model"}, optional
+        Default: exact where the metric has it.
+    stacklevel : int
+        Of the :class:`~shapelib.GeodesicWarning`, counted from here.
     target_energy : float, optional
-        Stop as soon as the energy is at or below it (:attr:`StopReason.TARGET_ENERGY`, counted
+        Stop as soon as the energy is at or below it (``StopReason.TARGET_ENERGY``, counted
         as converged) — :func:`shapelib.distance_bracket` passes ``(lower · (1 + rtol))²``,
         since ``length ≤ √E``.
     lower_bound : float, optional
@@ -170,7 +359,40 @@ def minimise_path(model: PathMetric, u, v, *, n_steps, tol, max_iter, window, in
     Returns
     -------
     GeodesicResult
-        With ``log["stopped_by"]`` a :class:`StopReason` value.
+        With ``log["stopped_by"]`` a :class:`~shapelib.StopReason` value.
+
+    Raises
+    ------
+    ValueError
+        For a non-positive ``n_steps``, ``tol`` or ``window``, a negative ``max_iter``, an unknown
+        ``hessian`` or an ``init`` of the wrong shape.
+
+    Warns
+    -----
+    GeodesicWarning
+        When it stops without converging and ``warn`` is true.
+
+    See Also
+    --------
+    shapelib.geodesic : The checked entry point.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] J. Nocedal and S. J. Wright, *Numerical Optimization*, 2nd ed., Springer, 2006.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> from shapelib.solver.minimise import minimise_path
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> r = minimise_path(sl.path_metric("alpha", 0.5), u, 1.1 * u - 0.05, n_steps=4, tol=1e-6, max_iter=50,
+    ...                   window=5, init=None, warn=True, length_scale=np.sqrt(0.5), sigma2=0.5)
+    >>> r.converged, r.path.shape
+    (True, (5, 4, 2))
     """
     n = check_positive_int(n_steps, name="n_steps")
     window = check_positive_int(window, name="window")

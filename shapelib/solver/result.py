@@ -1,5 +1,6 @@
 """What a path solve returns: :class:`GeodesicResult`, its :class:`StopReason` and the warning
-raised when the solver stops early."""
+raised when the solver stops early.
+"""
 
 from __future__ import annotations
 
@@ -12,10 +13,60 @@ __all__ = ["GeodesicResult", "GeodesicWarning", "StopReason", "BracketStopReason
 
 
 class StopReason(str, enum.Enum):
-    """Why :func:`shapelib.solver.minimise.minimise_path` stopped (``GeodesicResult.stop_reason``).
+    r"""Why the path solver stopped (``GeodesicResult.stop_reason``).
 
     A ``str`` enum: ``result.log["stopped_by"] == "newton_decrement"`` and
-    ``result.stop_reason is StopReason.NEWTON_DECREMENT`` say the same.
+    ``result.stop_reason is StopReason.NEWTON_DECREMENT`` say the same. The certified stop is the
+    Newton decrement of the discrete path energy :math:`E_n` (eq. 8 of [1]_) on its exact Hessian
+    :math:`H` with gradient :math:`g`,
+
+    .. math::
+
+        \tfrac12\, g^\top H^{-1} g < \text{tol} \cdot E_n,
+
+    which estimates the energy still to be gained [2]_.
+
+    Attributes
+    ----------
+    TRIVIAL : str
+        ``"trivial"``: nothing to solve, one time step or identical ends (converged).
+    NEWTON_DECREMENT : str
+        ``"newton_decrement"``: a certified local minimum (converged).
+    ENERGY_WINDOW : str
+        ``"energy_window"``: the relative energy decrease over ``window`` iterations fell below
+        ``tol`` (converged).
+    NO_DECREASE : str
+        ``"no_decrease"``: no damped step decreases the energy at machine precision (converged).
+    TARGET_ENERGY : str
+        ``"target_energy"``: the energy reached the caller's ``target_energy`` (the bracket's stop;
+        converged).
+    MAX_ITER : str
+        ``"max_iter"``: ``max_iter`` iterations without another stop (not converged).
+    UNDERFLOW : str
+        ``"underflow"``: σ so small that the landmarks' Gaussians do not interact (not converged;
+        see ``log["reason"]``).
+    converged : bool
+        Whether a result stopped for this reason counts as converged (property).
+
+    See Also
+    --------
+    shapelib.GeodesicResult : Where it is reported.
+    shapelib.BracketStopReason : The bracket's stop reasons.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] J. Nocedal and S. J. Wright, *Numerical Optimization*, 2nd ed., Springer, 2006.
+
+    Examples
+    --------
+    >>> import shapelib as sl
+    >>> sl.StopReason("newton_decrement") is sl.StopReason.NEWTON_DECREMENT
+    True
+    >>> sl.StopReason.MAX_ITER.converged, str(sl.StopReason.ENERGY_WINDOW)
+    (False, 'energy_window')
     """
 
     #: nothing to solve: one time step, or identical ends (converged)
@@ -44,7 +95,49 @@ class StopReason(str, enum.Enum):
 
 
 class BracketStopReason(str, enum.Enum):
-    """Why :func:`shapelib.distance_bracket` stopped refining (``DistanceBracket.stop_reason``)."""
+    r"""Why :func:`shapelib.distance_bracket` stopped refining (``DistanceBracket.stop_reason``).
+
+    The bracket converges when its relative gap meets the tolerance,
+
+    .. math::
+
+        \frac{\text{upper}}{\text{lower}} - 1 \le \text{rtol},
+
+    ``lower`` the closed-form bound and ``upper`` the length of a computed path under the metric of
+    eq. (6) or (22) of [1]_.
+
+    Attributes
+    ----------
+    RTOL : str
+        ``"rtol"``: the relative gap is at most ``rtol`` (converged).
+    STALLED : str
+        ``"stalled"``: the gap stopped shrinking by the required fraction per doubling of
+        ``n_steps``, or converges geometrically to a limit above ``rtol``; the bracket is reported
+        as it is (not converged).
+    MAX_N_STEPS : str
+        ``"max_n_steps"``: ``max_n_steps`` reached with the gap above ``rtol`` (not converged).
+    TRIVIAL : str
+        ``"trivial"``: ``u == v`` (converged).
+    converged : bool
+        Whether a bracket stopped for this reason counts as converged (property).
+
+    See Also
+    --------
+    shapelib.DistanceBracket : Where it is reported.
+    shapelib.StopReason : The path solver's stop reasons.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import shapelib as sl
+    >>> sl.BracketStopReason.RTOL.converged, sl.BracketStopReason.STALLED.converged
+    (True, False)
+    """
 
     #: the relative gap ``upper / lower − 1`` is at most ``rtol`` (converged)
     RTOL = "rtol"
@@ -58,6 +151,7 @@ class BracketStopReason(str, enum.Enum):
 
     @property
     def converged(self) -> bool:
+        """Whether a bracket stopped for this reason counts as converged."""
         return self in (BracketStopReason.RTOL, BracketStopReason.TRIVIAL)
 
     def __str__(self) -> str:
@@ -65,12 +159,52 @@ class BracketStopReason(str, enum.Enum):
 
 
 class GeodesicWarning(RuntimeWarning):
-    """The geodesic solver stopped before meeting its tolerance."""
+    """The geodesic solver stopped before meeting its tolerance.
+
+    A :class:`RuntimeWarning`: the result is still returned, with ``converged`` false and
+    ``stop_reason`` saying why (``max_iter``, ``underflow``). Its length is still the length of an
+    actual path, so ``lower_bound ≤ d(u, v) ≤ length`` holds [1]_; only the path is not (yet)
+    the geodesic.
+
+    See Also
+    --------
+    shapelib.geodesic : What raises it (``warn=False`` silences it).
+    shapelib.StopReason : The reasons.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = np.array([[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]])
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     r = sl.geodesic(u, v, sigma2=0.5, n_steps=4, max_iter=0)
+    >>> r.converged, any(issubclass(w.category, sl.GeodesicWarning) for w in caught)
+    (False, True)
+    """
 
 
 @dataclass
 class GeodesicResult:
-    """A computed geodesic and its certificate.
+    r"""A computed geodesic and its certificate.
+
+    The path minimises the discrete path energy of eq. (8) of [1]_ over piecewise-linear paths;
+    its length is an upper bound and the closed-form bound a lower bound on the geodesic distance:
+
+    .. math::
+
+        \ell(u, v) \le d(u, v) \le L = \int_0^1 \sqrt{\dot\theta^\top g(\theta)\,
+        \dot\theta}\, dt, \qquad L^2 \le E_n,
+
+    with :math:`\ell` the ``lower_bound``, :math:`L` the ``length`` and :math:`E_n` the ``energy``.
 
     Attributes
     ----------
@@ -86,6 +220,7 @@ class GeodesicResult:
     lower_bound : float
         Closed-form (α) or great-circle (Fisher–Rao) lower bound on the geodesic distance.
     converged : bool
+        Whether the solver met its tolerance (:class:`StopReason`).
     n_iter : int
         Levenberg–Marquardt iterations.
     grad_norm : float or None
@@ -97,6 +232,10 @@ class GeodesicResult:
     max_step_over_sigma : float
         Largest landmark displacement between consecutive path points, in units of σ (of the
         kernel width for landmark diffeomorphisms).
+    metric : str
+        The metric's name.
+    sigma2 : float or None
+        σ² of eq. (5) (None for metrics without one).
     log : dict
         Energy per iteration, damping, timings, the metric's settings; ``hessian`` ("exact"
         or "model"), ``stopped_by`` (a :class:`StopReason` value, also :attr:`stop_reason`;
@@ -104,6 +243,38 @@ class GeodesicResult:
         last ``newton_decrement`` (exact Hessian only, None where it was not positive definite,
         or not computed because the damped decrement, a lower bound on it, was already above
         ``tol · E``).
+    stop_reason : StopReason
+        Why the solver stopped (property).
+    n_steps : int
+        Number of path segments (property).
+    times : ndarray, shape (n_steps + 1,)
+        The times of the path points (property).
+    velocities : ndarray, shape (n_steps, K, d)
+        Landmark velocities on each segment (property).
+
+    See Also
+    --------
+    shapelib.geodesic : What returns it.
+    shapelib.DistanceBracket : A certified bracket to a requested width.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    >>> v = np.array([[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]])
+    >>> v = sl.procrustes_align(u, v, scaling=False)
+    >>> r = sl.geodesic(u, v, sigma2=0.5, n_steps=4)
+    >>> r.path.shape, r.converged, bool(r.lower_bound <= r.length <= np.sqrt(r.energy) + 1e-12)
+    ((5, 4, 2), True, True)
+    >>> r.shape_at(0.5).shape
+    (4, 2)
     """
 
     path: np.ndarray
@@ -126,10 +297,12 @@ class GeodesicResult:
 
     @property
     def n_steps(self) -> int:
+        """Number of path segments ``n`` (``n + 1`` path points)."""
         return len(self.path) - 1
 
     @property
     def times(self) -> np.ndarray:
+        """The times ``t = 0, 1/n, …, 1`` of the path points."""
         return np.linspace(0.0, 1.0, len(self.path))
 
     @property
@@ -143,7 +316,7 @@ class GeodesicResult:
                 f"converged {self.converged} in {self.n_iter} iterations ({self.log.get('stopped_by', '?')})")
 
     def shape_at(self, t: float) -> np.ndarray:
-        """Landmarks at time ``t ∈ [0, 1]`` (linear between path points)."""
+        """Landmarks at time ``t ∈ [0, 1]`` (linear between path points); ``ValueError`` outside [0, 1]."""
         if not 0.0 <= t <= 1.0:
             raise ValueError(f"t must lie in [0, 1]; got {t!r}")
         s = t * self.n_steps
