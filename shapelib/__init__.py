@@ -73,7 +73,8 @@ _LAZY_SUBMODULES = ("io", "pairwise", "population", "statistics", "datasets", "s
 #: earlier names of submodules, still served on first use
 _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
-_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "population", "tangent_pca": "population",
+_LAZY_FUNCTIONS = {"read_point_sets": "pointset_io", "write_point_set": "pointset_io",
+                   "pairwise_distances": "pairwise", "frechet_mean": "population", "tangent_pca": "population",
                    "geodesic_regression": "population", "mean_difference_test": "population",
                    "TangentPCA": "statistics.tangent_pca"}
 
@@ -110,6 +111,8 @@ __all__ = [
     "register",
     "RegistrationResult",
     "RegistrationWarning",
+    "read_point_sets",  # shapelib.pointset_io, loaded on first use
+    "write_point_set",
     "MetricInfo",
     "metric_info",
     "register_metric",

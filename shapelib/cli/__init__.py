@@ -44,6 +44,7 @@ COMMAND_MODULES = (
     "info",        # info, align
     "distances",   # distances, geodesic
     "intrinsic",   # mean, pca
+    "pointsets",   # register
     "study",       # study (run_all.py)
 )
 

@@ -334,13 +334,15 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     --------
     >>> import numpy as np
     >>> import shapelib as sl
-    >>> t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
-    >>> fish = np.column_stack([np.cos(t) + 0.6 * np.cos(2 * t), 0.5 * np.sin(t)])
-    >>> bent = fish + [[0.0, 0.15]] * np.cos(fish[:, :1])  # a smooth bend
-    >>> c, s = np.cos(2.0), np.sin(2.0)
-    >>> target = (bent @ np.array([[c, -s], [s, c]]).T)[::-1]  # turned by 115 degrees, reordered
+    >>> t = np.linspace(0, 2 * np.pi, 50, endpoint=False)
+    >>> fish = np.column_stack([np.cos(t) + 0.45 * np.cos(2 * t), 0.55 * np.sin(t) + 0.12 * np.sin(2 * t)])
+    >>> bent = fish + np.column_stack([0.05 * np.sin(2 * fish[:, 1]), 0.25 * fish[:, 0] ** 2])
+    >>> c, s = np.cos(2.4), np.sin(2.4)
+    >>> target = (bent @ np.array([[c, -s], [s, c]]).T)[::-1]  # turned by 137.5 degrees, reordered
     >>> res = sl.register(fish, target)
-    >>> bool(np.all(res.correspondence == np.arange(60)[::-1]))
+    >>> bool(np.abs(res.points - target[::-1]).max() < 1e-3)
+    True
+    >>> bool(np.all(res.correspondence == np.arange(50)[::-1]))
     True
     """
     x = as_point_set(source, name="source")
