@@ -3,12 +3,12 @@
 A point set is an ``(n, d)`` array (d = 2 or 3) of any number of points in no order; it is the
 equal-weight isotropic mixture of eq. (5) with one component per point. Modules:
 
-* :mod:`~shapelib.pointsets.checks`: input checks (:func:`as_point_set`, :func:`as_point_sets`);
-* :mod:`~shapelib.pointsets.density`: closed-form and quadrature density distances between sets of
+* ``shapelib.pointsets.checks``: input checks (:func:`as_point_set`, :func:`as_point_sets`);
+* ``shapelib.pointsets.density``: closed-form and quadrature density distances between sets of
   different sizes, with gradients w.r.t. the points;
-* :mod:`~shapelib.pointsets.pose`: the pose search over every rotation (:func:`align`);
-* :mod:`~shapelib.pointsets.em`: σ² (and the means of a compact mixture) from the points (:func:`fit_mixture`);
-* :mod:`~shapelib.pointsets.registration`: registration, rigid to non-rigid, by the information
+* ``shapelib.pointsets.pose``: the pose search over every rotation (:func:`align`);
+* ``shapelib.pointsets.em``: σ² (and the means of a compact mixture) from the points (:func:`fit_mixture`);
+* ``shapelib.pointsets.registration``: registration, rigid to non-rigid, by the information
   geometry (:func:`register`).
 """
 

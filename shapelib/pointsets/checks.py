@@ -2,7 +2,7 @@
 
 A point set is an ``(n, d)`` array of any number ``n ≥ 2`` of points in ``d = 2`` or ``3``
 dimensions, in no particular order and with no correspondence to the points of another set.
-Landmark code paths keep their own checks (:func:`shapelib._validate.as_shape`); point-set
+Landmark code paths keep their own checks (``shapelib._validate.as_shape``); point-set
 paths get these, each failure one :class:`~shapelib.InputError` (a ``ValueError``) that names
 the set and the offending point.
 """

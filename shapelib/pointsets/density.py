@@ -5,17 +5,17 @@ A point set ``x = (x_1, …, x_n)`` is the equal-weight isotropic mixture of eq.
 ``x`` (n points) and ``y`` (m points) need no correspondence and no equal sizes:
 
 α bound (closed form). With the Gaussian overlap ``G(Δ) = (4πσ²)^{-d/2} exp(−|Δ|²/4σ²)``
-(:func:`shapelib.geometry.gmm.overlap_matrix`),
+(``shapelib.geometry.gmm.overlap_matrix``),
 
     ⟨p_x, p_y⟩ = (1/nm) Σ_ij G(x_i − y_j),
     D²(x, y) = ‖p_x − p_y‖² = ⟨p_x, p_x⟩ + ⟨p_y, p_y⟩ − 2⟨p_x, p_y⟩,
     ∂D²/∂x_i = −(1/(n²σ²)) Σ_k G(x_i − x_k)(x_i − x_k) + (1/(nmσ²)) Σ_j G(x_i − y_j)(x_i − y_j).
 
 ``D`` is the L² distance of the densities: the lower bound on the α-order geodesic distance
-(:func:`shapelib.geometry.gmm.l2_distance` for sets in correspondence).
+(``shapelib.geometry.gmm.l2_distance`` for sets in correspondence).
 
 Fisher–Rao bound (quadrature). The Bhattacharyya affinity ``BC = ∫ √(p_x p_y) dz`` has no closed
-form for mixtures; with ``ψ = 2√p`` it is integrated on the grid of :mod:`shapelib.geometry.quadrature`
+form for mixtures; with ``ψ = 2√p`` it is integrated on the grid of ``shapelib.geometry.quadrature``
 as the squared Hellinger distance
 
     H²(x, y) = ∫ (√p_x − √p_y)² dz = 2 − 2 BC,
@@ -163,7 +163,7 @@ def hellinger_sq(x, y, *, sigma2, grad: bool = False, grid_spacing: float = DEFA
     """Squared Hellinger distance ``H² = ∫ (√p_x − √p_y)² dz = 2 − 2 ∫ √(p_x p_y) dz`` and its gradient.
 
     By the trapezoid rule on a grid of step ``grid_spacing·σ`` around both sets
-    (:mod:`shapelib.geometry.quadrature`); with ``ψ = 2√p``,
+    (``shapelib.geometry.quadrature``); with ``ψ = 2√p``,
     ``∂H²/∂x_i = ½ ∫ (ψ_x − ψ_y) N(z; x_i, σ²I)(z − x_i) / (n σ² √p_x) dz``.
 
     Parameters
@@ -227,7 +227,7 @@ def density_distance(x, y, *, sigma2, metric: str = "alpha", grid_spacing: float
     * ``metric="alpha"``: ``‖p_x − p_y‖`` (the α bound);
     * ``metric="fisher_rao"``: ``2 arccos ∫ √(p_x p_y) dz = 4 arcsin(H/2)`` (the Fisher–Rao bound).
 
-    Modulo pose: :func:`shapelib.pointsets.align` first.
+    Modulo pose: :func:`shapelib.align` first.
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Pose search between point sets: every rotation captured, then refined by the analytic gradient.
 
 The pose ``x ↦ A x + t`` of a source point set that best explains a target minimises a density
-distance between the moved source's mixture and the target's (:mod:`shapelib.pointsets.density`):
+distance between the moved source's mixture and the target's (``shapelib.pointsets.density``):
 
     min_{A, t}  D²(A x + t, y) / ‖p_y‖²       (α: D² = ‖p_{Ax+t} − p_y‖², closed form)
     min_{A, t}  H²(A x + t, y)                (Fisher–Rao: squared Hellinger distance, quadrature)
@@ -19,7 +19,7 @@ global in rotation:
    each start also mirrored;
 3. the best ``n_starts`` starts (in 2-D: local minima of the score over the circle of angles)
    are refined by L-BFGS with the analytic gradient at the coarse σ²;
-4. those within :data:`SELECT_RTOL` of the best refined objective there are followed while σ² is
+4. those within ``SELECT_RTOL`` of the best refined objective there are followed while σ² is
    lowered by factors of 4 down to the requested σ², and the smallest objective at the requested
    σ² wins. (Choosing among all starts at a small σ² fails for deformed shapes: a wrong pose can
    overlap more of the target's points than the right one.)
@@ -226,7 +226,7 @@ def align(source, target, *, sigma2, transform: str = "rigid", metric: str = "al
     max_iter : int
         L-BFGS iterations per start and σ² level.
     grid_spacing, grid_margin : float
-        Fisher–Rao quadrature (:func:`shapelib.pointsets.hellinger_sq`).
+        Fisher–Rao quadrature (:func:`shapelib.hellinger_sq`).
     warn : bool
         Warn (:class:`PoseSearchWarning`) when the winning refinement did not converge.
 

@@ -4,7 +4,7 @@ deformation that is a geodesic of the α-order (or Fisher–Rao) metric.
 Both sets are mixtures of eq. (5), one component per point. ``register(source, target)``:
 
 1. **Pose.** Centre each set and scale it to unit RMS radius (the source keeps the target's scale
-   for ``transform="rigid"``), then :func:`shapelib.pointsets.align`: the density distance
+   for ``transform="rigid"``), then :func:`shapelib.align`: the density distance
    (α: closed-form L²; Fisher–Rao: Hellinger) minimised over every rotation (a global search, not
    one local start), the similarity group for ``"nonrigid"``.
 2. **σ², outliers, correspondences by EM** with the posed source ``u`` as the means of a mixture
@@ -128,7 +128,7 @@ def overlap_kernel(a, b, sigma2):
 
 def _fr_weight_metric(u, s2):
     """Fisher information of the mixture of eq. (5) in its weight coordinates,
-    ``g_ab = ∫ N_a N_b / p dx`` (quadrature on the grid of :mod:`shapelib.geometry.quadrature`)."""
+    ``g_ab = ∫ N_a N_b / p dx`` (quadrature on the grid of ``shapelib.geometry.quadrature``)."""
     from ..geometry.metrics import psi_coef
     from ..geometry.quadrature import make_grid
 
@@ -167,7 +167,7 @@ class RegistrationResult:
     objective : float
         The density bound between the moved source and the target (α: ``‖p − q‖``, Fisher–Rao:
         ``2 arccos ∫√(pq)``) at ``sigma2_objective``: the given σ², or the target's leave-one-out σ²
-        (:func:`shapelib.pointsets.fit_mixture`).
+        (:func:`shapelib.fit_mixture`).
     sigma2 : float
         The final σ² of the EM (in the target's units); ``w``: the final outlier weight.
     converged, stop_reason, n_iter
@@ -314,7 +314,7 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         σ_g² of the metric that regularises and carries the deformation, in units of the target's
         squared RMS radius (default 1: the metric sees the whole shape).
     n_angles : int
-        2-D start angles of the pose search (:func:`shapelib.pointsets.align`).
+        2-D start angles of the pose search (:func:`shapelib.align`).
     max_iter : int
         EM iterations.
     tol : float
