@@ -133,6 +133,16 @@ def test_three_dimensional_nonrigid():
         res.warp(x, method="extrinsic")
 
 
+def test_fisher_rao_nonrigid_registration_recovers_a_bend_and_its_correspondences():
+    x = fish(30)
+    y = bend(x) @ rot2(np.radians(150)).T
+    res = sl.register(x, y[::-1], metric="fisher_rao")
+    assert res.metric == "fisher_rao" and np.abs(res.points - y).max() < 1e-3
+    assert np.array_equal(res.correspondence, np.arange(30)[::-1])
+    with pytest.raises(ValueError, match="closed-form alpha kernel"):
+        res.warp(x)
+
+
 def test_fisher_rao_registration_recovers_a_rotation():
     x = fish(30)
     y = x @ rot2(np.radians(200)).T
