@@ -47,9 +47,11 @@ lab: setup
 # measurements for the documentation's performance page (docs/_data/benchmarks/*.json; minutes);
 # benchmarks/bench_solvers.py --record (about 13 min) is run by hand
 bench: setup
+	$(PY) -m pip install --quiet -e '.[bench]'
 	$(PY) benchmarks/bench_geodesic.py --record
 	$(PY) benchmarks/bench_bracket.py --record
 	$(PY) benchmarks/bench_pairwise.py --record
+	$(PY) benchmarks/bench_registration.py --record
 
 clean:
 	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/notebooks/*.ipynb

@@ -75,6 +75,13 @@ NOTEBOOKS: dict[str, dict] = {
                               "expects": {"fig06/": 8}},
     "sec3e_extrinsic_warp": {"params": {}, "quick": {"n_steps": 4, "max_iter": 5, "grid_size": 48},
                              "data": ["mpeg7/fish-1.gif"], "expects": {"sec3e/": 3}},
+    "pointset_registration": {
+        "params": {}, "quick": {"levels": "fish_def_2,fish_outlier_3,fish_occlusion_3,fish_rot_4"},
+        "data": [f"tps-rpm/save_{shape}_{kind}_{level}_{sample}.mat" for shape in ("fish", "chinese")
+                 for kind, top in (("def", 5), ("noise", 6), ("outlier", 5), ("occlusion", 6), ("rot", 6))
+                 for level in range(1, top + 1) for sample in range(1, 11)],
+        "expects": {"registration/summary/": 6},
+    },
     "alpha_discretisation": {
         "params": {}, "quick": {"n_pairs": 2, "n_steps_list": [2, 4, 8], "max_iter": 20},
         "data": CC_FILES, "expects": {"alpha_discretisation/": 13},

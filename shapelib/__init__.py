@@ -14,6 +14,8 @@ Where each equation lives:
   :mod:`shapelib.comparison.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
 * §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
+* point sets without landmarks (any sizes, no correspondence): checks, density distances, pose
+  search over every rotation: :mod:`shapelib.pointsets`
 * log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
   tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics` (each takes the engine's
   ``n_jobs`` / ``client`` / ``scheduler`` itself)
@@ -47,6 +49,24 @@ from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
 from .comparison.missing import MissingEstimate, estimate_missing, tps_map
 from .geometry.semilandmarks import SlideResult, bending_energy_matrix, curve_sliders, slide_semilandmarks
+from .pointsets import (
+    RegistrationResult,
+    RegistrationWarning,
+    register,
+    EMWarning,
+    MixtureFit,
+    fit_mixture,
+    Pose,
+    PoseSearchWarning,
+    align,
+    as_point_set,
+    as_point_sets,
+    bhattacharyya_affinity,
+    density_distance,
+    density_inner,
+    hellinger_sq,
+    l2_distance_sq,
+)
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -56,7 +76,8 @@ _LAZY_SUBMODULES = ("io", "pairwise", "population", "statistics", "datasets", "s
 #: earlier names of submodules, still served on first use
 _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
-_LAZY_FUNCTIONS = {"pairwise_distances": "pairwise", "frechet_mean": "statistics", "tangent_pca": "statistics",
+_LAZY_FUNCTIONS = {"read_point_sets": "pointset_io", "write_point_set": "pointset_io",
+                   "pairwise_distances": "pairwise", "frechet_mean": "statistics", "tangent_pca": "statistics",
                    "geodesic_regression": "statistics", "mean_difference_test": "statistics",
                    "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple",
                    "shape_lm": "statistics.linear_model", "ShapeLinearModel": "statistics.linear_model",
@@ -93,6 +114,24 @@ __all__ = [
     "procrustes_coordinates",
     "allometry",
     "AllometryResult",
+    "as_point_set",  # shapelib.pointsets
+    "as_point_sets",
+    "density_inner",
+    "l2_distance_sq",
+    "hellinger_sq",
+    "bhattacharyya_affinity",
+    "density_distance",
+    "align",
+    "Pose",
+    "PoseSearchWarning",
+    "fit_mixture",
+    "MixtureFit",
+    "EMWarning",
+    "register",
+    "RegistrationResult",
+    "RegistrationWarning",
+    "read_point_sets",  # shapelib.pointset_io, loaded on first use
+    "write_point_set",
     "MetricInfo",
     "metric_info",
     "register_metric",

@@ -33,6 +33,8 @@ __all__ = [
     "load_fish2d",
     "load_beijing",
     "load_tps_rpm",
+    "load_tps_rpm_case",
+    "TPS_RPM_LEVELS",
     "load_cpd_fish",
     "load_gmmreg_fish",
     "mpeg7_names",
@@ -357,24 +359,41 @@ def load_beijing() -> np.ndarray:
 
 _TPS_RPM = re.compile(r"^(fish|chinese)_(def|noise|occlusion|outlier|rot)_(\d)$")
 
+#: the 56 levels of the Chui–Rangarajan benchmark: shape × degradation × level (samples 1–10 each)
+TPS_RPM_LEVELS = tuple(f"{shape}_{kind}_{level}" for shape in ("fish", "chinese")
+                       for kind, top in (("def", 5), ("noise", 6), ("outlier", 5), ("occlusion", 6), ("rot", 6))
+                       for level in range(1, top + 1))
 
-def load_tps_rpm(name: str = "fish_def_1") -> tuple[np.ndarray, np.ndarray]:
+
+def _tps_rpm_file(name: str, sample: int) -> str:
+    rel = f"tps-rpm/save_{name}_{sample}.mat"
+    if _TPS_RPM.match(name) is None or name not in TPS_RPM_LEVELS:
+        raise ValueError(f"unknown TPS-RPM level {name!r}; choose one of {list(TPS_RPM_LEVELS)}")
+    if isinstance(sample, bool) or not isinstance(sample, (int, np.integer)) or rel not in registry():
+        raise ValueError(f"TPS-RPM level {name!r} has samples 1 to 10; got sample={sample!r}")
+    return rel
+
+
+def load_tps_rpm(name: str = "fish_def_1", *, sample: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """A Chui–Rangarajan TPS-RPM benchmark pair, e.g. ``"fish_def_3"`` -> ``(x1, y2a)``.
 
-    The synthetic point-matching sets of [1]_ (fish or Chinese character; deformation, noise,
-    occlusion, outlier or rotation at levels 1–5 or so, as registered).
+    The synthetic point-matching sets of [1]_ (fish or Chinese character; deformation 1–5, noise
+    1–6, outlier 1–5, occlusion 1–6 or rotation 1–6: :data:`TPS_RPM_LEVELS`). With the ground
+    truth: :func:`load_tps_rpm_case`.
 
     Parameters
     ----------
     name : str, default "fish_def_1"
         ``"<fish|chinese>_<def|noise|occlusion|outlier|rot>_<level>"``.
+    sample : int, default 1
+        1 to 10.
 
     Returns
     -------
     x1 : ndarray, shape (M, 2)
         The template.
     y2a : ndarray, shape (N, 2)
-        The deformed/noisy/occluded/rotated target (sample 1 of the level).
+        The deformed/noisy/occluded/rotated target.
 
     Raises
     ------
@@ -399,15 +418,41 @@ def load_tps_rpm(name: str = "fish_def_1") -> tuple[np.ndarray, np.ndarray]:
     >>> x1.shape, y2a.shape
     ((98, 2), (98, 2))
     """
-    m = _TPS_RPM.match(name)
-    rel = f"tps-rpm/save_{name}_1.mat"
-    if m is None or rel not in registry():
-        options = sorted(p[len("tps-rpm/save_"):-len("_1.mat")] for p in registry() if p.startswith("tps-rpm/"))
-        raise ValueError(f"unknown TPS-RPM set {name!r}; choose one of {options}")
+    case = load_tps_rpm_case(name, sample=sample)
+    return case["x1"], case["y2a"]
+
+
+def load_tps_rpm_case(name: str = "fish_def_1", *, sample: int = 1) -> dict:
+    """One registration case of the Chui–Rangarajan benchmark with its ground truth.
+
+    Parameters
+    ----------
+    name : str
+        A level of :data:`TPS_RPM_LEVELS`: ``{fish,chinese}_{def 1–5, noise 1–6, outlier 1–5,
+        occlusion 1–6, rot 1–6}``.
+    sample : int
+        1 to 10.
+
+    Returns
+    -------
+    dict
+        ``x1`` the template (98 × 2 fish, 105 × 2 Chinese character), ``y2a`` the target
+        (deformed, noisy, with outliers, occluded or rotated), ``y2`` the clean warped template,
+        point for point with the first ``len(y2)`` points of ``x1``: the registration error of a
+        method is ``mean_i |moved_i − y2_i|`` over those points.
+
+    Examples
+    --------
+    >>> from shapelib.datasets import load_tps_rpm_case
+    >>> case = load_tps_rpm_case("fish_occlusion_3", sample=2)
+    >>> case["x1"].shape, len(case["y2"]) <= len(case["x1"])
+    ((98, 2), True)
+    """
+    rel = _tps_rpm_file(name, sample)
     from scipy.io import loadmat
 
     d = loadmat(fetch(rel))
-    return np.asarray(d["x1"], dtype=np.float64), np.asarray(d["y2a"], dtype=np.float64)
+    return {k: np.asarray(d[k], dtype=np.float64) for k in ("x1", "y2a", "y2")}
 
 
 def load_cpd_fish() -> tuple[np.ndarray, np.ndarray]:

@@ -89,3 +89,17 @@ def test_bench_bracket_quick_run_reports_certified_brackets(tmp_path):
             assert (b["rel_gap"] <= report["rtol"]) == b["converged"], name
     # at sigma2 = 0.5 both metrics close the bracket on these pairs
     assert report["cases"]["alpha_s2_0.5"]["converged"] == report["cases"]["alpha_s2_0.5"]["pairs"]
+
+
+@requires_data
+def test_bench_registration_runs_both_methods_on_the_same_case_and_refuses_a_partial_record(tmp_path):
+    spec = importlib.util.spec_from_file_location("bench_registration", ROOT / "benchmarks" / "bench_registration.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    with pytest.raises(SystemExit):  # a partial run is not the benchmark
+        bench.main(["--levels", "fish_def_2", "--record"])
+    report = bench.main(["--levels", "fish_def_2", "--json", str(tmp_path / "r.json")])
+    row = report["levels"]["fish_def_2"]
+    # a clean deformation level: both register the fish to within a few thousandths of its unit size
+    assert row["shapelib"]["error"] < 0.005 and row["cpd"]["error"] < 0.005
+    assert report["summary"]["levels"] == 1 and (tmp_path / "r.json").is_file()

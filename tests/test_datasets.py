@@ -99,3 +99,17 @@ def test_missing_file_names_file_url_and_variable(tmp_path, monkeypatch):
 def test_unregistered_file_is_an_error():
     with pytest.raises(datasets.DataError, match="not in the dataset registry"):
         datasets.fetch("nowhere/file.txt")
+
+
+def test_every_tps_rpm_case_has_its_ground_truth_point_for_point():
+    assert len(datasets.TPS_RPM_LEVELS) == 56
+    for name in ("fish_def_1", "chinese_outlier_5", "fish_occlusion_6"):
+        for sample in (1, 10):
+            case = datasets.load_tps_rpm_case(name, sample=sample)
+            n = len(case["y2"])
+            assert n <= len(case["x1"]) and case["y2"].shape[1] == case["y2a"].shape[1] == 2
+    # clean deformation levels: the target is the warped template, point for point
+    case = datasets.load_tps_rpm_case("fish_def_2", sample=3)
+    assert np.allclose(case["y2a"], case["y2"])
+    with pytest.raises(ValueError, match="samples 1 to 10; got sample=11"):
+        datasets.load_tps_rpm_case("fish_def_2", sample=11)

@@ -333,7 +333,24 @@ def _gpu(r: dict) -> list[Table]:
     return [geo, rates]
 
 
-RENDERERS = {"bench_geodesic": _geodesic, "bench_bracket": _bracket, "bench_pairwise": _pairwise,
+def _registration(r: dict) -> list[Table]:
+    rows = []
+    for name, row in r["levels"].items():
+        a, b = row["shapelib"], row["cpd"]
+        rows.append([name.replace("_", " "), f"{a['error']:.4f}", f"{b['error']:.4f}",
+                     "yes" if a["error"] < b["error"] else "no", _seconds(a["time_median_s"]),
+                     _seconds(b["time_median_s"])])
+    s = r.get("summary", {})
+    note = (f"Mean error |moved − truth| over the template points with a ground truth, {r.get('samples')} sample(s) per "
+            f"level; shapelib {r['settings']['shapelib']}, pycpd: {r['settings']['cpd']}. shapelib below CPD at "
+            f"{s.get('shapelib_below_cpd')} of {s.get('levels')} levels; median time per registration "
+            f"{_seconds(s.get('shapelib_median_time_s'))} (shapelib), {_seconds(s.get('cpd_median_time_s'))} (CPD).")
+    return [Table("Registration on the Chui–Rangarajan benchmark", ["level", "shapelib error", "CPD error",
+                                                                   "shapelib below", "shapelib time", "CPD time"],
+                  rows, note, key="levels")]
+
+
+RENDERERS = {"bench_registration": _registration, "bench_geodesic": _geodesic, "bench_bracket": _bracket, "bench_pairwise": _pairwise,
              "bench_solvers": _solvers, "run_times": _run_times, "bench_intrinsic": _intrinsic, "bench_gpu": _gpu}
 #: records that may be absent (measured on hardware that is not always at hand): the page says so
 OPTIONAL = {"bench_gpu": "Pending a measurement on a GPU: run ``python benchmarks/bench_gpu.py`` on a machine "

@@ -47,6 +47,7 @@ COMMAND_MODULES = (
     "distances",   # distances, geodesic
     "intrinsic",   # mean, pca
     "effects",     # test, regress
+    "pointsets",   # register
     "study",       # study (run_all.py)
 )
 

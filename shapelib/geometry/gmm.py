@@ -255,9 +255,13 @@ def gaussian_overlap(a, b, *, sigma2) -> np.ndarray:
     True
     """
     a, b = _point_sets(a, b, ("a", "b"))
-    s2 = check_sigma2(sigma2)
-    d = a.shape[1]
-    return np.exp(-_sqdist(a, b) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2)
+    return overlap_matrix(a, b, check_sigma2(sigma2))
+
+
+def overlap_matrix(a: np.ndarray, b: np.ndarray, s2: float) -> np.ndarray:
+    """:func:`gaussian_overlap` on checked float arrays ``a`` (M, d), ``b`` (K, d) and σ² (no
+    checks: for inner loops, e.g. the point-set objectives of :mod:`shapelib.pointsets.density`)."""
+    return np.exp(-_sqdist(a, b) / (4 * s2)) / (4 * np.pi * s2) ** (a.shape[1] / 2)
 
 
 @keeps_old_calls(keyword_only=("sigma2",))

@@ -1,0 +1,104 @@
+"""``shapelib register``: one point set registered onto another (any sizes, no landmarks)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ._common import CLIError, _output_path, save_figure, use_agg
+
+EXAMPLES = {
+    "register": "examples:\n  shapelib register template.csv outline.csv -o moved.csv --plot fig.png\n"
+                "  shapelib register a.tps b.tps --source-id fish-1 --target-id fish-7 --transform rigid -o moved.csv",
+}
+
+
+def _one_set(path, ident, option):
+    from ..pointset_io import read_point_sets
+
+    sets, ids = read_point_sets(path)
+    if ident is None:
+        if len(sets) > 1:
+            raise CLIError(f"{path} holds {len(sets)} point sets ({', '.join(ids[:5])}{', …' if len(ids) > 5 else ''}); "
+                           f"choose one with {option} ID")
+        return sets[0]
+    if ident not in ids:
+        raise CLIError(f"{option} {ident}: {path} has no point set with that id (it has {', '.join(ids[:8])}"
+                       f"{', …' if len(ids) > 8 else ''})")
+    return sets[ids.index(ident)]
+
+
+def _w(text: str):
+    if text == "auto":
+        return "auto"
+    try:
+        w = float(text)
+    except ValueError:
+        raise CLIError(f"--w must be a number in [0, 1) or 'auto'; got {text!r}") from None
+    return w
+
+
+def cmd_register(args) -> int:
+    from ..pointset_io import write_point_set
+    from ..pointsets.registration import register
+
+    out = _output_path(args.output, suffixes=(".csv", ".npy"), option="-o")
+    if args.plot:
+        _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot")
+    if args.correspondence:
+        _output_path(args.correspondence, suffixes=(".csv",), option="--correspondence")
+    source = _one_set(args.source, args.source_id, "--source-id")
+    target = _one_set(args.target, args.target_id, "--target-id")
+    res = register(source, target, transform=args.transform, metric=args.metric, sigma2=args.sigma2, w=_w(args.w),
+                   reflection=args.reflection)
+    write_point_set(out, res.points)
+    print(res.summary())
+    print(f"moved source -> {out}")
+    if args.correspondence:
+        from .._files import write_text_atomic
+
+        rows = "\n".join(f"{i},{j}" for i, j in enumerate(res.correspondence))
+        write_text_atomic(Path(args.correspondence), f"source,target\n{rows}\n")
+        print(f"correspondence (target index per source point, -1: none) -> {args.correspondence}")
+    if args.plot:
+        use_agg()
+        import matplotlib.pyplot as plt
+
+        d = source.shape[1]
+        fig = plt.figure(figsize=(5, 5))
+        ax = fig.add_subplot(projection="3d" if d == 3 else None)
+        ax.plot(*target.T, ".", color="0.6", ms=3, label="target")
+        ax.plot(*res.rigid_points.T, ".", color="tab:blue", ms=2, alpha=0.5, label="source, posed")
+        ax.plot(*res.points.T, ".", color="tab:red", ms=3, label="source, registered")
+        for i, j in enumerate(res.correspondence):
+            if j >= 0:
+                ax.plot(*np.stack([res.points[i], target[j]]).T, "-", color="k", lw=0.3)
+        if d == 2:
+            ax.set_aspect("equal")
+        ax.legend(fontsize=8)
+        ax.set_title(f"{res.transform} registration ({res.metric})", fontsize=9)
+        save_figure(fig, args.plot)
+        print(f"figure -> {args.plot}")
+    return 0
+
+
+def register(add) -> None:
+    """Add ``register`` to the parser (``add(name, help, epilog)`` returns the subparser)."""
+    p = add("register", "register one point set onto another (any sizes, no landmarks): pose over every rotation, "
+                        "then a deformation by the information geometry", EXAMPLES["register"])
+    p.add_argument("source", metavar="SOURCE", help="point set to move: .csv (x, y[, z]), .npy, .npz or .tps")
+    p.add_argument("target", metavar="TARGET", help="point set to move it onto (same formats)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="the moved source points (.csv or .npy)")
+    p.add_argument("--plot", metavar="FIG", help="draw target, posed and registered source (.png, .pdf or .svg)")
+    p.add_argument("--correspondence", metavar="CSV", help="write the target index of each source point (-1: none)")
+    p.add_argument("--source-id", metavar="ID", help="the set to use when SOURCE holds several")
+    p.add_argument("--target-id", metavar="ID", help="the set to use when TARGET holds several")
+    p.add_argument("--transform", choices=("rigid", "similarity", "affine", "nonrigid"), default="nonrigid",
+                   help="what may change (default nonrigid: an affine pose, then a deformation)")
+    p.add_argument("--metric", choices=("alpha", "fisher_rao"), default="alpha",
+                   help="density distance of the pose search and metric of the deformation (default alpha)")
+    p.add_argument("--sigma2", type=float, metavar="S2", help="fixed sigma2 (default: estimated by EM)")
+    p.add_argument("--w", default="0", metavar="W", help="outlier weight in [0, 1), or 'auto' to estimate it (default 0)")
+    p.add_argument("--reflection", action="store_true", help="also try mirror images of the source")
+    p.set_defaults(func=cmd_register)
