@@ -1,0 +1,1 @@
+"""Point sets of any size (no landmark correspondence)."""
