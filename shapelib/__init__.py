@@ -14,6 +14,9 @@ Where each equation lives:
   :mod:`shapelib.comparison.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
 * §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
+* point sets without landmarks: outlines traced from silhouettes, :mod:`shapelib.pointsets.outline`;
+  density distances modulo translation, scale, rotation and reflection (FFT angle search),
+  :mod:`shapelib.pointsets.invariant`; bull's-eye retrieval scores, :mod:`shapelib.retrieval`
 * log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
   tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics`, on the engine through
   :mod:`shapelib.population`
@@ -44,6 +47,9 @@ from .geometry.scale import Sigma2Estimate, estimate_sigma2
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
+from .pointsets.outline import outline_topology, resample_closed, trace_outline
+from .pointsets.invariant import InvariantDistance, invariant_distance, invariant_distance_matrix, normalise_points
+from .retrieval import BullseyeScore, bullseye, nearest_wrong, procrustes_outline_matrix
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -130,4 +136,15 @@ __all__ = [
     "to_centroid_size",
     "tps_bending_energy",
     "wendland_bending_energy",
+    "trace_outline",  # shapelib.pointsets.outline
+    "resample_closed",
+    "outline_topology",
+    "invariant_distance",  # shapelib.pointsets.invariant
+    "invariant_distance_matrix",
+    "InvariantDistance",
+    "normalise_points",
+    "bullseye",  # shapelib.retrieval
+    "BullseyeScore",
+    "nearest_wrong",
+    "procrustes_outline_matrix",
 ]

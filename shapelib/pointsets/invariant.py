@@ -75,8 +75,8 @@ __all__ = [
 INVARIANT_METRICS = ("alpha_bound", "fisher_rao_bound")
 #: Gauss–Legendre rings per σ of radius covered
 RINGS_PER_SIGMA = 2.0
-#: angular frequencies kept: ``k ≤ ANGULAR_BAND · ρ_max / σ``
-ANGULAR_BAND = 2.5
+#: angular frequencies kept: ``k ≤ ANGULAR_BAND[kind] · ρ_max / σ`` (√p has the wider spectrum)
+ANGULAR_BAND = {"density": 2.5, "sqrt": 3.5}
 #: the rings reach this many σ beyond the farthest point
 RADIAL_MARGIN = 7.0
 #: Newton steps on the trigonometric polynomial after the grid search
@@ -179,7 +179,7 @@ def _grid(max_radius: float, sigma2: float, rings_per_sigma: float, angular_band
 
 
 def polar_spectra(point_sets, *, sigma2: float, kind: str = "density", max_radius: float | None = None,
-                  rings_per_sigma: float = RINGS_PER_SIGMA, angular_band: float = ANGULAR_BAND) -> PolarSpectra:
+                  rings_per_sigma: float = RINGS_PER_SIGMA, angular_band: float | None = None) -> PolarSpectra:
     """Angular Fourier spectra of the mixtures of normalised point sets on one polar grid.
 
     Each set's function ``f = p`` (``kind="density"``) or ``f = √p`` (``kind="sqrt"``), with
@@ -199,7 +199,8 @@ def polar_spectra(point_sets, *, sigma2: float, kind: str = "density", max_radiu
         sets). Pass the same value for spectra that will be correlated with each other.
     rings_per_sigma, angular_band : float
         Grid resolution: Gauss–Legendre rings per σ of radius, and frequencies kept
-        ``k ≤ angular_band · ρ_max/σ`` (module docstring, "Accuracy").
+        ``k ≤ angular_band · ρ_max/σ`` (default :data:`ANGULAR_BAND` of the kind; module
+        docstring, "Accuracy").
 
     Returns
     -------
@@ -222,8 +223,8 @@ def polar_spectra(point_sets, *, sigma2: float, kind: str = "density", max_radiu
     sets = [np.asarray(x, dtype=np.float64) for x in point_sets]
     if max_radius is None:
         max_radius = max(float(np.sqrt(np.max(np.sum(x * x, axis=1)))) for x in sets)
-    radii, weights, n_angles, n_freq = _grid(float(max_radius), s2, check_positive(rings_per_sigma, name="rings_per_sigma"),
-                                             check_positive(angular_band, name="angular_band"))
+    band = ANGULAR_BAND[kind] if angular_band is None else check_positive(angular_band, name="angular_band")
+    radii, weights, n_angles, n_freq = _grid(float(max_radius), s2, check_positive(rings_per_sigma, name="rings_per_sigma"), band)
     phi = 2 * np.pi * np.arange(n_angles) / n_angles
     zx = radii[:, None] * np.cos(phi)[None, :]  # (R, A)
     zy = radii[:, None] * np.sin(phi)[None, :]
