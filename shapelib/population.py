@@ -4,7 +4,7 @@ The statistics themselves live in :mod:`shapelib.statistics` (Fréchet mean, tan
 regression, the group test) and run their log maps on any :class:`concurrent.futures.Executor`
 they are given. The mathematics does not import the engine, so this module — at the engine's rank —
 is where ``n_jobs`` / ``client`` / ``scheduler`` become an executor
-(:func:`shapelib.pairwise.engine_executor`): a Dask ``LocalCluster`` of one single-threaded worker
+(:func:`shapelib._executor.engine_executor`): a Dask ``LocalCluster`` of one single-threaded worker
 per core, or a running Dask cluster, exactly as for :func:`shapelib.pairwise_distances`. With
 ``n_jobs=None`` one log map is timed here and the work stays in this process when the projected
 serial time is below the cluster's start-up cost.
@@ -22,7 +22,7 @@ import numpy as np
 
 from ._validate import as_shapes
 from .geometry.scale import ScaleWarning
-from .pairwise import engine_executor
+from ._executor import engine_executor
 from .solver.logexp import log_maps
 from .statistics import frechet as _frechet
 from .statistics import group as _group

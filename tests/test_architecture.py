@@ -15,6 +15,7 @@ PKG = ROOT / "shapelib"
 #: rank of each area: a module may import from its own area or from an area of lower rank
 RANK = {
     "_validate": 0, "_files": 0, "_version": 0,
+    "_executor": 0.5,  # where work runs (Dask imported inside its functions): the engine and the statistics
     "geometry": 1,
     "solver": 2,
     "comparison": 3,

@@ -327,13 +327,13 @@ def test_a_solver_that_stopped_early_is_a_solver_failure(aligned_set):
 def test_the_engine_states_its_estimate_before_a_long_run(aligned_set, monkeypatch, caplog):
     import logging
 
-    from shapelib import pairwise
+    from shapelib.pairwise import _driver  # where the engine reads LONG_RUN_SECONDS
 
     x = aligned_set[:6]
     res = sl.pairwise_distances(x, metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False, return_result=True)
     spp = res.log["seconds_per_pair_estimate"]
     assert res.log["estimated_seconds"] == pytest.approx(15 * spp, rel=1e-12)  # 15 pairs, one worker
-    monkeypatch.setattr(pairwise, "LONG_RUN_SECONDS", 0.0)  # every run counts as long
+    monkeypatch.setattr(_driver, "LONG_RUN_SECONDS", 0.0)  # every run counts as long
     with caplog.at_level(logging.INFO, logger="shapelib.pairwise"):
         res = sl.pairwise_distances(x, metric="alpha_bound", sigma2=25.0, n_jobs=1, progress=False,
                                     return_result=True)

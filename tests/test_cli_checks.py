@@ -169,7 +169,7 @@ def test_distances_say_the_estimated_time_before_the_run(raw):
     from tests.conftest import ROOT
 
     out = raw["dir"] / "d.csv"
-    code = ("import sys, shapelib.pairwise as p; p.LONG_RUN_SECONDS = 0.0; from shapelib.cli import main; "
+    code = ("import sys, shapelib.pairwise._driver as p; p.LONG_RUN_SECONDS = 0.0; from shapelib.cli import main; "
             f"sys.exit(main(['distances', {str(raw['tps'])!r}, '--metric', 'alpha_bound', '--sigma2', '3600', "
             f"'--jobs', '1', '-o', {str(out)!r}]))")
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)

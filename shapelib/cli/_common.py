@@ -1,0 +1,257 @@
+"""What every ``shapelib`` command shares: reading the landmark file, the metric's options, output
+paths, the one-line error and the exit statuses."""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import contextlib
+import logging
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .._validate import InputError
+
+PROG = "shapelib"
+#: exit status of ``distances --max-blocks`` stopping before the matrix is complete (sysexits' EX_TEMPFAIL)
+EXIT_STOPPED = 75
+
+
+class CLIError(ValueError):
+    """A user-facing error: printed as one line, exit status 1."""
+
+
+#: exit status of ``distances`` and ``geodesic`` when the results are written but the geodesic
+#: solver did not converge on some of them (a warning names them); a bracket that is only wider
+#: than ``--rtol`` is certified, said in its own words, and exits 0
+EXIT_UNCONVERGED = 4
+
+
+# ---------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------
+
+
+def _read(args, *, missing="error"):
+    from .. import io
+
+    kw = {"missing": missing}
+    fmt = io._format_of(args.file)
+    if fmt == "tps":
+        # without the flag, each specimen's own marker decides (files written by shapelib say so)
+        kw.update(scale=args.scale, negative="coordinates" if args.negative_coordinates else None)
+    elif args.scale or args.negative_coordinates:
+        flag = "--scale" if args.scale else "--negative-coordinates"
+        raise CLIError(f"{flag} applies to .tps files only; {args.file} is {fmt}")
+    if fmt in ("npy", "npz") and args.pkn:
+        kw["layout"] = "pkn"
+    elif args.pkn:
+        raise CLIError(f"--pkn applies to .npy/.npz files only; {args.file} is {fmt}")
+    try:
+        return io.read_landmarks(args.file, **kw)
+    except InputError as exc:
+        raise CLIError(_in_cli_words(exc)) from None
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+
+
+#: the remedies an :class:`~shapelib._validate.InputError` names, in the command line's options
+CLI_WORDS = {
+    "keep_missing": "estimate or drop the missing landmarks first",
+    "scale": "--scale",
+    "pkn": "read it with --pkn",
+    "sigma2": "--sigma2",
+}
+
+
+def _in_cli_words(exc) -> str:
+    """An input error's message with its remedies in the command line's options."""
+    words = dict(CLI_WORDS)
+    if exc.facts.get("negative_as_missing"):
+        words["keep_missing"] += (" (or, if negative values are coordinates, e.g. aligned shapes, add "
+                                  "--negative-coordinates)")
+    return exc.phrase(words)
+
+
+def _output_path(path, *, suffixes, option):
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise CLIError(f"{option} {path}: expected a file ending in {' or '.join(suffixes)}")
+    if not p.parent.exists():
+        raise CLIError(f"{option} {path}: directory {p.parent} does not exist")
+    return p
+
+
+def _write_frame(frame, path, **kw):
+    from .._files import write_text_atomic
+
+    write_text_atomic(Path(path), frame.to_csv(lineterminator="\n", **kw))
+
+
+def parse_assignment(text: str, *, flag: str = "--param", example: str = "n_steps=16") -> tuple[str, object]:
+    """``"sigma2=0.5"`` -> ``("sigma2", 0.5)``: ``NAME=VALUE`` with the value read as a Python literal
+    (numbers, True, lists, 'text'), else kept as a string. The one parser of ``shapelib --param``
+    and ``run_all.py -p``; a ValueError names ``flag`` and the text, and shows ``example``."""
+    key, sep, raw = text.partition("=")
+    key, raw = key.strip(), raw.strip()
+    if not sep or not key.isidentifier():
+        raise ValueError(f"{flag} {text!r}: expected NAME=VALUE, e.g. {flag} {example}")
+    try:
+        return key, ast.literal_eval(raw)
+    except (ValueError, TypeError, SyntaxError, MemoryError, RecursionError):
+        return key, raw
+
+
+def _parse_params(items):
+    """``--param NAME=VALUE`` items -> dict (:func:`parse_assignment`)."""
+    try:
+        return dict(parse_assignment(item) for item in items or [])
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+
+
+def _metric_params(args):
+    from ..distances import check_metric_params
+
+    params = _parse_params(args.param)
+    for name in ("sigma2",):
+        value = getattr(args, name, None)
+        if value is not None:
+            if name in params:
+                raise CLIError(f"--{name} given twice (also as --param {name}=...)")
+            params[name] = 1.0 if value == "auto" else value  # auto: estimated once the shapes are read
+    try:
+        check_metric_params(args.metric, params, rtol=getattr(args, "rtol", None))
+    except InputError as exc:
+        missing = exc.facts.get("parameters", ())
+        if missing == ("sigma2",):
+            raise CLIError(f"--metric {args.metric} needs --sigma2 (σ² of the Gaussian mixture, eq. 5)") from None
+        raise CLIError(f"--metric {args.metric}: {_in_cli_words(exc)}") from None
+    except ValueError as exc:
+        raise CLIError(f"--metric {args.metric}: {exc}") from None
+    return params
+
+
+@contextlib.contextmanager
+def _notes_from(name):
+    """Print the INFO records of logger ``name`` (e.g. the engine's run estimate) as ``shapelib: note:`` lines."""
+    class Note(logging.Handler):
+        def emit(self, record):
+            print(f"{PROG}: note: {record.getMessage()}", file=sys.stderr, flush=True)
+
+    lg, handler = logging.getLogger(name), Note(logging.INFO)
+    old = lg.level
+    lg.addHandler(handler)
+    lg.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        lg.removeHandler(handler)
+        lg.setLevel(old)
+
+
+def _sigma2_arg(text: str):
+    """``--sigma2``: a positive number, or ``auto`` (estimated from the file's shapes)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'auto', got {text!r}") from None
+
+
+def _auto_sigma2(args, params, shapes):
+    """``--sigma2 auto``: σ² from the landmarks' scatter (:func:`shapelib.estimate_sigma2`), said on stdout."""
+    if getattr(args, "sigma2", None) != "auto":
+        return params
+    from ..geometry.scale import estimate_sigma2
+
+    try:
+        est = estimate_sigma2(shapes)
+    except ValueError as exc:
+        raise CLIError(f"--sigma2 auto: {exc}") from None
+    print(f"sigma2 = {est.sigma2:.6g} (auto: the landmarks' scatter around the mean shape, sigma = "
+          f"{est.sigma_over_spacing:.2g} landmark spacings)")
+    if est.pose_share > 0.1:
+        warnings.warn(f"--sigma2 auto: {est.pose_share:.0%} of the landmarks' scatter in {args.file} is position and "
+                      "orientation; the distances see the shapes as given: align them first (shapelib align)")
+    return {**params, "sigma2": float(f"{est.sigma2:.6g}")}
+
+
+def _index_of(specimens, ident, option):
+    ids = specimens["id"].astype(str)
+    hits = np.flatnonzero(ids.to_numpy() == str(ident))
+    if len(hits) == 0:
+        shown = ", ".join(ids.iloc[:8])
+        more = f", … ({len(ids)} in all)" if len(ids) > 8 else ""
+        raise CLIError(f"{option} {ident}: no specimen with that id in {specimens.attrs.get('path', 'the file')} "
+                       f"(ids: {shown}{more})")
+    if len(hits) > 1:
+        raise CLIError(f"{option} {ident}: {len(hits)} specimens have that id (rows {', '.join(str(h + 1) for h in hits)}); "
+                       "make the ids unique")
+    return int(hits[0])
+
+
+def _align_pose(args, shapes, params):
+    """The shapes a pose-dependent metric sees: aligned by rotations and translations (sizes kept,
+    so σ² keeps its meaning), unless --no-align or they are aligned already (within
+    :data:`~shapelib.geometry.procrustes.POSE_TOL`); a note on stderr says how far that moved them."""
+    from ..distances import pose_dependent
+    from ..geometry.procrustes import POSE_TOL, pose_align
+
+    if args.no_align or not pose_dependent(args.metric, params) or shapes.shape[1] < 2:
+        return shapes
+    aligned, moved = pose_align(shapes)
+    if moved.max() <= POSE_TOL:
+        return shapes  # aligned already (e.g. by `shapelib align`): the file's values as they are
+    if moved.max() > POSE_TOL:
+        print(f"{PROG}: note: {args.metric} depends on the pose of the shapes: aligned the {len(shapes)} specimens of "
+              f"{args.file} first (generalized Procrustes rotations and translations, sizes kept), which moved them "
+              f"by up to {100 * moved.max():.3g} % of their size; --no-align uses the file's pose", file=sys.stderr)
+    return aligned
+
+
+def save_figure(fig, path) -> None:
+    """Write a matplotlib figure to ``path`` (.png without the Software tag, so reruns give the same bytes) and close it."""
+    import matplotlib.pyplot as plt
+
+    fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
+    plt.close(fig)
+
+
+def use_agg() -> None:
+    """Draw off-screen (a command never opens a window)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
+# ---------------------------------------------------------------------------------------------
+# options shared by several commands
+# ---------------------------------------------------------------------------------------------
+
+
+def _file_options(p):
+    p.add_argument("file", metavar="FILE", help="landmark file: .tps, .csv (wide or long), .npy or .npz")
+    g = p.add_argument_group("reading the file")
+    g.add_argument("--scale", action="store_true", help=".tps: multiply coordinates by each specimen's SCALE=")
+    g.add_argument("--negative-coordinates", action="store_true",
+                   help=".tps: negative values are coordinates (e.g. aligned shapes), not tpsDig's missing landmarks "
+                        "(not needed for files shapelib wrote: they say so themselves)")
+    g.add_argument("--pkn", action="store_true", help=".npy/.npz: the array is geomorph's p x k x n layout")
+
+
+def _metric_options(p, *, metrics, required_sigma2=False):
+    p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics) + " (listed below)")
+    p.add_argument("--sigma2", type=_sigma2_arg, metavar="S", required=required_sigma2,
+                   help="σ² of the Gaussian mixture (eq. 5), or 'auto': estimated from the landmarks' scatter "
+                        "around the mean shape (`shapelib info` shows it); alpha and fisher_rao need it")
+    p.add_argument("--param", action="append", metavar="NAME=VALUE",
+                   help="any other option of the metric, e.g. --param n_steps=16 (repeatable)")
+    p.add_argument("--no-align", action="store_true",
+                   help="use the file's pose: by default the specimens are aligned first (rotations and "
+                        "translations, sizes kept) for the metrics that depend on pose (alpha, fisher_rao, their "
+                        "bounds, diffeomorphism, hausdorff)")

@@ -1,0 +1,263 @@
+"""``shapelib distances`` and ``shapelib geodesic``: the distance matrix of a file's specimens, and
+the geodesic between two of them."""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ._common import (EXIT_STOPPED, EXIT_UNCONVERGED, PROG, CLIError, _align_pose, _auto_sigma2, _file_options,
+                      _index_of, _metric_options, _metric_params, _notes_from, _output_path, _read, _write_frame)
+
+EXAMPLES = {
+    "distances": ("examples:\n  shapelib distances aligned.tps --metric procrustes -o procrustes.csv\n"
+                  "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 \\\n"
+                  "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
+                  "  shapelib distances aligned.tps --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
+                  "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
+    "geodesic": ("example:\n  shapelib geodesic aligned.tps --from fish-1 --to Heart-1 \\\n"
+                 "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --links contour --animate path.gif"),
+}
+
+
+def cmd_distances(args) -> int:
+    import pandas as pd
+
+    from ..pairwise import pairwise_distances
+    from ..pairwise import PairError
+    from ..solver.geodesic import GeodesicWarning
+
+    out = _output_path(args.output, suffixes=(".csv",), option="-o")
+    diag = _output_path(args.pairs, suffixes=(".csv",), option="--pairs") if args.pairs else None
+    if diag is not None and diag.resolve() == out.resolve():
+        raise CLIError(f"--pairs {args.pairs}: the same file as -o; give the pair table its own name")
+    params = _metric_params(args)
+    if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
+        raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")
+    shapes, spec = _read(args)
+    ids = spec["id"].astype(str).tolist()
+    if len(set(ids)) != len(ids):
+        dup = pd.Series(ids)[pd.Series(ids).duplicated()].iloc[0]
+        raise CLIError(f"{args.file}: specimen id {dup!r} occurs more than once; the matrix needs unique ids")
+    if args.block_size is not None and args.block_size < 1:
+        raise CLIError(f"--block-size must be >= 1; got {args.block_size}")
+    if args.store and Path(args.store).exists() and not Path(args.store).is_dir():
+        raise CLIError(f"--store {args.store}: exists and is not a zarr directory")
+    stop = None
+    if args.max_blocks is not None:
+        if args.max_blocks < 1:
+            raise CLIError(f"--max-blocks must be >= 1; got {args.max_blocks}")
+        if not args.store:
+            raise CLIError("--max-blocks needs --store: the blocks computed are kept there to resume from")
+        stop = lambda p: p.blocks_computed >= args.max_blocks  # noqa: E731
+    params = _auto_sigma2(args, params, shapes)
+    shapes = _align_pose(args, shapes, params)
+    try:
+        with warnings.catch_warnings(), _notes_from("shapelib.pairwise"):  # the run's estimate, up front
+            # the convergence summary is printed below with the specimens' ids instead
+            warnings.simplefilter("ignore", GeodesicWarning)
+            result = pairwise_distances(shapes, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
+                                        store=args.store, block_size=args.block_size, progress=not args.no_progress,
+                                        rtol=args.rtol, return_result=True, callback=stop, **params)
+    except PairError as exc:  # name the specimens, as every other input error does
+        note = " (the metric counts landmarks from 0)" if exc.landmarks else ""
+        raise CLIError(f"{args.file}: specimens {ids[exc.i]!r} (#{exc.i + 1}) and {ids[exc.j]!r} (#{exc.j + 1}), "
+                       f"as u and v: {exc.reason}{note}") from None
+    log = result.log or {}
+    if not result.complete:  # --max-blocks stopped it: no matrix, the store is there to resume
+        print(f"{PROG}: stopped after {log['blocks_computed']} block(s) (--max-blocks), {log['blocks_done']} of "
+              f"{log['blocks_total']} in store {args.store}; -o not written: rerun the command (without "
+              "--max-blocks to finish) to resume", file=sys.stderr)
+        return EXIT_STOPPED
+    frame = pd.DataFrame(result.matrix, index=pd.Index(ids, name="id"), columns=ids)
+    _write_frame(frame, out, float_format=lambda v: repr(float(v)))
+    bad = result.nonconverged_pairs()
+    if diag is not None:
+        pairs = result.to_frame()
+        for col in ("i", "j"):
+            if col in pairs:
+                pairs.insert(pairs.columns.get_loc(col) + 1, f"id_{col}", [ids[int(t)] for t in pairs[col]])
+        _write_frame(pairs, diag, index=False)
+    resumed = ""
+    if args.store and log.get("blocks_found_done"):
+        resumed = (f", resumed: {log['blocks_found_done']} of {log.get('blocks_total', '?')} blocks were already "
+                   "in the store")
+    print(f"{args.metric}: {len(ids)} x {len(ids)} distance matrix -> {out}"
+          + (f" (store {args.store}{resumed})" if args.store else ""))
+    if bad:
+        listed = ", ".join(f"{ids[i]}–{ids[j]}" for i, j in bad[:5]) + (", …" if len(bad) > 5 else "")
+        more = "" if diag else " (--pairs FILE.csv writes every pair's bracket and status)"
+        total = len(result.status())
+        if args.rtol is not None:  # certified, only wider than asked: said as such, exit 0
+            gap = result.rel_gap(*np.array(bad).T)
+            print(f"{PROG}: warning: {len(bad)} of {total} pairs: the certified bracket is wider than --rtol "
+                  f"{args.rtol:g} (relative gap median {100 * float(np.median(gap)):.3g} %, max "
+                  f"{100 * float(np.max(gap)):.3g} %; {listed}): each distance lies in its bracket [lower, upper] "
+                  f"and the matrix holds the upper end; the solver did not fail{more}", file=sys.stderr)
+        else:
+            print(f"{PROG}: warning: {len(bad)} of {total} pairs: solver failed (the geodesic solver stopped before "
+                  f"its tolerance; their values are lengths of unconverged paths, upper bounds only): {listed}{more}; "
+                  f"exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+            return EXIT_UNCONVERGED
+    return 0
+
+
+def cmd_geodesic(args) -> int:
+    import pandas as pd
+
+    from ..distances import PATH_METRICS, path_result
+
+    if args.metric not in PATH_METRICS:
+        raise CLIError(f"--metric {args.metric}: geodesics exist for the path metrics {', '.join(PATH_METRICS)}")
+    out = _output_path(args.output, suffixes=(".csv",), option="-o")
+    plot = _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot") if args.plot else None
+    anim = _output_path(args.animate, suffixes=(".gif", ".mp4"), option="--animate") if args.animate else None
+    if args.n_steps is not None and args.n_steps < 1:
+        raise CLIError(f"--n-steps must be >= 1; got {args.n_steps}")
+    if args.fps < 1:
+        raise CLIError(f"--fps must be >= 1; got {args.fps}")
+    if anim is not None and anim.suffix.lower() == ".mp4":
+        import matplotlib.animation as manim
+
+        if not manim.writers.is_available("ffmpeg"):
+            raise CLIError(f"--animate {args.animate}: writing .mp4 needs ffmpeg, which is not installed; use a .gif")
+    params = _metric_params(args)
+    if args.n_steps is not None:
+        if "n_steps" in params:
+            raise CLIError("n_steps given twice: use --n-steps or --param n_steps=..., not both")
+        params["n_steps"] = args.n_steps
+    params.setdefault("n_steps", 16)
+    shapes, spec = _read(args)
+    params = _auto_sigma2(args, params, shapes)
+    if (plot or anim) and shapes.shape[2] != 2:
+        raise CLIError("--plot and --animate draw 2-D landmarks; this file is 3-D")
+    links = []
+    if args.links is not None:
+        if not (plot or anim):
+            raise CLIError("--links applies to --plot and --animate")
+        from ..plotting import parse_links
+
+        try:
+            links = parse_links(args.links, shapes.shape[1])
+        except ValueError as exc:
+            raise CLIError(f"--{exc}") from None
+    i, j = _index_of(spec, args.source, "--from"), _index_of(spec, args.target, "--to")
+    shapes = _align_pose(args, shapes, params)  # the whole file, as `shapelib distances` aligns it
+    from ..solver.geodesic import GeodesicWarning
+
+    with warnings.catch_warnings():  # said below in the command line's words
+        warnings.simplefilter("ignore", GeodesicWarning)
+        result = path_result(shapes[i], shapes[j], metric=args.metric, **params)
+    n1, k, d = result.path.shape
+    t = np.repeat(np.linspace(0.0, 1.0, n1), k)
+    frame = pd.DataFrame({"step": np.repeat(np.arange(n1), k), "t": t, "landmark": np.tile(np.arange(1, k + 1), n1),
+                          **{a: result.path[:, :, c].ravel() for c, a in enumerate("xyz"[:d])}})
+    _write_frame(frame, out, index=False, float_format=lambda v: repr(float(v)))
+    print(f"{spec['id'].iloc[i]} -> {spec['id'].iloc[j]}: {result.summary()} -> {out}")
+    if plot:
+        _plot_path(result, plot, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
+                   links=links)
+        print(f"figure -> {plot}")
+    if anim:
+        _animate_path(result, anim, title=f"{args.metric} geodesic {spec['id'].iloc[i]} → {spec['id'].iloc[j]}",
+                      fps=args.fps, links=links)
+        print(f"animation -> {anim}")
+    if not result.converged:
+        stopped = result.log.get("stopped_by")
+        why = result.log.get("reason") or f"stopped by {stopped} after {result.n_iter} iterations"
+        todo = ("bring the shapes to a scale that fits --sigma2 (shapelib align --size 20) or use a larger --sigma2"
+                if stopped == "underflow" else "raise --param max_iter")
+        print(f"{PROG}: warning: the {args.metric} geodesic did not converge ({why}): {out} holds the path it had, "
+              f"whose length {result.length:.6g} is an upper bound only (lower bound {result.lower_bound:.6g}); "
+              f"{todo}; exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+        return EXIT_UNCONVERGED
+    return 0
+
+
+def _plot_path(result, path, *, title, links):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..plotting import plot_geodesic
+
+    fig = plot_geodesic(result, links=links, title=title)
+    fig.savefig(path, dpi=120, metadata={"Software": None} if Path(path).suffix == ".png" else None)
+    plt.close(fig)
+
+
+def _animate_path(result, path, *, title, fps, links=()):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FFMpegWriter, PillowWriter
+
+    from ..plotting import animate_geodesic
+
+    anim = animate_geodesic(result, title=title, links=list(links))
+    writer = PillowWriter(fps=fps) if Path(path).suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
+    tmp = Path(path).with_name(f".{Path(path).stem}.tmp{Path(path).suffix}")
+    try:
+        anim.save(tmp, writer=writer)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+        plt.close(anim._fig)
+
+
+def _described(names):
+    """The metric registry's one-line descriptions, for the epilogs."""
+    from ..distances import metric_info
+
+    width = max(map(len, names))
+    return "\n\nmetrics (--metric):\n" + "\n".join(f"  {n:<{width}}  {metric_info(n).description}" for n in names)
+
+
+def register(add) -> None:
+    """Add ``distances`` and ``geodesic`` to the parser (``add(name, help, epilog)`` returns the subparser)."""
+    from ..distances import METRICS, PATH_METRICS
+
+    p = add("distances", "the labelled distance matrix of every pair of specimens",
+            EXAMPLES["distances"] + _described(list(METRICS)))
+    _file_options(p)
+    _metric_options(p, metrics=METRICS)
+    p.add_argument("--rtol", type=float, metavar="R",
+                   help="alpha/fisher_rao: certified bracket, stop when upper/lower - 1 <= R")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--jobs", type=int, metavar="N", help="worker processes on this machine (default: chosen "
+                       "from the measured cost of one pair)")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
+    p.add_argument("--store", metavar="D.zarr", help="zarr store of finished blocks; rerun the command to resume")
+    p.add_argument("--max-blocks", type=int, metavar="N",
+                   help=f"with --store: stop after computing N blocks, write no -o and exit with status {EXIT_STOPPED} "
+                        "(rerun to resume)")
+    p.add_argument("--block-size", type=int, metavar="B",
+                   help="shapes per block side, the unit of work and of resuming (default: from the measured cost)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--pairs", metavar="PAIRS.csv", help="also write every pair's diagnostics (bounds, convergence)")
+    p.add_argument("-o", "--output", required=True, metavar="D.csv",
+                   help="square matrix with specimen ids as header row and first column")
+    p.set_defaults(func=cmd_distances)
+
+    p = add("geodesic", "the geodesic between two specimens: intermediate shapes, figure, animation",
+            EXAMPLES["geodesic"] + _described(list(PATH_METRICS)))
+    _file_options(p)
+    p.add_argument("--from", dest="source", required=True, metavar="ID",
+                   help="start specimen id (`shapelib info` lists them; a file without ids numbers them 0, 1, …)")
+    p.add_argument("--to", dest="target", required=True, metavar="ID", help="end specimen id")
+    _metric_options(p, metrics=PATH_METRICS)
+    p.add_argument("--n-steps", type=int, metavar="N", help="time steps of the path (default 16)")
+    p.add_argument("-o", "--output", required=True, metavar="path.csv",
+                   help="long table step, t, landmark, x, y[, z] of the path")
+    p.add_argument("--plot", metavar="path.png", help="landmark trajectories (Figs. 4 and 6 style)")
+    p.add_argument("--animate", metavar="path.gif", help="animation of the deforming shape (.gif; .mp4 with ffmpeg)")
+    p.add_argument("--fps", type=int, default=8, help="animation frames per second (default 8)")
+    p.add_argument("--links", metavar="L", help="landmarks to join in --plot and --animate: pairs of landmark "
+                   "numbers as in the file, e.g. 1-2,2-3,3-1 (geomorph's and Momocs' links), or 'contour' for a "
+                   "closed outline in landmark order; default: points only")
+    p.set_defaults(func=cmd_geodesic)

@@ -1,0 +1,191 @@
+"""Blocks of pairs, the engine's unit of work: which blocks, one block's pairs, the block size."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+import warnings
+
+import numpy as np
+
+from .._executor import in_dask_worker
+from .._validate import set_checked
+from ..distances import is_builtin, metric_info, pair_record
+from ..geometry.bound_matrices import BOUND_METRICS, bound_block
+from ..geometry.procrustes import PoseWarning
+from ..geometry.scale import ScaleWarning
+from ..solver.geodesic import GeodesicWarning
+from ..solver.linalg import one_blas_thread
+from ._results import PairError
+
+#: seconds one task should take (sets the default block size)
+TASK_SECONDS = 2.0
+#: at least this many tasks per worker, for load balance
+TASKS_PER_WORKER = 4
+
+
+#: the per-pair arrays of the store: name -> (dtype, fill value)
+ARRAYS = {
+    "matrix": ("float64", math.nan),
+    "lower": ("float64", math.nan),
+    "upper": ("float64", math.nan),
+    "energy": ("float64", math.nan),
+    "seconds": ("float64", math.nan),
+    "converged": ("bool", False),
+    "n_iter": ("int64", -1),
+}
+_FIELD = {"matrix": "value"}  # pair_record key of each array (same name otherwise)
+
+
+def _pair_record(x_u, x_v, i, j, **kw):
+    """:func:`~shapelib.distances.pair_record` naming the pair in its input errors."""
+    try:
+        return pair_record(x_u, x_v, **kw)
+    except ValueError as exc:
+        raise PairError(i, j, exc) from exc
+
+
+def _n_blocks(n: int, b: int) -> int:
+    return -(-n // b)
+
+
+def block_pairs(n: int, block_size: int, *, symmetric: bool) -> list[tuple[int, int]]:
+    """Block indices ``(I, J)`` of the tasks: ``I ≤ J`` for symmetric metrics, all for asymmetric ones."""
+    nb = _n_blocks(n, block_size)
+    return [(a, b) for a in range(nb) for b in range(nb) if not symmetric or a <= b]
+
+
+def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, params: dict,
+                  offset=(0, 0)) -> dict:
+    """All pairs of one block through :func:`shapelib.distances.pair_record`: ``{array: (bi, bj)}``.
+
+    ``metric`` is a name or a :class:`~shapelib.distances.MetricInfo` record: the engine sends
+    the record with each task, so a metric registered in the client runs on workers that can
+    import its function's module, registered there or not.
+
+    ``xi``, ``xj`` are the block's row and column shapes, starting at rows/columns ``offset`` of
+    the matrix (used to name a pair in a :class:`PairError`). On a diagonal block only the pairs
+    ``i ≠ j`` are computed (``i < j``, then mirrored, for symmetric metrics) and the diagonal is
+    zero. Solver warnings are not emitted: convergence is recorded per pair instead; nor are
+    scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
+    """
+    bi, bj = len(xi), len(xj)
+    bound = _batched_bound(metric, rtol)
+    if bound:
+        out = _bound_block(xi, xj, diagonal=diagonal, metric=bound, params=params)
+        if out is not None:
+            return out
+    out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
+    with _pair_work():
+        for a in range(bi):
+            for b in range(bj):
+                if diagonal and (a == b or (symmetric and b < a)):
+                    continue
+                rec = _pair_record(xi[a], xj[b], offset[0] + a, offset[1] + b, metric=metric, rtol=rtol, **params)
+                for name in ARRAYS:
+                    out[name][a, b] = rec[_FIELD.get(name, name)]
+    if diagonal:
+        if symmetric:
+            low = np.tril_indices(bi, -1)
+            for arr in out.values():
+                arr[low] = arr.T[low]
+        d = np.diag_indices(bi)
+        for name in ("matrix", "lower", "upper", "energy", "seconds", "n_iter"):
+            out[name][d] = 0
+        out["converged"][d] = True
+    return out
+
+
+def _batched_bound(metric, rtol) -> str | None:
+    """The bound whose blocks are one batched call, or None: shapelib's own closed-form bounds (not a
+    function registered in their place), without a bracket's ``rtol``. ``metric``: a name or a
+    :class:`~shapelib.distances.MetricInfo` record (what tasks carry)."""
+    info = metric_info(metric)
+    return info.name if rtol is None and info.name in BOUND_METRICS and is_builtin(info) else None
+
+
+#: a closed-form bound's matrix in this process is one block of at most this many shapes a side
+#: (one batched call, :mod:`shapelib.geometry.bound_matrices`)
+BOUND_BLOCK_MAX = 2048
+
+
+def _bound_block(xi, xj, *, diagonal, metric, params):
+    """A block of ``"alpha_bound"`` / ``"fisher_rao_bound"`` as one batched call
+    (:func:`shapelib.geometry.bound_matrices.bound_block`), in :func:`compute_block`'s format (each
+    pair's ``seconds`` is the block's wall time over its pairs). ``None`` when the call rejects
+    the block — a Fisher–Rao grid over all its shapes too large, or an input error — so that
+    :func:`compute_block` goes pair by pair, on each pair's own grid, naming a bad pair."""
+    t0 = time.perf_counter()
+    try:
+        with _pair_work():  # one BLAS thread, as every task; all the cores in this process's own run
+            d = bound_block(metric, xi, None if diagonal else xj, n_threads=1 if in_dask_worker() else None,
+                            **params)
+    except ValueError:
+        return None
+    bi, bj = d.shape
+    n_pairs = bi * (bi - 1) // 2 if diagonal else bi * bj
+    out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
+    for name in ("matrix", "lower", "upper"):
+        out[name][...] = d
+    out["seconds"][...] = (time.perf_counter() - t0) / max(1, n_pairs)
+    out["converged"][...] = True
+    out["n_iter"][...] = 0
+    if diagonal:
+        idx = np.diag_indices(bi)
+        for name in ("energy", "seconds"):
+            out[name][idx] = 0
+    return out
+
+
+def default_block_size(seconds_per_pair: float, n: int, *, n_workers: int = 1, symmetric: bool = True) -> int:
+    """Block side ``b`` with ``b² · seconds_per_pair ≤ TASK_SECONDS`` and ≥ ``TASKS_PER_WORKER`` tasks
+    per worker (see the module docstring)."""
+    b = max(1, int(math.sqrt(TASK_SECONDS / max(seconds_per_pair, 1e-9))))
+    if n_workers > 1:
+        want = TASKS_PER_WORKER * n_workers
+        nb = 1
+        while (nb * (nb + 1) // 2 if symmetric else nb * nb) < want and nb < n:
+            nb += 1
+        b = min(b, _n_blocks(n, nb))
+    return max(1, min(b, n))
+
+
+@contextlib.contextmanager
+def _pair_work():
+    """Around the engine's per-pair calls (a block's, the timing pair's): BLAS on one thread
+    (workers are single-threaded processes, one per core), and no per-pair warnings — solver
+    convergence is recorded per pair, and :func:`compute_pairwise` gives the scale and pose
+    warnings once for all the shapes."""
+    with one_blas_thread(), set_checked(), warnings.catch_warnings():
+        warnings.simplefilter("ignore", GeodesicWarning)
+        warnings.simplefilter("ignore", ScaleWarning)
+        warnings.simplefilter("ignore", PoseWarning)
+        yield
+
+
+def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
+    """Seconds for one pair, warm: the first call in a process also pays one-off costs (loading
+    compiled kernels, building quadrature grids: 0.2 s against 2.5 ms warm for a Fisher–Rao
+    bound, ~2 s against 50 ms for a Fisher–Rao bracket), so the pair is timed twice (once if the
+    first call took over ``10 · TASK_SECONDS``: a block of one pair either way), a third time while
+    the calls took under ``budget`` seconds, and the fastest call counts."""
+    bound = _batched_bound(metric, rtol)
+    if bound:  # the cost of a pair within a block
+        m = min(len(x), 64)
+        best = math.inf
+        for _ in range(2):  # the first call also pays one-off costs
+            t0 = time.perf_counter()
+            out = _bound_block(x[:m], x[:m], diagonal=True, metric=bound, params=params)
+            best = min(best, time.perf_counter() - t0)
+        if out is not None:
+            return best / max(1, m * (m - 1) // 2)
+    times = []
+    with _pair_work():
+        # a pair far above TASK_SECONDS gets a block of its own either way: no second call
+        while not times or (len(times) < 2 and times[0] < 10 * TASK_SECONDS) or (
+                len(times) < 3 and sum(times) < budget):
+            t0 = time.perf_counter()
+            _pair_record(x[0], x[1 % len(x)], 0, 1 % len(x), metric=metric, rtol=rtol, **params)
+            times.append(time.perf_counter() - t0)
+    return min(times)
