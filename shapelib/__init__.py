@@ -14,9 +14,11 @@ Where each equation lives:
   :mod:`shapelib.comparison.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
 * §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
-* point sets without landmarks: outlines traced from silhouettes, :mod:`shapelib.pointsets.outline`;
-  density distances modulo translation, scale, rotation and reflection (FFT angle search),
-  :mod:`shapelib.pointsets.invariant`; bull's-eye retrieval scores, :mod:`shapelib.retrieval`
+* point sets without landmarks (any sizes, no correspondence): checks, density distances, pose
+  search over every rotation: :mod:`shapelib.pointsets`; outlines traced from silhouettes,
+  :mod:`shapelib.pointsets.outline`; density distances modulo translation, scale, rotation and
+  reflection (FFT angle search), :mod:`shapelib.pointsets.invariant`; bull's-eye retrieval
+  scores, :mod:`shapelib.retrieval`
 * log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
   tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics`, on the engine through
   :mod:`shapelib.population`
@@ -47,6 +49,21 @@ from .geometry.scale import Sigma2Estimate, estimate_sigma2
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .comparison.warp import extrinsic_warp
+from .pointsets import (
+    EMWarning,
+    MixtureFit,
+    fit_mixture,
+    Pose,
+    PoseSearchWarning,
+    align,
+    as_point_set,
+    as_point_sets,
+    bhattacharyya_affinity,
+    density_distance,
+    density_inner,
+    hellinger_sq,
+    l2_distance_sq,
+)
 from .pointsets.outline import outline_topology, resample_closed, trace_outline
 from .pointsets.invariant import InvariantDistance, invariant_distance, invariant_distance_matrix, normalise_points
 from .retrieval import BullseyeScore, bullseye, nearest_wrong, procrustes_outline_matrix
@@ -80,6 +97,19 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
 
 __all__ = [
+    "as_point_set",  # shapelib.pointsets
+    "as_point_sets",
+    "density_inner",
+    "l2_distance_sq",
+    "hellinger_sq",
+    "bhattacharyya_affinity",
+    "density_distance",
+    "align",
+    "Pose",
+    "PoseSearchWarning",
+    "fit_mixture",
+    "MixtureFit",
+    "EMWarning",
     "MetricInfo",
     "metric_info",
     "register_metric",

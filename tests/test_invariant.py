@@ -129,10 +129,10 @@ def test_matrix_is_symmetric_with_consistent_poses():
 
 
 def test_bad_point_sets():
-    with pytest.raises(ValueError, match="coincide"):
+    with pytest.raises(ValueError, match="repeats point 0"):
         invariant_distance(np.ones((5, 2)), Y, sigma2=S2)
     with pytest.raises(ValueError, match=r"\(n, 2\)"):
-        invariant_distance(np.ones((5, 3)), Y, sigma2=S2)
+        invariant_distance(np.arange(15.0).reshape(5, 3), Y, sigma2=S2)
     with pytest.raises(ValueError, match="non-finite"):
         invariant_distance(np.array([[0, 0], [1, np.nan], [2, 1]]), Y, sigma2=S2)
     with pytest.raises(ValueError, match="metric"):

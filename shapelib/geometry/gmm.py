@@ -99,9 +99,13 @@ def gmm_density(x, theta, sigma2) -> np.ndarray:
 def gaussian_overlap(a, b, sigma2) -> np.ndarray:
     """Matrix of overlaps ``G_ij = ∫ N(x; a_i, σ²I) N(x; b_j, σ²I) dx = (4πσ²)^{-d/2} e^{−|a_i − b_j|²/(4σ²)}``."""
     a, b = _point_sets(a, b, ("a", "b"))
-    s2 = check_sigma2(sigma2)
-    d = a.shape[1]
-    return np.exp(-_sqdist(a, b) / (4 * s2)) / (4 * np.pi * s2) ** (d / 2)
+    return overlap_matrix(a, b, check_sigma2(sigma2))
+
+
+def overlap_matrix(a: np.ndarray, b: np.ndarray, s2: float) -> np.ndarray:
+    """:func:`gaussian_overlap` on checked float arrays ``a`` (M, d), ``b`` (K, d) and σ² (no
+    checks: for inner loops, e.g. the point-set objectives of :mod:`shapelib.pointsets.density`)."""
+    return np.exp(-_sqdist(a, b) / (4 * s2)) / (4 * np.pi * s2) ** (a.shape[1] / 2)
 
 
 def l2_inner(u, v, sigma2) -> float:

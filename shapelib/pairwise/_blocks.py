@@ -71,6 +71,11 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     bi, bj = len(xi), len(xj)
+    if params.get("modulo") is not None:  # point sets of any sizes, modulo a group (:mod:`._pointsets`)
+        from ._pointsets import point_set_block
+
+        with _pair_work():
+            return point_set_block(xi, xj, diagonal=diagonal, metric=metric_info(metric).name, params=params)
     bound = _batched_bound(metric, rtol)
     if bound:
         out = _bound_block(xi, xj, diagonal=diagonal, metric=bound, params=params)

@@ -1,1 +1,20 @@
-"""Point sets of any size (no landmark correspondence)."""
+"""Shapes without landmarks: point sets of any size, compared and registered by the information geometry.
+
+A point set is an ``(n, d)`` array (d = 2 or 3) of any number of points in no order; it is the
+equal-weight isotropic mixture of eq. (5) with one component per point. Modules:
+
+* :mod:`~shapelib.pointsets.checks`: input checks (:func:`as_point_set`, :func:`as_point_sets`);
+* :mod:`~shapelib.pointsets.density`: closed-form and quadrature density distances between sets of
+  different sizes, with gradients w.r.t. the points;
+* :mod:`~shapelib.pointsets.pose`: the pose search over every rotation (:func:`align`);
+* :mod:`~shapelib.pointsets.em`: σ² (and the means of a compact mixture) from the points (:func:`fit_mixture`).
+"""
+
+from .checks import as_point_set, as_point_sets
+from .density import bhattacharyya_affinity, density_distance, density_inner, hellinger_sq, l2_distance_sq
+from .em import EMWarning, MixtureFit, fit_mixture
+from .pose import Pose, PoseSearchWarning, align
+
+__all__ = ["as_point_set", "as_point_sets", "bhattacharyya_affinity", "density_distance", "density_inner",
+           "hellinger_sq", "l2_distance_sq", "align", "Pose", "PoseSearchWarning", "fit_mixture", "MixtureFit",
+           "EMWarning"]

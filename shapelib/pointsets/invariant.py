@@ -13,7 +13,7 @@ thus fixed once per set; σ is measured in units of that RMS radius. Two distanc
 α (L²) bound
     ``D² = ⟨p, p⟩ + ⟨q, q⟩ − 2⟨p, q⟩`` with the closed-form overlap
     ``⟨p_x, p_y⟩ = (4πσ²)^{-1} (1/nm) Σ_ab exp(−|x_a − y_b|²/4σ²)``
-    (:func:`shapelib.geometry.gmm.l2_inner`). The self terms do not depend on the pose, so the
+    (:func:`shapelib.pointsets.density_inner`). The self terms do not depend on the pose, so the
     minimum is where the cross overlap ``C(θ) = ⟨p_x̂, p_{R_θ ŷ}⟩`` is largest.
 
 Fisher–Rao (Hellinger) bound
@@ -56,8 +56,10 @@ import numpy as np
 from scipy import fft as sfft
 from scipy.special import roots_legendre
 
-from .._validate import check_positive, check_sigma2
-from ..geometry.gmm import l2_inner
+from .._validate import InputError, check_positive, check_sigma2, literal
+from ..geometry.gmm import overlap_matrix
+from .checks import as_point_set
+from .density import density_inner
 from ..solver.linalg import one_blas_thread
 
 __all__ = [
@@ -69,6 +71,8 @@ __all__ = [
     "invariant_distance",
     "invariant_distance_matrix",
     "InvariantDistance",
+    "distances_from_spectra",
+    "spectrum_kind",
 ]
 
 #: the density distances available modulo the similarity group
@@ -84,18 +88,11 @@ NEWTON_STEPS = 2
 
 
 def _as_planar_set(points, name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a numeric (n, 2) array of points: {exc}") from None
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"{name} must be an (n, 2) array of planar points; got shape {arr.shape}")
-    if arr.shape[0] < 2:
-        raise ValueError(f"{name} must have at least 2 points; got {arr.shape[0]}")
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.argwhere(~np.isfinite(arr))[0, 0])
-        raise ValueError(f"{name} contains non-finite values (first at point {bad})")
-    return arr
+    x = as_point_set(points, name=name)
+    if x.shape[1] != 2:
+        raise InputError(f"{literal(name)} must be planar, an (n, 2) array: the search over rotations here is "
+                         f"the plane's; got shape {x.shape}")
+    return x
 
 
 def normalise_points(points, *, name: str = "points"):
@@ -442,30 +439,15 @@ class InvariantDistance:
 
 
 def _check_metric(metric: str) -> str:
-    if metric not in INVARIANT_METRICS:
+    if not isinstance(metric, str) or metric not in INVARIANT_METRICS:
         raise ValueError(f"metric must be one of {INVARIANT_METRICS} modulo the similarity group; got {metric!r}")
     return metric
 
 
-def _overlaps(xs, ys, sigma2: float, chunk_entries: int = 1 << 22) -> np.ndarray:
-    """Closed-form L² overlaps ``⟨p_x, p_y⟩`` of many pairs at once (the batched form of
-    :func:`shapelib.geometry.gmm.l2_inner`): ``(4πσ²)^{-1} (1/nm) Σ_ab exp(−|x_a − y_b|²/4σ²)``.
-    Pairs are grouped by their sizes ``(n, m)`` and done in chunks of stacked arrays."""
-    out = np.empty(len(xs))
-    groups: dict = {}
-    for p, (x, y) in enumerate(zip(xs, ys)):
-        groups.setdefault((len(x), len(y)), []).append(p)
-    c = 0.25 / sigma2
-    for (n, m), idx in groups.items():
-        step = max(1, chunk_entries // (n * m))
-        for s in range(0, len(idx), step):
-            sel = idx[s:s + step]
-            x = np.stack([xs[p] for p in sel])
-            y = np.stack([ys[p] for p in sel])
-            d2 = (np.einsum("pad,pad->pa", x, x)[:, :, None] + np.einsum("pbd,pbd->pb", y, y)[:, None, :]
-                  - 2 * np.matmul(x, y.transpose(0, 2, 1)))
-            out[sel] = np.exp(-c * np.maximum(d2, 0.0)).mean(axis=(1, 2))
-    return out / (4 * np.pi * sigma2)
+def _overlaps(xs, ys, sigma2: float) -> np.ndarray:
+    """Closed-form L² overlaps ``⟨p_x, p_y⟩ = (1/nm) Σ_ab G(x_a − y_b)`` of many pairs
+    (:func:`shapelib.geometry.gmm.overlap_matrix`, the formula's one home)."""
+    return np.array([overlap_matrix(x, y, sigma2).mean() for x, y in zip(xs, ys)])
 
 
 def _sq_norms(s: PolarSpectra) -> np.ndarray:
@@ -568,9 +550,46 @@ def invariant_distance_matrix(point_sets, others=None, *, metric: str = "alpha_b
     ys = xs if symmetric else prep(others, "others")
     if max_radius is None:
         max_radius = _max_radius(xs if symmetric else xs + ys)
-    kind = "density" if metric == "alpha_bound" else "sqrt"
+    kind = spectrum_kind(metric)
     sa = polar_spectra(xs, sigma2=s2, kind=kind, max_radius=max_radius)
-    sb = sa if symmetric else polar_spectra(ys, sigma2=s2, kind=kind, max_radius=max_radius)
+    sb = None if symmetric else polar_spectra(ys, sigma2=s2, kind=kind, max_radius=max_radius)
+    return distances_from_spectra(xs, sa, None if symmetric else ys, sb, metric=metric, reflection=reflection,
+                                  exact=exact, return_pose=return_pose)
+
+
+def spectrum_kind(metric: str) -> str:
+    """The function whose spectra a metric correlates: ``"density"`` (α) or ``"sqrt"`` (Fisher–Rao)."""
+    return "density" if _check_metric(metric) == "alpha_bound" else "sqrt"
+
+
+def distances_from_spectra(xs, sa: PolarSpectra, ys=None, sb: PolarSpectra | None = None, *, metric: str,
+                           reflection: bool = True, exact: bool = True, return_pose: bool = False):
+    """:func:`invariant_distance_matrix` from normalised sets and their spectra computed beforehand.
+
+    For callers that compute each set's spectrum once and compare it in many blocks (the
+    pairwise engine). ``ys, sb`` None: the symmetric matrix of ``xs`` (upper triangle searched).
+
+    Parameters
+    ----------
+    xs : list of ndarray, each (n_i, 2)
+        Normalised point sets (unchecked).
+    sa : PolarSpectra
+        Their spectra (:func:`polar_spectra`, kind :func:`spectrum_kind` of ``metric``).
+    ys, sb : optional
+        The columns' sets and spectra, on the same grid.
+    metric, reflection, exact, return_pose
+        As :func:`invariant_distance_matrix`.
+
+    Returns
+    -------
+    ndarray, shape (N, M)
+        (with ``return_pose``: ``(D, angle, reflected)``).
+    """
+    symmetric = ys is None
+    if sa.kind != spectrum_kind(metric) or (sb is not None and sb.kind != sa.kind):
+        raise ValueError(f"metric {metric!r} correlates spectra of kind {spectrum_kind(metric)!r}")
+    ys, sb = (xs, sa) if symmetric else (ys, sb)
+    s2 = sa.sigma2
     iu, ju, value, theta, refl = _search_pairs(sa, sb, symmetric=symmetric, reflection=reflection)
     if metric == "alpha_bound":
         if exact:
@@ -638,7 +657,7 @@ def invariant_distance(x, y, *, metric: str = "alpha_bound", sigma2: float, refl
     ys = normalise_points(y, name="y")[0]
     s2 = check_sigma2(sigma2)
     if metric == "alpha_bound":
-        overlap = l2_inner(xs, _moved(ys, ang[0, 0], ref[0, 0]), s2)
+        overlap = density_inner(xs, _moved(ys, ang[0, 0], ref[0, 0]), sigma2=s2)
     else:
         overlap = float(np.cos(d[0, 0] / 2))
     return InvariantDistance(float(d[0, 0]), float(ang[0, 0]), bool(ref[0, 0]), float(overlap), metric, s2)

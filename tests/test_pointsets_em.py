@@ -1,0 +1,63 @@
+"""σ² from the data: equal-weight EM on points sampled from a known mixture, and the leave-one-out
+σ² of one component per point (first-order condition, scale equivariance, bootstrap spread)."""
+
+import numpy as np
+import pytest
+
+import shapelib as sl
+from shapelib.pointsets import fit_mixture
+from shapelib.pointsets.em import _loglik
+
+CENTRES = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0], [3.0, 3.0]])
+
+
+def sample(seed, n=800, s2=0.2, d=2):
+    rng = np.random.default_rng(seed)
+    c = CENTRES if d == 2 else np.column_stack([CENTRES, np.arange(4.0)])
+    return c[rng.integers(len(c), size=n)] + rng.normal(scale=np.sqrt(s2), size=(n, d)), c
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_em_recovers_sigma2_within_its_standard_error_and_the_means(d):
+    z = []
+    for seed in range(12):
+        x, c = sample(seed, d=d)
+        fit = fit_mixture(x, n_components=4, seed=seed)
+        assert fit.converged and fit.stop_reason == "tolerance" and fit.method == "em"
+        z.append((fit.sigma2 - 0.2) / fit.standard_error)
+        found = fit.means[np.argsort(fit.means[:, :2] @ [1.0, 10.0])]
+        truth = c[np.argsort(c[:, :2] @ [1.0, 10.0])]
+        assert np.abs(found - truth).max() < 0.15  # 4.7 standard errors of a mean of 200 points
+    z = np.array(z)
+    # standardised errors: no bias and the spread the standard error claims (12 draws)
+    assert abs(z.mean()) < 1.0 and 0.5 < z.std() < 1.6 and np.abs(z).max() < 3.5
+
+
+def test_em_increases_the_likelihood_and_reports_it():
+    x, _ = sample(1)
+    fit = fit_mixture(x, n_components=4)
+    assert fit.log_likelihood == pytest.approx(_loglik(x, fit.means, fit.sigma2)[0], rel=1e-12)
+    for eps in (1e-3, -1e-3):  # a maximum in σ² and in the means
+        assert _loglik(x, fit.means, fit.sigma2 * (1 + eps))[0] < fit.log_likelihood
+        assert _loglik(x, fit.means + eps, fit.sigma2)[0] < fit.log_likelihood
+    assert fit.lower < fit.sigma2 < fit.upper
+    assert "EM, 4 equal-weight components" in fit.summary()
+
+
+def test_leave_one_out_sigma2_is_a_maximum_scales_with_the_points_and_its_se_matches_the_bootstrap():
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(120, 2))
+    fit = fit_mixture(x)
+    assert fit.method == "leave_one_out" and fit.converged
+    ll = lambda s2: _loglik(x, x, s2, loo=True)[0]
+    assert ll(fit.sigma2) > max(ll(fit.sigma2 * 1.01), ll(fit.sigma2 / 1.01))
+    assert fit_mixture(2.5 * x).sigma2 == pytest.approx(6.25 * fit.sigma2, rel=1e-6)
+    boot = [fit_mixture(x[rng.integers(120, size=120)] + 1e-9 * rng.normal(size=(120, 2))).sigma2 for _ in range(40)]
+    assert 0.5 < np.std(boot) / fit.standard_error < 2.0
+
+
+def test_em_rejects_bad_input():
+    with pytest.raises(ValueError, match="n_components must be at most the number of points 5"):
+        fit_mixture(np.arange(10.0).reshape(5, 2) ** 2, n_components=6)
+    with pytest.raises(sl.InputError, match="points: point 1 repeats point 0"):
+        fit_mixture([[0, 0], [0, 0], [1, 1]])
