@@ -17,6 +17,7 @@ from ..geometry.procrustes import PoseWarning
 from ..geometry.scale import ScaleWarning
 from ..solver.geodesic import GeodesicWarning
 from ..solver.linalg import one_blas_thread
+from ._pointsets import point_set_block
 from ._results import PairError
 
 #: seconds one task should take (sets the default block size)
@@ -72,10 +73,10 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     """
     bi, bj = len(xi), len(xj)
     if params.get("modulo") is not None:  # point sets of any sizes, modulo a group (:mod:`._pointsets`)
-        from ._pointsets import point_set_block
-
+        t0 = time.perf_counter()
         with _pair_work():
-            return point_set_block(xi, xj, diagonal=diagonal, metric=metric_info(metric).name, params=params)
+            d = point_set_block(xi, xj, diagonal=diagonal, metric=metric_info(metric).name, params=params)
+        return _matrix_block(d, diagonal=diagonal, seconds=time.perf_counter() - t0)
     bound = _batched_bound(metric, rtol)
     if bound:
         out = _bound_block(xi, xj, diagonal=diagonal, metric=bound, params=params)
@@ -128,12 +129,18 @@ def _bound_block(xi, xj, *, diagonal, metric, params):
                             **params)
     except ValueError:
         return None
+    return _matrix_block(d, diagonal=diagonal, seconds=time.perf_counter() - t0)
+
+
+def _matrix_block(d: np.ndarray, *, diagonal: bool, seconds: float) -> dict:
+    """A block computed as one matrix ``d``, in :func:`compute_block`'s format: every pair converged,
+    no iterations, each pair's ``seconds`` the block's wall time over its pairs."""
     bi, bj = d.shape
     n_pairs = bi * (bi - 1) // 2 if diagonal else bi * bj
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
     for name in ("matrix", "lower", "upper"):
         out[name][...] = d
-    out["seconds"][...] = (time.perf_counter() - t0) / max(1, n_pairs)
+    out["seconds"][...] = seconds / max(1, n_pairs)
     out["converged"][...] = True
     out["n_iter"][...] = 0
     if diagonal:

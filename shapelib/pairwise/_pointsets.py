@@ -22,7 +22,6 @@ from .._validate import check_sigma2
 from ..pointsets.checks import as_point_sets
 from ..pointsets.invariant import (INVARIANT_METRICS, PolarSpectra, distances_from_spectra, normalise_points,
                                    polar_spectra, spectrum_kind)
-from ._blocks import ARRAYS
 
 #: the groups a point-set matrix can be taken modulo
 MODULI = ("similarity",)
@@ -72,29 +71,14 @@ def _spectra(items, params) -> PolarSpectra:
                         params["sigma2"])
 
 
-def point_set_block(xi, xj, *, diagonal: bool, metric: str, params: dict) -> dict:
-    """One block of ``(normalised set, spectrum)`` items in :func:`~shapelib.pairwise.compute_block`'s
-    format (each pair's ``seconds``: the block's wall time over its pairs)."""
-    t0 = time.perf_counter()
+def point_set_block(xi, xj, *, diagonal: bool, metric: str, params: dict) -> np.ndarray:
+    """The distances of one block of ``(normalised set, spectrum)`` items (``xj`` ignored on a
+    diagonal block: the symmetric matrix of ``xi``)."""
     xs = [x for x, _ in xi]
     if diagonal:
-        d = distances_from_spectra(xs, _spectra(xi, params), metric=metric, reflection=params["reflection"])
-    else:
-        d = distances_from_spectra(xs, _spectra(xi, params), [y for y, _ in xj], _spectra(xj, params),
-                                   metric=metric, reflection=params["reflection"])
-    bi, bj = d.shape
-    n_pairs = bi * (bi - 1) // 2 if diagonal else bi * bj
-    out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
-    for name in ("matrix", "lower", "upper"):
-        out[name][...] = d
-    out["seconds"][...] = (time.perf_counter() - t0) / max(1, n_pairs)
-    out["converged"][...] = True
-    out["n_iter"][...] = 0
-    if diagonal:
-        idx = np.diag_indices(bi)
-        for name in ("energy", "seconds"):
-            out[name][idx] = 0
-    return out
+        return distances_from_spectra(xs, _spectra(xi, params), metric=metric, reflection=params["reflection"])
+    return distances_from_spectra(xs, _spectra(xi, params), [y for y, _ in xj], _spectra(xj, params),
+                                  metric=metric, reflection=params["reflection"])
 
 
 def time_one_pair(items, metric: str, params: dict) -> float:
