@@ -143,7 +143,7 @@ def nearest_wrong(distances, labels, *, k: int = 1) -> np.ndarray:
     >>> from shapelib.retrieval import nearest_wrong
     >>> x = np.array([0.0, 0.1, 0.3, 5.0])
     >>> nearest_wrong(np.abs(x[:, None] - x[None, :]), ["a", "a", "b", "b"]).ravel().tolist()
-    [2, 2, 1, 2]
+    [2, 2, 1, 1]
     """
     d, lab = _check_matrix(distances, labels)
     order = _order(d)

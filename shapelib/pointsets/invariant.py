@@ -43,9 +43,17 @@ The search over angles
     Accuracy. ``f`` on the ring of radius ρ varies on the angular scale σ/ρ, so its spectrum
     decays like ``exp(−k²σ²/2ρ²)`` (α; slower for √p); ``A`` covers ``k ≤`` :data:`ANGULAR_BAND`
     ``· ρ_max/σ`` and the rings resolve the radial scale σ (:data:`RINGS_PER_SIGMA`). Measured
-    against the closed form on MPEG-7 outlines (100 points, σ = 0.05–0.2): relative error of the
-    overlap below 1e-9, and the refined angle equals a brute-force search on 36,000 angles
-    (``tests/test_invariant.py``).
+    against the closed form on MPEG-7 outlines (100 points, σ = 0.05–0.2 of the RMS radius):
+    relative error of the overlap at the pose found below 5e-8 (1e-9 at σ = 0.2); the Fisher–Rao
+    value changes by less than 1e-10 relative when a set is rotated. ``tests/test_invariant.py``
+    checks the pose and the α value against a brute-force search over 1,440 angles polished by a
+    scalar minimiser, and the Fisher–Rao value against the Cartesian quadrature of
+    :func:`shapelib.fisher_rao_lower_bound`.
+
+    Cost. A set's spectrum: ``R · A`` samples of its mixture (only the points within reach of
+    each ring), one real FFT per ring. A pair: ``4 · 2R · K`` multiply-adds for the direct and
+    mirrored coefficients, an inverse FFT of ``2K`` points for each, and a few Newton steps; the α
+    value in closed form adds ``n m`` Gaussians (``benchmarks/bench_retrieval.py``).
 """
 
 from __future__ import annotations
@@ -124,7 +132,7 @@ def normalise_points(points, *, name: str = "points"):
     >>> import numpy as np
     >>> from shapelib.pointsets.invariant import normalise_points
     >>> x, c, s = normalise_points([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
-    >>> c, round(s, 6), float(np.mean(np.sum(x ** 2, axis=1)))
+    >>> c, round(s, 6), round(float(np.mean(np.sum(x ** 2, axis=1))), 12)
     (array([1., 1.]), 1.414214, 1.0)
     """
     x = _as_planar_set(points, name)
@@ -377,8 +385,8 @@ def rotation_search(a: PolarSpectra, b: PolarSpectra, *, reflection: bool = True
     >>> c, s = np.cos(0.7), np.sin(0.7)
     >>> y = x @ np.array([[c, s], [-s, c]])          # x rotated by +0.7 rad
     >>> sp = polar_spectra([x, y], sigma2=0.01)
-    >>> value, angle, reflected = rotation_search(sp, sp, pairs=(np.array([0]), np.array([1])))
-    >>> round(float(angle[0]), 4), bool(reflected[0])   # rotate y back by −0.7 rad
+    >>> value, angle, reflected = rotation_search(sp, sp, reflection=False, pairs=(np.array([0]), np.array([1])))
+    >>> round(float(angle[0]), 4), bool(reflected[0])   # rotate y back by −0.7 rad (2π − 0.7)
     (5.5832, False)
     """
     if a.weights.shape != b.weights.shape or not np.allclose(a.weights, b.weights) or a.kind != b.kind:
