@@ -5,6 +5,7 @@ import pytest
 from scipy.special import ellipe
 
 from shapelib.pointsets.outline import outline_components, outline_topology, resample_closed, trace_outline
+from tests.conftest import requires_data
 
 #: a binary image's 0.5 iso-line is made of axis-parallel and 45° steps; along a straight edge at
 #: angle φ its length is (|cos φ| + (√2 − 1)|sin φ|) times the edge's (φ ≤ 45°), so on a curve
@@ -90,3 +91,22 @@ def test_bad_images():
         trace_outline(np.ones((2, 3, 4)), n_points=10)
     with pytest.raises(ValueError, match="at least 3"):
         resample_closed([[0, 0], [1, 0], [1, 1]], 2)
+
+
+@requires_data
+def test_load_mpeg7_outlines_and_labels():
+    from shapelib.datasets import load_mpeg7, mpeg7_classes
+
+    assert len(mpeg7_classes()) == 70
+    data = load_mpeg7(classes=["deer", "fork"], per_class=3, n_points=40)
+    assert data.shapes.shape == (6, 40, 2)
+    assert data.labels.tolist() == ["deer"] * 3 + ["fork"] * 3
+    assert data.names == ["deer-1", "deer-2", "deer-3", "fork-1", "fork-2", "fork-3"]
+    images = load_mpeg7(classes=["deer"], per_class=1)
+    np.testing.assert_allclose(trace_outline(images.shapes[0], n_points=40), data.shapes[0])
+    top = outline_topology(images.shapes[0])
+    assert top.n_holes >= 1 and top.kept_area > 1  # deer-1: the antlers enclose holes, filled in by the outline
+    with pytest.raises(ValueError, match="unknown MPEG-7 class"):
+        load_mpeg7(classes=["unicorn"])
+    with pytest.raises(ValueError, match="per_class"):
+        load_mpeg7(classes=["deer"], per_class=21)
