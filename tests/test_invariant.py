@@ -113,7 +113,9 @@ def test_fisher_rao_value_is_the_great_circle_bound_at_the_pose():
 
 def test_matrix_is_symmetric_with_consistent_poses():
     sets = [X, Y, Z, 2 * Y @ _rot(0.5).T]
-    D, ang, ref = invariant_distance_matrix(sets, sigma2=S2, return_pose=True)
+    D, ang, ref = invariant_distance_matrix(sets, sigma2=S2, return_pose=True, exact=True)
+    # the polar quadrature's values (the default) agree with the closed form at the same poses
+    np.testing.assert_allclose(invariant_distance_matrix(sets, sigma2=S2), D, rtol=1e-7, atol=1e-6)
     np.testing.assert_allclose(D, D.T)
     assert np.all(np.diag(D) == 0) and D[1, 3] < 1e-6
     for i in range(4):
@@ -124,7 +126,7 @@ def test_matrix_is_symmetric_with_consistent_poses():
                 cross = l2_inner(xi, _apply(yj, ang[i, j], ref[i, j]), S2)
                 d = np.sqrt(max(l2_inner(xi, xi, S2) + l2_inner(yj, yj, S2) - 2 * cross, 0))
                 assert d == pytest.approx(D[i, j], rel=1e-9, abs=1e-6)
-    rect = invariant_distance_matrix(sets[:2], sets[2:], sigma2=S2)
+    rect = invariant_distance_matrix(sets[:2], sets[2:], sigma2=S2, exact=True)
     np.testing.assert_allclose(rect, D[:2, 2:], rtol=1e-9)
 
 

@@ -217,7 +217,8 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
     modulo : {"similarity"}, optional
         Compare a list of point sets modulo the similarity group (above).
     **params
-        Options of the metric (point sets modulo a group: ``sigma2`` and ``reflection``).
+        Options of the metric (point sets modulo a group: ``sigma2``, ``reflection`` and ``exact``,
+        as :func:`shapelib.invariant_distance_matrix` takes them).
 
     Returns
     -------

@@ -26,7 +26,7 @@ from ..pointsets.invariant import (INVARIANT_METRICS, PolarSpectra, distances_fr
 #: the groups a point-set matrix can be taken modulo
 MODULI = ("similarity",)
 #: the options of a point-set metric (besides ``modulo``)
-OPTIONS = ("sigma2", "reflection")
+OPTIONS = ("sigma2", "reflection", "exact")
 
 
 def prepare(shapes, metric: str, modulo: str, params: dict):
@@ -56,7 +56,8 @@ def prepare(shapes, metric: str, modulo: str, params: dict):
     seconds = time.perf_counter() - t0
     items = [(x, spectra.coefficients[i]) for i, x in enumerate(normalised)]
     grid = {"weights": spectra.weights, "radii": spectra.radii, "n_angles": spectra.n_angles, "kind": spectra.kind}
-    recorded = {"modulo": modulo, "sigma2": s2, "reflection": bool(params.get("reflection", True))}
+    recorded = {"modulo": modulo, "sigma2": s2, "reflection": bool(params.get("reflection", True)),
+                "exact": bool(params.get("exact", False))}
     block_params = {**recorded, "grid": grid, "spectra_seconds": seconds}
     h = hashlib.sha256()
     for x in sets:
@@ -76,9 +77,10 @@ def point_set_block(xi, xj, *, diagonal: bool, metric: str, params: dict) -> np.
     diagonal block: the symmetric matrix of ``xi``)."""
     xs = [x for x, _ in xi]
     if diagonal:
-        return distances_from_spectra(xs, _spectra(xi, params), metric=metric, reflection=params["reflection"])
+        return distances_from_spectra(xs, _spectra(xi, params), metric=metric, reflection=params["reflection"],
+                                      exact=params["exact"])
     return distances_from_spectra(xs, _spectra(xi, params), [y for y, _ in xj], _spectra(xj, params),
-                                  metric=metric, reflection=params["reflection"])
+                                  metric=metric, reflection=params["reflection"], exact=params["exact"])
 
 
 def time_one_pair(items, metric: str, params: dict) -> float:
