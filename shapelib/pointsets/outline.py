@@ -79,7 +79,10 @@ def outline_components(image):
     >>> len(outer), len(holes)
     (1, 1)
     """
-    from skimage.measure import find_contours
+    try:
+        from skimage.measure import find_contours
+    except ImportError:  # an optional extra
+        raise ImportError("tracing outlines needs scikit-image: pip install 'shapelib[outlines]'") from None
 
     mask = _as_mask(image)
     rows = mask.shape[0]
