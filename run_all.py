@@ -54,6 +54,17 @@ REFERENCE_DIR = ROOT / "data" / "reference"
 
 CC_FILES = ["cdfhc/cdfhc_data2D_CC.mat"]
 
+
+def _registered(prefix: str, suffix: str) -> list[str]:
+    """Registry paths (``data/registry.csv``) under ``prefix`` ending in ``suffix``."""
+    import csv
+
+    with open(ROOT / "data" / "registry.csv", newline="") as fh:
+        return sorted(r["path"] for r in csv.DictReader(fh) if r["path"].startswith(prefix) and r["path"].endswith(suffix))
+
+
+MPEG7_GIFS = _registered("mpeg7/", ".gif")
+
 #: name -> full parameters, quick parameters (CI), raw data files used (their checksums key the cache).
 #: ``expects`` maps a value-key prefix to how many values the notebook must record under it
 #: (checked by tests/test_notebooks.py, so that the report never silently loses a column).
@@ -117,6 +128,16 @@ NOTEBOOKS: dict[str, dict] = {
         "expects": {"intrinsic/adhd/alpha/": 11, "intrinsic/adhd/procrustes/": 6, "intrinsic/adhd/subset/": 3,
                     "intrinsic/adhd/fisher_rao/": 7, "intrinsic/adhd/pca/": 25, "intrinsic/adhd/regression/": 8,
                     "intrinsic/wings/": 10},
+    },
+    # MPEG-7 bull's-eye retrieval (beyond the paper). Default: 20 of the 70 classes (400 shapes);
+    # the standard test on all 1,400 shapes: ``python run_all.py --only mpeg7_retrieval -p full=True``
+    # (resumable through the zarr stores; the engine prints its cost estimate before each matrix)
+    "mpeg7_retrieval": {
+        "params": {}, "store": True, "cores": "all",
+        "quick": {"classes": ["Bone", "apple", "deer", "fork"], "per_class": 8, "n_points": 64, "n_jobs": 1},
+        "data": MPEG7_GIFS,
+        "expects": {"mpeg7/outline/": 3, "mpeg7/bullseye/": 3, "mpeg7/sweep/": 8, "mpeg7/seconds/": 3,
+                    "mpeg7/worst_class_score": 1, "mpeg7/n_shapes": 1},
     },
     "adhd200_population": {
         "params": {"rtol": 1e-3}, "store": True, "cores": "all",

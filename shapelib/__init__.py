@@ -15,7 +15,10 @@ Where each equation lives:
 * §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
 * one entry point for all distances: :mod:`shapelib.distances`
 * point sets without landmarks (any sizes, no correspondence): checks, density distances, pose
-  search over every rotation: :mod:`shapelib.pointsets`
+  search over every rotation: :mod:`shapelib.pointsets`; outlines traced from silhouettes,
+  :mod:`shapelib.pointsets.outline`; density distances modulo translation, scale, rotation and
+  reflection (FFT angle search), :mod:`shapelib.pointsets.invariant`; bull's-eye retrieval
+  scores, :mod:`shapelib.retrieval`
 * log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
   tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics` (each takes the engine's
   ``n_jobs`` / ``client`` / ``scheduler`` itself)
@@ -67,6 +70,9 @@ from .pointsets import (
     hellinger_sq,
     l2_distance_sq,
 )
+from .pointsets.outline import outline_topology, resample_closed, trace_outline
+from .pointsets.invariant import InvariantDistance, invariant_distance, invariant_distance_matrix, normalise_points
+from .retrieval import BullseyeScore, bullseye, nearest_wrong, procrustes_outline_matrix
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -191,4 +197,15 @@ __all__ = [
     "to_centroid_size",
     "tps_bending_energy",
     "wendland_bending_energy",
+    "trace_outline",  # shapelib.pointsets.outline
+    "resample_closed",
+    "outline_topology",
+    "invariant_distance",  # shapelib.pointsets.invariant
+    "invariant_distance_matrix",
+    "InvariantDistance",
+    "normalise_points",
+    "bullseye",  # shapelib.retrieval
+    "BullseyeScore",
+    "nearest_wrong",
+    "procrustes_outline_matrix",
 ]

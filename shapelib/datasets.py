@@ -21,6 +21,7 @@ import os
 import re
 import warnings
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -41,6 +42,9 @@ __all__ = [
     "load_mpeg7_image",
     "mpeg7_boundary",
     "mpeg7_landmarks",
+    "mpeg7_classes",
+    "load_mpeg7",
+    "MPEG7",
     "load_adhd200",
     "CC_PAPER_IDS",
 ]
@@ -728,6 +732,72 @@ def mpeg7_landmarks(name: str, n: int) -> np.ndarray:
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
     t = np.linspace(0.0, s[-1], int(n), endpoint=False)
     return np.column_stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])])
+
+
+def mpeg7_classes() -> list[str]:
+    """The 70 class names of MPEG-7 CE-Shape-1 (file-name prefixes, e.g. ``"Bone"``, ``"fish"``), sorted."""
+    return sorted({n.rsplit("-", 1)[0] for n in mpeg7_names()})
+
+
+class MPEG7(NamedTuple):
+    """MPEG-7 CE-Shape-1 silhouettes or outlines with their classes (:func:`load_mpeg7`)."""
+
+    #: boolean images (list), or ``(N, n_points, 2)`` outlines
+    shapes: object
+    #: class of each shape, e.g. ``"deer"``
+    labels: np.ndarray
+    #: file name of each shape without ``.gif``, e.g. ``"deer-7"``
+    names: list
+
+
+def load_mpeg7(*, classes=None, per_class: int | None = None, n_points: int | None = None) -> MPEG7:
+    """MPEG-7 CE-Shape-1 (1,400 silhouettes, 70 classes × 20): images or traced outlines, with labels.
+
+    Files come through the dataset registry (:func:`fetch`: ``$SHAPELIB_DATA_DIR`` offline, else
+    downloaded once with pooch and checked against their sha256).
+
+    Parameters
+    ----------
+    classes : sequence of str, optional
+        Class names to load (default: all 70, :func:`mpeg7_classes`), in the order given.
+    per_class : int, optional
+        The first ``per_class`` shapes of each class by number (``deer-1``, ``deer-2``, …;
+        default all 20).
+    n_points : int, optional
+        If given, each silhouette's outline — the longest outer boundary, holes and other parts
+        dropped (:func:`shapelib.pointsets.outline.trace_outline`) — resampled to ``n_points``
+        by arc length; otherwise the boolean images (foreground True).
+
+    Returns
+    -------
+    MPEG7
+        ``(shapes, labels, names)``.
+
+    Examples
+    --------
+    >>> from shapelib.datasets import load_mpeg7
+    >>> data = load_mpeg7(classes=["deer", "fork"], per_class=3, n_points=50)  # doctest: +SKIP
+    >>> data.shapes.shape, data.labels[:4].tolist()  # doctest: +SKIP
+    ((6, 50, 2), ['deer', 'deer', 'deer', 'fork'])
+    """
+    known = mpeg7_classes()
+    classes = known if classes is None else [str(c) for c in classes]
+    unknown = [c for c in classes if c not in known]
+    if unknown:
+        raise ValueError(f"unknown MPEG-7 class(es) {unknown}; choose from {known}")
+    if per_class is not None and (int(per_class) != per_class or not 1 <= per_class <= 20):
+        raise ValueError(f"per_class must be an integer from 1 to 20; got {per_class!r}")
+    names = []
+    for c in classes:
+        members = sorted((n for n in mpeg7_names() if n.rsplit("-", 1)[0] == c), key=lambda n: int(n.rsplit("-", 1)[1]))
+        names += members[:per_class]
+    labels = np.array([n.rsplit("-", 1)[0] for n in names])
+    images = [load_mpeg7_image(n) for n in names]
+    if n_points is None:
+        return MPEG7(images, labels, names)
+    from .pointsets.outline import trace_outline
+
+    return MPEG7(np.stack([trace_outline(im, n_points=n_points) for im in images]), labels, names)
 
 
 def load_adhd200():

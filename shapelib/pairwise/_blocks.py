@@ -17,6 +17,7 @@ from ..geometry.scale import ScaleWarning
 from ..solver.bracket import distance_brackets
 from ..solver.geodesic import GeodesicWarning, geodesics
 from ..solver.linalg import one_blas_thread
+from ._pointsets import point_set_block
 from ._results import PairError
 
 #: seconds one task should take (sets the default block size)
@@ -76,6 +77,11 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
     """
     info = metric_info(metric)
+    if params.get("modulo") is not None:  # point sets of any sizes, modulo a group (:mod:`._pointsets`),
+        t0 = time.perf_counter()  # checked and normalised once by the driver
+        with _pair_work():
+            d = point_set_block(xi, xj, diagonal=diagonal, metric=info.name, params=params)
+        return _matrix_block(d, diagonal=diagonal, seconds=time.perf_counter() - t0)
     check_metric_params(info, params, rtol=rtol)
     xi = as_shapes(xi, name="rows")
     xj = xi if xj is xi else as_shapes(xj, name="cols")
@@ -167,13 +173,18 @@ def _batched_block(xi, xj, *, diagonal, info, params):
             d = info.block(xi, None if diagonal else xj, n_threads=1 if in_dask_worker() else None, **params)
     except ValueError:
         return None
-    d = np.asarray(d, dtype=np.float64)
+    return _matrix_block(np.asarray(d, dtype=np.float64), diagonal=diagonal, seconds=time.perf_counter() - t0)
+
+
+def _matrix_block(d: np.ndarray, *, diagonal: bool, seconds: float) -> dict:
+    """A block computed as one matrix ``d``, in :func:`compute_block`'s format: every pair converged,
+    no iterations, each pair's ``seconds`` the block's wall time over its pairs."""
     bi, bj = d.shape
     n_pairs = bi * (bi - 1) // 2 if diagonal else bi * bj
     out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
     for name in ("matrix", "lower", "upper"):
         out[name][...] = d
-    out["seconds"][...] = (time.perf_counter() - t0) / max(1, n_pairs)
+    out["seconds"][...] = seconds / max(1, n_pairs)
     out["converged"][...] = True
     out["n_iter"][...] = 0
     if diagonal:

@@ -17,6 +17,7 @@ from ..geometry.procrustes import check_pose
 from ..geometry.scale import check_fisher_rao_scale, check_scale
 from ..solver.batched import check_backend
 from ..solver.geodesic import GeodesicWarning
+from . import _pointsets
 from ._blocks import (BOUND_BLOCK_MAX, JAX_BLOCK_SIDE, _batched, _batched_jax, _time_one_pair, block_pairs,
                       compute_block, default_block_size)
 from ._results import BlockProgress, PairwiseResult
@@ -32,7 +33,8 @@ logger = logging.getLogger("shapelib.pairwise")
 
 def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
                      store=None, block_size: int | None = None, progress: bool = True,
-                     rtol: float | None = None, callback=None, **params) -> PairwiseResult:
+                     rtol: float | None = None, callback=None, modulo: str | None = None,
+                     **params) -> PairwiseResult:
     """Distances (and diagnostics) of every pair of ``shapes``; see the module docstring and
     :func:`pairwise_distances` for the parameters.
 
@@ -50,23 +52,31 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     """
     info = metric_info(metric)
     metric = info.name
-    check_metric_params(info, params, rtol=rtol)
     if callback is not None and not callable(callback):
         raise ValueError(f"callback must be callable; got {callback!r}")
-    x = as_shapes(shapes, name="shapes")
-    n, k, d = x.shape
-    if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
-        ratio = check_scale(x, params["sigma2"], stacklevel=4)
-        if info.quadrature:  # a degenerate quadrature: an error before any work
-            check_fisher_rao_scale(x, sigma2=params["sigma2"], metric=metric, ratio=ratio)
-    if pose_dependent(info, params):  # likewise (check_pose: a pair, or a whole set to align)
-        check_pose(x, metric=metric, stacklevel=4)
+    point_sets = modulo is not None
+    if point_sets:  # a list of point sets of any sizes, each normalised once (:mod:`._pointsets`)
+        if rtol is not None:
+            raise ValueError("rtol applies to the certified geodesic metrics, not to point sets modulo a group")
+        x, params, recorded, (sha, sizes) = _pointsets.prepare(shapes, metric, modulo, params)
+        n, k, d = len(x), 0, 2  # K: the sizes differ (the fingerprint covers them)
+    else:
+        check_metric_params(info, params, rtol=rtol)
+        x = as_shapes(shapes, name="shapes")
+        n, k, d = x.shape
+        if "sigma2" in params:  # every σ² metric, the bounds too: once for all the shapes, not once per pair
+            ratio = check_scale(x, params["sigma2"], stacklevel=4)
+            if info.quadrature:  # a degenerate quadrature: an error before any work
+                check_fisher_rao_scale(x, sigma2=params["sigma2"], metric=metric, ratio=ratio)
+        if pose_dependent(info, params):  # likewise (check_pose: a pair, or a whole set to align)
+            check_pose(x, metric=metric, stacklevel=4)
     symmetric = info.symmetric
     check_where(n_jobs, client, scheduler)
     if block_size is not None:
         block_size = check_positive_int(block_size, name="block_size")
-    want = {"format": _FORMAT, "metric": metric, "params": _full_params(info, rtol, params),
-            "rtol": None if rtol is None else float(rtol), "shapes_sha256": shapes_sha256(x),
+    want = {"format": _FORMAT, "metric": metric,
+            "params": recorded if point_sets else _full_params(info, rtol, params),
+            "rtol": None if rtol is None else float(rtol), "shapes_sha256": sha if point_sets else shapes_sha256(x),
             "N": int(n), "K": int(k), "d": int(d), "symmetric": symmetric, "shapelib_version": __version__}
 
     st, found = None, None
@@ -82,9 +92,11 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     n_workers = n_cores() if n_jobs in (None, -1) else int(n_jobs)
     seconds_per_pair = None
     if (st is None and block_size is None) or (local and n_jobs in (None, -1)):
+        timed = (lambda: _pointsets.time_one_pair(x, metric, params)) if point_sets else (
+            lambda: _time_one_pair(x, info, rtol, params))
         seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
-            _time_one_pair(x, info, rtol, params) if n > 2 else 0.0)  # one pair: in-process whatever it costs
-    jax_batches = _batched_jax(info, params)
+            timed() if n > 2 else 0.0)  # one pair: in-process whatever it costs
+    jax_batches = not point_sets and _batched_jax(info, params)
     if jax_batches:  # JAX installed and the device there, before any block (one-line errors)
         check_backend(params["backend"], params.get("device"))
     if local and n_jobs in (None, -1) and jax_batches:
@@ -97,7 +109,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         b = int(block_size) if block_size is not None else default_block_size(
             seconds_per_pair, n, n_workers=n_workers if local else max(2, cluster_size(client)),
             symmetric=symmetric)
-        if block_size is None and _batched(info, rtol) and local and n_workers == 1:
+        if block_size is None and not point_sets and _batched(info, rtol) and local and n_workers == 1:
             b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
         if block_size is None and jax_batches:
             b = min(n, JAX_BLOCK_SIDE)  # blocks of pairs that fill the device, stored as they finish
@@ -109,6 +121,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         f"LocalCluster({n_workers} processes)" if local else "cluster")
     log = {"blocks_total": len(done) + len(todo), "blocks_found_done": len(done), "blocks_computed": 0,
            "block_size": st.b, "mode": mode, "seconds_per_pair_estimate": seconds_per_pair, "stopped": False}
+    if point_sets:
+        log["spectra_seconds"] = params["spectra_seconds"]  # the one-off per-set work, done here
     total_pairs = sum(_block_n_pairs(st, a, b) for a, b in block_pairs(n, st.b, symmetric=symmetric))
     workers = n_workers if local else (cluster_size(client) if client is not None else None)
     eta = _announce(metric, n_todo, seconds_per_pair or _stored_seconds_per_pair(st), workers, log)
@@ -160,8 +174,16 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
 
 def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client=None, scheduler=None,
                        store=None, block_size: int | None = None, progress: bool = True,
-                       rtol: float | None = None, return_result: bool = False, callback=None, **params):
+                       rtol: float | None = None, return_result: bool = False, callback=None,
+                       modulo: str | None = None, **params):
     """Matrix of distances between every pair of ``shapes`` (N, K, d), on Dask, with a resumable store.
+
+    With ``modulo="similarity"``, ``shapes`` is a list of planar point sets of any sizes (e.g.
+    outlines, :func:`shapelib.trace_outline`) and ``metric`` ``"alpha_bound"`` or
+    ``"fisher_rao_bound"``: the density distances minimised over translation, scale, rotation
+    and (``reflection=True``, the default) reflection, :func:`shapelib.invariant_distance_matrix`,
+    with ``sigma2`` in units of each set's RMS radius. Each set is normalised and its polar
+    spectrum computed once, in this process; the blocks run as for every other metric.
 
     Symmetric metrics are computed once per unordered pair; for the bending energies (``"tps"``,
     ``"wendland"``) entry ``[i, j]`` is the energy of the map taking shape ``i`` onto shape ``j``.
@@ -201,8 +223,11 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
         ``store`` (rerun to resume), running tasks are cancelled, the local cluster is closed,
         and the partial result is returned (``complete`` False, ``log["stopped"]`` True; the
         matrix is NaN where pairs were not computed, with a warning unless ``return_result``).
+    modulo : {"similarity"}, optional
+        Compare a list of point sets modulo the similarity group (above).
     **params
-        Options of the metric.
+        Options of the metric (point sets modulo a group: ``sigma2``, ``reflection`` and ``exact``,
+        as :func:`shapelib.invariant_distance_matrix` takes them).
 
     Returns
     -------
@@ -228,7 +253,7 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
     """
     result = compute_pairwise(shapes, metric=metric, n_jobs=n_jobs, client=client, scheduler=scheduler,
                               store=store, block_size=block_size, progress=progress, rtol=rtol, callback=callback,
-                              **params)
+                              modulo=modulo, **params)
     if return_result:
         return result
     if not result.complete:

@@ -1,0 +1,74 @@
+"""Bull's-eye scores on constructed distance matrices with known answers; the Procrustes outline baseline."""
+
+import numpy as np
+import pytest
+
+import shapelib as sl
+from shapelib.retrieval import bullseye, nearest_wrong, procrustes_outline_matrix
+
+
+def test_bullseye_known_answer():
+    # 3 classes of 4 on a line; class c at 10c + (0, 1, 2, 3); class 2 is squeezed next to class 1
+    pos = np.array([0, 1, 2, 3, 10, 11, 12, 13, 13.5, 14.5, 15.5, 16.5])
+    labels = ["a"] * 4 + ["b"] * 4 + ["c"] * 4
+    d = np.abs(pos[:, None] - pos[None, :])
+    s = bullseye(d, labels, top=4)
+    # by hand, each query's 4 nearest (itself first): "a" queries find their 4 class-mates; "b" at
+    # 10 and 11: 10, 11, 12, 13 -> 4; at 12: 12, 11 and 13 (1), 13.5 (1.5) -> 3; at 13: 13,
+    # 13.5 (0.5), 12 (1), 14.5 (1.5) -> 2. "c" at 13.5: 13.5, 13 (0.5), 14.5 (1), 12 (1.5) -> 2;
+    # at 14.5: 14.5, 13.5 and 15.5 (1), 13 (1.5) -> 3; at 15.5 and 16.5 -> 4
+    expected_hits = [4, 4, 4, 4, 4, 4, 3, 2, 2, 3, 4, 4]
+    np.testing.assert_array_equal(s.hits, expected_hits)
+    assert s.value == pytest.approx(sum(expected_hits) / 48)
+    assert s.per_class == pytest.approx({"a": 1.0, "b": 13 / 16, "c": 13 / 16})
+    assert s.summary().startswith("bull's-eye 87.50 %")
+    # default top: twice the class size -> every query finds all 4 among its 8 nearest here
+    assert bullseye(d, labels).value == 1.0
+
+
+def test_bullseye_counts_the_query_itself_first():
+    d = np.zeros((4, 4))  # every distance ties: the query comes first, then index order
+    s = bullseye(d, [0, 1, 0, 1], top=2)
+    # ties go by index after the query: 0 -> (0, 1), 1 -> (1, 0), 2 -> (2, 0), 3 -> (3, 0)
+    np.testing.assert_array_equal(s.hits, [1, 1, 2, 1])
+
+
+def test_nearest_wrong():
+    pos = np.array([0.0, 0.4, 1.0, 3.0, 3.2])
+    labels = np.array(["a", "a", "b", "b", "c"])
+    d = np.abs(pos[:, None] - pos[None, :])
+    np.testing.assert_array_equal(nearest_wrong(d, labels, k=2), [[2, 3], [2, 3], [1, 0], [4, 1], [3, 2]])
+    with pytest.raises(ValueError, match="k must"):
+        nearest_wrong(d, labels, k=4)
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="square"):
+        bullseye(np.zeros((3, 4)), [0, 1, 2])
+    with pytest.raises(ValueError, match="NaN"):
+        bullseye(np.array([[0, np.nan], [1, 0]]), [0, 1])
+    with pytest.raises(ValueError, match="one entry per row"):
+        bullseye(np.zeros((3, 3)), [0, 1])
+
+
+def _outline(seed, n=48):
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    r = 1 + sum(0.3 * rng.normal() / k * np.cos(k * t + rng.uniform(0, 6)) for k in range(2, 5))
+    return np.column_stack([r * np.cos(t), 0.7 * r * np.sin(t)])
+
+
+def test_procrustes_outline_equals_best_shift_of_the_landmark_procrustes_distance():
+    a, b = _outline(1), _outline(2)
+    rot = np.array([[0.6, -0.8], [0.8, 0.6]])
+    moved = 2.5 * np.roll(b, 11, axis=0)[::-1] @ rot.T + [3, -1]  # other start, direction, pose
+    D = procrustes_outline_matrix([a, b, moved, a * [-1, 1]])
+    # brute force with the landmark Procrustes distance over every start point, direction and mirror image
+    mirror = b * [1, -1]
+    brute = min(sl.procrustes_distance(a, np.roll(w, s, axis=0))
+                for w in (b, b[::-1], mirror, mirror[::-1]) for s in range(len(b)))
+    assert D[0, 1] == pytest.approx(brute, abs=1e-9)
+    assert D[0, 2] == pytest.approx(brute, abs=1e-9)
+    assert D[1, 2] < 1e-7 and D[0, 3] < 1e-7  # the mirror image matches with reflection=True
+    assert procrustes_outline_matrix([a, a * [-1, 1]], reflection=False)[0, 1] > 0.01
+    np.testing.assert_allclose(D, D.T)
