@@ -70,7 +70,7 @@ def test_help_shows_an_example_for_every_subcommand():
     assert "example" in run("distances", "--help", check=0).stdout.split("options:")[-1]
     parser = build_parser()
     commands = parser._subparsers._group_actions[0].choices
-    assert set(commands) == {"info", "align", "distances", "geodesic", "mean", "pca", "study"}
+    assert set(commands) == {"info", "align", "distances", "geodesic", "mean", "pca", "test", "regress", "study"}
     for cmd, sub in commands.items():
         assert cmd in top
         if cmd == "study":  # `shapelib study --help` is run_all.py's help (test_study_...)
