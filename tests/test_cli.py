@@ -161,8 +161,13 @@ def test_geodesic_path_figure_and_animation(files):
     three = files["dir"] / "three.csv"
     io.write_landmarks(three, np.dstack([files["x"], files["x"][:, :, :1]]), pd.DataFrame({"id": files["ids"]}))
     one_line_error(run("geodesic", three, "--from", "sp_a", "--to", "sp_c", "--metric", "alpha", "--sigma2", 500,
-                       "-o", fresh, "--plot", png), "--plot and --animate draw 2-D landmarks")
+                       "-o", fresh, "--animate", gif), "--animate draws 2-D landmarks")
     assert not fresh.exists()
+    # 3-D landmarks: --plot draws them on 3-D axes
+    png3 = files["dir"] / "three.png"
+    run("geodesic", three, "--from", "sp_a", "--to", "sp_c", "--metric", "alpha", "--sigma2", 500, "-o", fresh,
+        "--plot", png3, check=0)
+    assert png3.stat().st_size > 0
 
 
 @pytest.mark.parametrize("kind, mutate, fragments", [
