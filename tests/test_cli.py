@@ -305,9 +305,11 @@ def test_a_scale_problem_is_one_warning_for_the_whole_file(files):
     # raw pixel coordinates with sigma2 = 0.5: sigma is far below the landmark spacing
     out = files["dir"] / "raw.csv"
     proc = run("distances", files["tps"], "--metric", "alpha", "--sigma2", 0.5, "--param", "n_steps=2", "--param",
-               "max_iter=2", "--jobs", 1, "--no-progress", "-o", out, check=4)  # 4: the solver failed, as said
+               "max_iter=2", "--jobs", 1, "--no-progress", "-o", out, check=0)
+    # the Gaussians do not interact: straight paths are the geodesics, found again from a perturbed start
+    assert "converged back to the same length" in proc.stderr, proc.stderr
     lines = proc.stderr.splitlines()
-    assert sum("shapelib: warning: sigma = 0.707" in ln for ln in lines) == 1, proc.stderr
+    assert sum("shapelib: warning: --sigma2 0.5 puts sigma at" in ln for ln in lines) == 1, proc.stderr
     assert not any("nonconverged_pairs()" in ln for ln in lines), proc.stderr  # the library's hint, not the CLI's
     assert all(ln.startswith(("shapelib: warning:", "shapelib: note:")) for ln in lines), proc.stderr
 
