@@ -81,7 +81,17 @@ def bending_energy_matrix(reference) -> np.ndarray:
     """The thin-plate spline bending-energy matrix ``L_K`` (K, K) of ``reference`` (K, d): the
     upper-left block of ``[[U, P], [Pᵀ, 0]]⁻¹`` (``U`` the kernel ``r² log r`` in 2-D, ``−r`` in
     3-D, ``P = [1, x]``); ``vᵀ L_K v`` is the bending energy of the spline taking the reference
-    onto reference + ``v`` along one coordinate, zero for affine ``v``."""
+    onto reference + ``v`` along one coordinate, zero for affine ``v``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.geometry.semilandmarks import bending_energy_matrix
+    >>> ref = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.4]])
+    >>> lk = bending_energy_matrix(ref)
+    >>> bool(np.allclose(lk @ ref, 0))            # an affine change bends nothing
+    True
+    """
     x = np.asarray(reference, dtype=np.float64)
     k, d = x.shape
     r = np.linalg.norm(x[:, None] - x[None], axis=-1)
