@@ -159,5 +159,12 @@ def test_an_executed_notebook_becomes_a_page_with_its_parameters_and_no_build_pa
     assert "quick parameters" in note and "`n_steps=6`" in note and f"--only {name}" in note
     (injected,) = [c for c in nb["cells"] if "injected-parameters" in c["metadata"].get("tags", [])]
     assert not any(line.startswith("output_dir") for line in injected["source"])
+    # the plumbing is hidden: the parameter cells and the cell that records values for the report
+    tags = {"".join(c["source"]).strip().split("\n")[0]: c["metadata"].get("tags", []) for c in nb["cells"]
+            if c["cell_type"] == "code"}
+    assert all("remove-cell" in t for t in tags.values() if {"parameters", "injected-parameters"} & set(t))
+    recording = [t for line, t in tags.items() if line.startswith("spacing = ")]  # computes, then records
+    assert recording == [["hide-input"]]
+    assert not any("remove-cell" in t or "hide-input" in t for line, t in tags.items() if line.startswith("k = 21"))
     shown = [o for c in nb["cells"] for o in c.get("outputs", []) if "image/png" in o.get("data", {})]
     assert shown  # the figures stay

@@ -1,0 +1,355 @@
+"""The API reference's one table: every public name, its area, and the paper's equation it implements.
+
+:data:`AREAS` is the only list of documented names. From it ``make docs`` writes (into
+``docs/api/reference/``, not committed) one page per area — its introduction, the modules whose
+docstrings carry the area's mathematics, and an autosummary table of its names, each with its own
+page — the toctree that puts the areas in the sidebar, one page per module that renders the
+module's docstring, and the map from the paper's equations to functions and modules
+(``docs/api/reference/equations.rst``, the only copy of that map). ``tests/test_docs.py`` reads the
+same table: every public name has an entry, and the built page of every name with an equation
+shows a rendered formula.
+
+Adding a public name is one line in its area: ``"module.name"`` or ``"module.name  (eq)"`` where
+``module`` is where it is documented (``shapelib`` for the top-level names) and ``eq`` the paper's
+equation numbers (``5``, ``8-12``, ``23-26``). A new area is one more :class:`Area`.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parents[1]
+OUT = DOCS / "api" / "reference"
+
+
+@dataclass(frozen=True)
+class Area:
+    slug: str
+    title: str
+    intro: str
+    #: modules whose docstrings carry the area's mathematics and design (each gets a page)
+    modules: tuple[str, ...]
+    #: one line per public name: ``module.name`` and optionally ``(equation numbers)``
+    names: str
+
+
+AREAS = (
+    Area("shapes", "Shapes and densities",
+         "A shape is a ``(K, d)`` array of landmarks in correspondence; collections of shapes are "
+         "``(N, K, d)`` arrays. shapelib represents a shape by the Gaussian mixture of eq. (5), one "
+         "isotropic component of variance σ² on each landmark.",
+         ("shapelib", "shapelib.geometry.gmm"),
+         """
+         shapelib.gmm_density          (5)
+         shapelib.l2_distance          (5)
+         """),
+    Area("metrics", "Metrics",
+         "The Fisher–Rao metric (eq. 6, by quadrature) and the closed-form α-order entropy metric "
+         "(eq. 22) of the mixture, as metric tensors on the landmark coordinates, and as the path "
+         "solver sees them: the energy, gradient and Hessian of a discrete path.",
+         ("shapelib.geometry.metrics", "shapelib.geometry.quadrature", "shapelib.solver.path_metric"),
+         """
+         shapelib.fisher_rao_metric          (6)
+         shapelib.fisher_rao_quadratic_form  (6)
+         shapelib.alpha_metric               (22)
+         shapelib.alpha_quadratic_form       (22)
+         shapelib.path_metric
+         shapelib.PathMetric
+         shapelib.AlphaPathMetric            (22)
+         shapelib.FisherRaoPathMetric        (6)
+         """),
+    Area("geodesics", "Geodesics and certified distances",
+         "Geodesics (eqs. 8–12) are the deformations between two shapes and their lengths the "
+         "shape distances. A bracket certifies ``lower ≤ d ≤ upper`` to a relative width; the "
+         "closed-form lower bounds come as whole matrices for populations.",
+         ("shapelib.solver.geodesic", "shapelib.solver.bracket", "shapelib.solver.result",
+          "shapelib.geometry.bound_matrices", "shapelib.comparison.warp"),
+         """
+         shapelib.geodesic                   (8-12)
+         shapelib.GeodesicResult
+         shapelib.GeodesicWarning
+         shapelib.path_length                (8)
+         shapelib.fisher_rao_lower_bound
+         shapelib.distance_bracket
+         shapelib.DistanceBracket
+         shapelib.StopReason
+         shapelib.BracketStopReason
+         shapelib.alpha_bound_matrix
+         shapelib.fisher_rao_bound_matrix
+         shapelib.bound_matrix_sweep
+         shapelib.extrinsic_warp             (23-26)
+         """),
+    Area("comparison", "Comparison distances",
+         "The distances Table I compares the information metrics with — Procrustes, Hausdorff, "
+         "thin-plate and Wendland spline bending energies, landmark diffeomorphisms (eq. 3, "
+         "Camion–Younes) — and the one entry point that computes any registered metric.",
+         ("shapelib.distances", "shapelib.comparison.splines", "shapelib.comparison.diffeomorphism",
+          "shapelib.comparison.hausdorff"),
+         """
+         shapelib.distance
+         shapelib.pair_record
+         shapelib.register_metric
+         shapelib.metric_info
+         shapelib.MetricInfo
+         shapelib.procrustes_distance
+         shapelib.hausdorff_distance
+         shapelib.tps_bending_energy
+         shapelib.wendland_bending_energy
+         shapelib.landmark_diffeomorphism    (3)
+         shapelib.diffeomorphism_warp        (3)
+         """),
+    Area("scale", "σ² and scale",
+         "σ² is a squared length in the landmarks' units: these bring shapes to the study's scale, "
+         "measure σ against the landmark spacing and estimate σ² from the data "
+         "(:doc:`/guide/scale`).",
+         ("shapelib.geometry.scale", "shapelib.geometry.sigma2"),
+         """
+         shapelib.to_centroid_size
+         shapelib.landmark_spacing
+         shapelib.sigma_ratio
+         shapelib.ScaleWarning
+         shapelib.estimate_sigma2
+         shapelib.Sigma2Estimate
+         """),
+    Area("statistics", "Statistics",
+         "Intrinsic statistics on the information manifolds — log and exp maps of the discrete "
+         "geodesic, the Fréchet mean, tangent PCA, geodesic regression, a permutation test of a "
+         "difference in mean shape — and tests and ordinations on distance matrices. The "
+         "top-level statistics run their log maps on the engine's workers (``n_jobs``, "
+         "``client``, ``scheduler``); those of ``shapelib.statistics`` take any executor.",
+         ("shapelib.solver.logexp", "shapelib.statistics", "shapelib.statistics.frechet",
+          "shapelib.statistics.tangent_pca", "shapelib.statistics.regression", "shapelib.statistics.group",
+          "shapelib.statistics.distance_based", "shapelib.statistics.sweep", "shapelib.population"),
+         """
+         shapelib.log_map
+         shapelib.exp_map
+         shapelib.tangent_space
+         shapelib.frechet_mean
+         shapelib.tangent_pca
+         shapelib.TangentPCA
+         shapelib.geodesic_regression
+         shapelib.mean_difference_test
+         shapelib.statistics.frechet_mean
+         shapelib.statistics.FrechetMeanResult
+         shapelib.statistics.procrustes_mean
+         shapelib.statistics.tangent_pca
+         shapelib.statistics.TangentPCAResult
+         shapelib.statistics.geodesic_regression
+         shapelib.statistics.GeodesicRegressionResult
+         shapelib.statistics.mean_difference_test
+         shapelib.statistics.MeanDifferenceResult
+         shapelib.statistics.permanova
+         shapelib.statistics.PermanovaResult
+         shapelib.statistics.knn_loo_accuracy
+         shapelib.statistics.KnnResult
+         shapelib.statistics.mantel_test
+         shapelib.statistics.classical_mds
+         shapelib.statistics.gower_centered
+         shapelib.statistics.as_distance_matrix
+         shapelib.statistics.permanova_sweep
+         shapelib.statistics.knn_sweep
+         shapelib.statistics.min_p_adjusted
+         shapelib.statistics.SweepTest
+         """),
+    Area("engine", "Engine",
+         "Distance matrices at population scale: pairs in blocks, as Dask tasks or in process, "
+         "kept in a resumable zarr store (:doc:`/guide/population`).",
+         ("shapelib.pairwise",),
+         """
+         shapelib.pairwise_distances
+         shapelib.pairwise.compute_pairwise
+         shapelib.pairwise.PairwiseResult
+         shapelib.pairwise.BlockProgress
+         shapelib.pairwise.engine_executor
+         shapelib.pairwise.PairError
+         shapelib.pairwise.open_store
+         shapelib.pairwise.local_cluster
+         shapelib.pairwise.default_block_size
+         shapelib.pairwise.block_pairs
+         shapelib.pairwise.compute_block
+         shapelib.pairwise.ARRAYS
+         """),
+    Area("io", "Input, output and datasets",
+         "Landmark files — tpsDig ``.tps``, CSV (wide or long), NumPy ``.npy``/``.npz``, geomorph's "
+         "``p × k × n`` arrays — the input errors every entry point raises, and the study's raw "
+         "data, fetched and checked against the registry's checksums or read from "
+         "``SHAPELIB_DATA_DIR``.",
+         ("shapelib.io", "shapelib.datasets"),
+         """
+         shapelib.InputError
+         shapelib.io.read_landmarks
+         shapelib.io.write_landmarks
+         shapelib.io.read_tps
+         shapelib.io.write_tps
+         shapelib.io.read_csv
+         shapelib.io.write_csv
+         shapelib.io.read_npy
+         shapelib.io.write_npy
+         shapelib.io.from_pkn
+         shapelib.io.to_pkn
+         shapelib.io.FORMATS
+         shapelib.io.NEGATIVE_COORDINATES_COMMENT
+         shapelib.datasets.load_corpus_callosum
+         shapelib.datasets.load_adhd200
+         shapelib.datasets.load_fish2d
+         shapelib.datasets.load_beijing
+         shapelib.datasets.load_tps_rpm
+         shapelib.datasets.load_cpd_fish
+         shapelib.datasets.load_gmmreg_fish
+         shapelib.datasets.mpeg7_names
+         shapelib.datasets.load_mpeg7_image
+         shapelib.datasets.mpeg7_boundary
+         shapelib.datasets.mpeg7_landmarks
+         shapelib.datasets.registry
+         shapelib.datasets.fetch
+         shapelib.datasets.data_checksums
+         shapelib.datasets.DATA_DIR_ENV
+         shapelib.datasets.CC_PAPER_IDS
+         """),
+    Area("plotting", "Plotting",
+         "Figures of shapes, geodesics, deformation grids, mean shapes and their modes (Matplotlib).",
+         ("shapelib.plotting",),
+         """
+         shapelib.plotting.plot_trajectories
+         shapelib.plotting.plot_metric_panels
+         shapelib.plotting.plot_geodesic
+         shapelib.plotting.parse_links
+         shapelib.plotting.animate_geodesic
+         shapelib.plotting.outline
+         shapelib.plotting.plot_shapes_along
+         shapelib.plotting.deformation_grid
+         shapelib.plotting.plot_deformation
+         shapelib.plotting.plot_mean
+         shapelib.plotting.plot_modes
+         shapelib.plotting.plot_mean_difference
+         """),
+    Area("registration", "Point sets and registration",
+         "Rigid alignment of landmark shapes — Procrustes superimposition, pose alignment with "
+         "sizes kept — and the pose check of the metrics that compare shapes where they lie "
+         "(:doc:`/guide/checks`).",
+         ("shapelib.geometry.procrustes",),
+         """
+         shapelib.pose_align
+         shapelib.PoseWarning
+         shapelib.centroid_size
+         shapelib.preshape
+         shapelib.procrustes_align
+         shapelib.generalized_procrustes
+         """),
+)
+
+_LINE = re.compile(r"^(?P<module>[\w.]+)\.(?P<name>\w+)(?:\s+\((?P<eq>[\d\-–, ]+)\))?$")
+
+
+@dataclass(frozen=True)
+class Entry:
+    module: str  # where it is documented
+    name: str
+    equations: str  # "" or "5", "8-12"
+    area: Area
+
+    @property
+    def qualname(self) -> str:
+        return f"{self.module}.{self.name}"
+
+    @property
+    def eq_text(self) -> str:
+        return self.equations.replace("-", "–")
+
+
+def entries() -> list[Entry]:
+    """Every documented name, in the table's order."""
+    out = []
+    for area in AREAS:
+        for line in area.names.strip().splitlines():
+            m = _LINE.match(line.strip())
+            if not m:
+                raise ValueError(f"docs/_ext/shapelib_api.py, area {area.title!r}: cannot read {line.strip()!r}; "
+                                 "write 'module.name' or 'module.name  (equations)'")
+            out.append(Entry(m["module"], m["name"], m["eq"] or "", area))
+    return out
+
+
+def api_entries() -> dict[str, set[str]]:
+    """``{module: names}`` of the documented names."""
+    out: dict[str, set[str]] = {}
+    for e in entries():
+        out.setdefault(e.module, set()).add(e.name)
+    return out
+
+
+def _title(text: str, char: str = "=") -> str:
+    return f"{text}\n{char * len(text)}\n"
+
+
+def _summary(names: list[Entry], *, toctree: bool) -> list[str]:
+    lines, module = [], None
+    for e in names:
+        if e.module != module:
+            module = e.module
+            lines += ["", f".. currentmodule:: {module}", "", ".. autosummary::"]
+            lines += ["   :toctree: ../generated/" if toctree else "   :nosignatures:", ""]
+        lines.append(f"   {e.name}")
+    return lines
+
+
+def defined_in(e: Entry) -> str:
+    """The module that defines a documented name (``shapelib.geometry.gmm`` for ``shapelib.gmm_density``)."""
+    import importlib
+
+    obj = getattr(importlib.import_module(e.module), e.name)
+    return getattr(obj, "__module__", e.module) if callable(obj) else e.module
+
+
+def pages() -> dict[str, str]:
+    """``{path relative to docs/api/reference: reST}`` of every generated page."""
+    out: dict[str, str] = {}
+    all_entries = entries()
+    for area in AREAS:
+        names = [e for e in all_entries if e.area is area]
+        text = [_title(area.title), area.intro, ""]
+        text += ["Modules: " + ", ".join(f":doc:`{m} <modules/{m}>`" for m in area.modules)
+                 + " (their docstrings give the mathematics and the design).", ""]
+        text += _summary(names, toctree=True)
+        out[f"{area.slug}.rst"] = "\n".join(text) + "\n"
+        for module in area.modules:
+            here = [e for e in all_entries if defined_in(e) == module or defined_in(e).startswith(module + "._")]
+            page = [":orphan:", "", _title(f"``{module}``"), f".. automodule:: {module}", ""]
+            if here:
+                title = f"Public names of this module (area: {area.title})"
+                page += [title, "-" * len(title)]
+                page += _summary(here, toctree=False)
+            out[f"modules/{module}.rst"] = "\n".join(page) + "\n"
+    # the equations of the paper and where each lives: the only copy of this map
+    with_page = {m for a in AREAS for m in a.modules}
+    rows = [e for e in all_entries if e.equations]
+    eq = [_title("The paper's equations in the code"),
+          "Each equation of Peter & Rangarajan (:doc:`/citing`) that shapelib implements, the public "
+          "names that compute it and the module whose docstring derives it. Every page of these "
+          "names shows the formula.", "",
+          ".. list-table::", "   :header-rows: 1", "   :widths: 12 40 48", "",
+          "   * - equation", "     - implemented by", "     - derived in"]
+    for e in sorted(rows, key=lambda e: (int(re.split(r"\D", e.equations)[0]), e.qualname)):
+        home = defined_in(e)
+        eq += [f"   * - ({e.eq_text})", f"     - :obj:`{e.qualname}`",
+               f"     - :doc:`{home} <modules/{home}>`" if home in with_page else f"     - ``{home}``"]
+    out["equations.rst"] = "\n".join(eq) + "\n"
+    toc = [".. toctree::", "   :maxdepth: 1", "", "   reference/equations"]
+    toc += [f"   reference/{a.slug}" for a in AREAS]
+    out["toctree.rst.inc"] = "\n".join(toc) + "\n"
+    return out
+
+
+def write_pages(app=None, config=None) -> None:
+    """Write the generated pages (unchanged files are left alone, so Sphinx does not re-read them)."""
+    wanted = pages()
+    for rel, text in wanted.items():
+        path = OUT / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.is_file() or path.read_text() != text:
+            path.write_text(text)
+    for path in OUT.rglob("*.rst"):
+        if str(path.relative_to(OUT)) not in wanted:
+            path.unlink()
