@@ -2,21 +2,9 @@
 
 Shapes are ``(K, d)`` float arrays of landmarks in correspondence; collections are ``(N, K, d)``.
 
-Where each equation lives:
-
-* eq. (5), the GMM shape density, and closed-form L² quantities: :mod:`shapelib.geometry.gmm`
-* eq. (6) Fisher–Rao and eq. (22) α-order metrics: :mod:`shapelib.geometry.metrics`
-  (quadrature rules: :mod:`shapelib.geometry.quadrature`)
-* eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.geodesic`;
-  certified distance brackets ``lower ≤ d ≤ upper`` to a relative width: :mod:`shapelib.solver.bracket`
-* σ against the landmarks' scale: :mod:`shapelib.geometry.scale`
-* comparison distances: :mod:`shapelib.geometry.procrustes`, :mod:`shapelib.comparison.splines`,
-  :mod:`shapelib.comparison.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
-* §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
-* one entry point for all distances: :mod:`shapelib.distances`
-* log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
-  tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics`, on the engine through
-  :mod:`shapelib.population`
+Each module's docstring derives what it computes. Which function computes which equation of
+the paper, and which module derives it: "The paper's equations in the code" in the API reference
+of the documentation (``make docs``; ``api/reference/equations.html``).
 """
 
 from ._validate import InputError
