@@ -66,6 +66,8 @@ intersphinx_mapping = {
     "dask": ("https://docs.dask.org/en/stable/", str(_INV / "dask.inv")),
     "distributed": ("https://distributed.dask.org/en/stable/", str(_INV / "distributed.inv")),
     "matplotlib": ("https://matplotlib.org/stable/", str(_INV / "matplotlib.inv")),
+    "pooch": ("https://www.fatiando.org/pooch/latest/", str(_INV / "pooch.inv")),
+    "skbio": ("https://scikit.bio/docs/latest/", str(_INV / "skbio.inv")),
 }
 intersphinx_timeout = 1
 intersphinx_disabled_reftypes = ["std:doc"]

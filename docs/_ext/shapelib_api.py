@@ -303,6 +303,32 @@ def defined_in(e: Entry) -> str:
     return getattr(obj, "__module__", e.module) if callable(obj) else e.module
 
 
+def all_modules() -> list[str]:
+    """Every public module of shapelib (each gets a page that renders its docstring)."""
+    import pkgutil
+
+    import shapelib
+
+    names = ["shapelib"]
+    for info in pkgutil.walk_packages(shapelib.__path__, "shapelib."):
+        if not any(part.startswith("_") for part in info.name.split(".")):
+            names.append(info.name)
+    return sorted(names)
+
+
+def documented_objects() -> dict[int, str]:
+    """``{id(object): documented qualified name}``: where a name's page is, whatever module path a
+    docstring reaches it by (``shapelib.geometry.gmm.l2_distance`` is ``shapelib.l2_distance``)."""
+    import importlib
+
+    out = {}
+    for e in entries():
+        obj = getattr(importlib.import_module(e.module), e.name)
+        if callable(obj):
+            out.setdefault(id(obj), e.qualname)
+    return out
+
+
 def pages() -> dict[str, str]:
     """``{path relative to docs/api/reference: reST}`` of every generated page."""
     out: dict[str, str] = {}
@@ -314,16 +340,21 @@ def pages() -> dict[str, str]:
                  + " (their docstrings give the mathematics and the design).", ""]
         text += _summary(names, toctree=True)
         out[f"{area.slug}.rst"] = "\n".join(text) + "\n"
-        for module in area.modules:
-            here = [e for e in all_entries if defined_in(e) == module or defined_in(e).startswith(module + "._")]
-            page = [":orphan:", "", _title(f"``{module}``"), f".. automodule:: {module}", ""]
-            if here:
-                title = f"Public names of this module (area: {area.title})"
-                page += [title, "-" * len(title)]
-                page += _summary(here, toctree=False)
-            out[f"modules/{module}.rst"] = "\n".join(page) + "\n"
+    documented = {e.qualname for e in all_entries}
+    area_of = {m: a for a in AREAS for m in a.modules}
+    for module in all_modules():
+        area = area_of.get(module)
+        here = [e for e in all_entries if defined_in(e) == module or defined_in(e).startswith(module + "._")]
+        page = [":orphan:", "", _title(f"``{module}``"), f".. automodule:: {module}"]
+        # a module whose name is also a documented function's (shapelib.statistics.tangent_pca)
+        page += ["   :no-index:", ""] if module in documented else [""]
+        if here:
+            title = "Public names of this module" + (f" (area: {area.title})" if area else "")
+            page += [title, "-" * len(title)]
+            page += _summary(here, toctree=False)
+        out[f"modules/{module}.rst"] = "\n".join(page) + "\n"
     # the equations of the paper and where each lives: the only copy of this map
-    with_page = {m for a in AREAS for m in a.modules}
+    with_page = set(all_modules())
     rows = [e for e in all_entries if e.equations]
     eq = [_title("The paper's equations in the code"),
           "Each equation of Peter & Rangarajan (:doc:`/citing`) that shapelib implements, the public "
@@ -353,3 +384,89 @@ def write_pages(app=None, config=None) -> None:
     for path in OUT.rglob("*.rst"):
         if str(path.relative_to(OUT)) not in wanted:
             path.unlink()
+
+
+# ---------------------------------------------------------------------------------------------
+# references to shapelib's names, whatever path a docstring uses
+
+def _locate(dotted: str):
+    """The object a dotted name reaches (the longest importable module, then attributes), or None."""
+    import importlib
+
+    parts = dotted.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        try:
+            for attr in parts[i:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return None
+        return obj
+    return None
+
+
+def resolve_reference(app, env, node, contnode):
+    """``missing-reference``: a Python reference to a shapelib name that Sphinx did not find.
+
+    A docstring names a function where it is defined (``shapelib.geometry.gmm.l2_distance``) or,
+    inside its module, by its bare name; its page is under the name the API reference documents
+    (``shapelib.l2_distance``): that page is the target. A public name of a module that has no
+    page of its own (a module constant, a helper the docstring discusses) links to the page of
+    the module that defines it, which renders the module's docstring. Anything else stays a
+    warning (an error in ``make docs``)."""
+    import inspect
+
+    from sphinx.util.nodes import make_refnode
+
+    if node.get("refdomain") != "py":
+        return None
+    target = node["reftarget"].lstrip("~.")
+    module, cls = node.get("py:module"), node.get("py:class")
+    candidates = [target]
+    if module:
+        candidates += [f"{module}.{cls}.{target}" if cls else None, f"{module}.{target}"]
+    candidates += [f"shapelib.{target}"]
+    documented = _documented(env)
+    py = env.domains["py"]
+    for name in filter(None, candidates):
+        if not name.startswith("shapelib"):
+            continue
+        obj = _locate(name)
+        if obj is None:
+            continue
+        head, _, attr = name.rpartition(".")
+        owner = _locate(head)
+        qualname = documented.get(id(obj))
+        if qualname is None and inspect.isclass(owner) and id(owner) in documented:
+            qualname = f"{documented[id(owner)]}.{attr}"  # a method or attribute of a documented class
+        if qualname is not None:
+            hit = py.resolve_xref(env, node["refdoc"], app.builder, node["reftype"], qualname, node, contnode)
+            if hit is not None:
+                return hit
+        home = getattr(obj, "__module__", None) if callable(obj) and not inspect.ismodule(obj) else None
+        home = obj.__name__ if inspect.ismodule(obj) else (home or (head if inspect.ismodule(owner) else None))
+        if home and home in _MODULE_PAGES():
+            return make_refnode(app.builder, node["refdoc"], f"api/reference/modules/{home}", "", contnode, name)
+    return None
+
+
+_DOCUMENTED: dict[int, str] = {}
+
+
+def _documented(env) -> dict[int, str]:
+    """:func:`documented_objects`, once per process (object ids do not outlive it)."""
+    if not _DOCUMENTED:
+        _DOCUMENTED.update(documented_objects())
+    return _DOCUMENTED
+
+
+_MODULES: list[str] = []
+
+
+def _MODULE_PAGES() -> set[str]:
+    if not _MODULES:
+        _MODULES.extend(all_modules())
+    return set(_MODULES)

@@ -622,5 +622,6 @@ def setup(app):
     app.add_directive("cli-help", _cli_help_directive())
     app.connect("config-inited", lambda app, config: _api_table().write_pages())
     app.connect("config-inited", prune_api_stubs)
+    app.connect("missing-reference", lambda app, env, node, contnode: _api_table().resolve_reference(app, env, node, contnode))
     app.connect("config-inited", prepare_notebooks)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

@@ -2,7 +2,7 @@
 
 The documentation builds offline (CI and the developers' machines reach package registries only),
 so Sphinx cannot download the ``objects.inv`` of NumPy, SciPy, scikit-learn, Dask, Matplotlib,
-pandas and Python. This script writes them from what is installed here: for each project it walks
+pandas and Python (and of pooch and scikit-bio, which some docstrings name). This script writes them from what is installed here: for each project it walks
 the public names of the modules listed in :data:`PROJECTS` (the modules shapelib's documentation
 refers to), imports each one to know what it is (module, class, exception, function, method or
 data) and records it with the page that project's own Sphinx site gives it (each site names its
@@ -76,6 +76,14 @@ def distributed_page(name: str, role: str) -> str:
     return f"api.html#{'module-' if role == 'py:module' else ''}{name}"
 
 
+def pooch_page(name: str, role: str) -> str:
+    return "api/index.html#module-pooch" if role == "py:module" else f"api/generated/{name}.html#{name}"
+
+
+def skbio_page(name: str, role: str) -> str:
+    return f"generated/{name}.html#{name}" if role != "py:module" else f"{name.replace('.', '/')}.html#module-{name}"
+
+
 def matplotlib_page(name: str, role: str) -> str:
     if role == "py:module":
         return f"api/{name.removeprefix('matplotlib.')}_api.html#module-{name}"
@@ -138,6 +146,8 @@ PROJECTS = {
     "distributed": ("https://distributed.dask.org/en/stable/", distributed_page,
                     ["distributed"],
                     ["distributed.Client", "distributed.LocalCluster", "distributed.Future"]),
+    "pooch": ("https://www.fatiando.org/pooch/latest/", pooch_page, ["pooch"], []),
+    "skbio": ("https://scikit.bio/docs/latest/", skbio_page, ["skbio.stats.distance", "skbio.stats.ordination"], []),
     "matplotlib": ("https://matplotlib.org/stable/", matplotlib_page,
                    ["matplotlib.pyplot", "matplotlib.figure", "matplotlib.axes", "matplotlib.animation",
                     "matplotlib.colors", "matplotlib.collections", "matplotlib.lines", "matplotlib.patches",

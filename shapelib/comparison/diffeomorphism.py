@@ -1,7 +1,7 @@
 """Landmark diffeomorphisms (Camion & Younes 2001, "Geodesic interpolating splines"; paper ref. [8], eq. 3).
 
 The paper's comparison metric minimises, over landmark trajectories ``φ_a(t)`` and velocity
-fields ``f_t``,
+fields ``f_t``, ::
 
     Σ_a ∫ |φ̇_a − f_t(φ_a)|² dt + λ ∫ ‖L f_t‖² dt                                   (eq. 3)
 

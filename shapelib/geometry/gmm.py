@@ -18,13 +18,13 @@ Near shapes. ``‖p_u − p_v‖² = ⟨p_u, p_u⟩ + ⟨p_v, p_v⟩ − 2⟨p_u
 terms share: shapes of one population are close (at the study's scale and σ the squared
 distance is typically 10⁻³ and down to 10⁻⁸ of ``⟨p_u, p_u⟩``), so the difference keeps only
 ~13 and down to ~8 correct digits. Each landmark pair's four overlaps form a mixed second
-difference of ``g(x) = exp(−|x|²/4σ²)``: with ``r = u_a − u_b``, ``δ = v − u``,
+difference of ``g(x) = exp(−|x|²/4σ²)``: with ``r = u_a − u_b``, ``δ = v − u``, ::
 
     g(r) − g(r − δ_b) − g(r + δ_a) + g(r + δ_a − δ_b)
         = g(r) expm1(α) expm1(β) − g(v_a − v_b) expm1(−δ_a·δ_b / 2σ²),
     α = −(2 r·δ_a + |δ_a|²) / 4σ²,  β = (2 r·δ_b − |δ_b|²) / 4σ²,
 
-whose terms are O(|δ|²) themselves (:func:`_l2_sq_near`); :func:`l2_distance` uses it when the
+whose terms are ``O(|δ|²)`` themselves (:func:`_l2_sq_near`); :func:`l2_distance` uses it when the
 plain difference has lost more than three digits (:data:`L2_NEAR`) and the landmarks moved by at
 most √2 σ (beyond that the two terms grow like ``exp(|δ|²/2σ²)`` and cancel each other instead).
 """
