@@ -309,10 +309,11 @@ def all_modules() -> list[str]:
 
     import shapelib
 
-    names = ["shapelib"]
+    names = {"shapelib"}
     for info in pkgutil.walk_packages(shapelib.__path__, "shapelib."):
-        if not any(part.startswith("_") for part in info.name.split(".")):
-            names.append(info.name)
+        if not any(part.startswith("_") for part in info.name.split(".")) and info.name != "shapelib.__main__":
+            names.add(info.name)
+    names |= {defined_in(e) for e in entries()}  # the home of a documented name, private or not
     return sorted(names)
 
 
@@ -345,9 +346,10 @@ def pages() -> dict[str, str]:
     for module in all_modules():
         area = area_of.get(module)
         here = [e for e in all_entries if defined_in(e) == module or defined_in(e).startswith(module + "._")]
-        page = [":orphan:", "", _title(f"``{module}``"), f".. automodule:: {module}"]
-        # a module whose name is also a documented function's (shapelib.statistics.tangent_pca)
-        page += ["   :no-index:", ""] if module in documented else [""]
+        page = [":orphan:", "", _title(f"``{module}``")]
+        # a module whose name is also a documented function's (shapelib.statistics.tangent_pca):
+        # its docstring without a second object of that name
+        page += [f".. module-docstring:: {module}" if module in documented else f".. automodule:: {module}", ""]
         if here:
             title = "Public names of this module" + (f" (area: {area.title})" if area else "")
             page += [title, "-" * len(title)]
@@ -428,7 +430,12 @@ def resolve_reference(app, env, node, contnode):
     candidates = [target]
     if module:
         candidates += [f"{module}.{cls}.{target}" if cls else None, f"{module}.{target}"]
-    candidates += [f"shapelib.{target}"]
+    page = node["refdoc"].rpartition("/")[2]
+    if node["refdoc"].startswith("api/generated/"):  # a docstring: names relative to its object
+        obj = _locate(page)
+        home = getattr(obj, "__module__", None)
+        candidates += [f"{page}.{target}", f"{home}.{target}" if home else None]
+    candidates += [f"shapelib.{target}", *_homes_of(target)]
     documented = _documented(env)
     py = env.domains["py"]
     for name in filter(None, candidates):
@@ -470,3 +477,53 @@ def _MODULE_PAGES() -> set[str]:
     if not _MODULES:
         _MODULES.extend(all_modules())
     return set(_MODULES)
+
+
+_NAME_HOMES: dict[str, list[str]] = {}
+
+
+def _homes_of(name: str) -> list[str]:
+    """``module.name`` for the one shapelib module that defines a public ``name`` (a bare name in
+    a summary line: ``check_pose``, ``TIE_RTOL``), or nothing when none or several do."""
+    import importlib
+    import re as _re
+
+    if not _NAME_HOMES:
+        for modname in all_modules():
+            module = importlib.import_module(modname)
+            try:
+                import inspect
+
+                source = inspect.getsource(module)
+            except (OSError, TypeError):
+                continue
+            for attr in _re.findall(r"^(?:def |class )?([A-Za-z]\w*)\b", source, flags=_re.M):
+                if hasattr(module, attr):
+                    _NAME_HOMES.setdefault(attr, [])
+                    if modname not in _NAME_HOMES[attr]:
+                        _NAME_HOMES[attr].append(modname)
+    homes = _NAME_HOMES.get(name.rpartition(".")[2] if "." not in name else name, [])
+    return [f"{homes[0]}.{name}"] if len(homes) == 1 else []
+
+
+def module_docstring_directive():
+    """``.. module-docstring:: MODULE``: a module's docstring, parsed as reST, without declaring
+    the module (for a module whose name a documented function also has)."""
+    import importlib
+
+    from docutils import nodes
+    from docutils.statemachine import StringList
+    from sphinx.util.docstrings import prepare_docstring
+    from sphinx.util.docutils import SphinxDirective
+
+    class ModuleDocstring(SphinxDirective):
+        required_arguments = 1
+
+        def run(self):
+            doc = importlib.import_module(self.arguments[0]).__doc__ or ""
+            container = nodes.container()
+            self.state.nested_parse(StringList(prepare_docstring(doc), source=self.arguments[0]),
+                                    self.content_offset, container)
+            return container.children
+
+    return ModuleDocstring

@@ -620,6 +620,7 @@ def prune_api_stubs(app, config) -> None:
 def setup(app):
     app.add_directive("benchmark", _benchmark_directive())
     app.add_directive("cli-help", _cli_help_directive())
+    app.add_directive("module-docstring", _api_table().module_docstring_directive())
     app.connect("config-inited", lambda app, config: _api_table().write_pages())
     app.connect("config-inited", prune_api_stubs)
     app.connect("missing-reference", lambda app, env, node, contnode: _api_table().resolve_reference(app, env, node, contnode))
