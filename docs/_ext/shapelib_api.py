@@ -366,7 +366,7 @@ def pages() -> dict[str, str]:
           "   * - equation", "     - implemented by", "     - derived in"]
     for e in sorted(rows, key=lambda e: (int(re.split(r"\D", e.equations)[0]), e.qualname)):
         home = defined_in(e)
-        eq += [f"   * - ({e.eq_text})", f"     - :obj:`{e.qualname}`",
+        eq += [f"   * - eq. ({e.eq_text})", f"     - :obj:`{e.qualname}`",
                f"     - :doc:`{home} <modules/{home}>`" if home in with_page else f"     - ``{home}``"]
     out["equations.rst"] = "\n".join(eq) + "\n"
     toc = [".. toctree::", "   :maxdepth: 1", "", "   reference/equations"]
