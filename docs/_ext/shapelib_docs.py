@@ -1,6 +1,8 @@
 """Sphinx extension of the shapelib documentation.
 
-Two build steps, both run by ``make docs`` (and by any ``sphinx-build docs ...``):
+The API reference comes from one table, ``docs/_ext/shapelib_api.py`` (its pages are written when
+the build starts; references to shapelib's names resolve through it). Two more build steps, both
+run by ``make docs`` (and by any ``sphinx-build docs ...``):
 
 * ``.. benchmark:: NAME`` renders the measurements in ``docs/_data/benchmarks/NAME.json`` as
   tables, headed by the machine, the date and the command they come from. The benchmarks
@@ -13,7 +15,8 @@ Two build steps, both run by ``make docs`` (and by any ``sphinx-build docs ...``
   executed ``.ipynb`` files are copied to ``docs/notebooks/`` for myst-nb to render with their
   figures. ``SHAPELIB_DOCS_NOTEBOOKS=results`` renders the notebooks of a full
   ``python run_all.py`` from ``results/`` instead (one without a full run there is executed as
-  above).
+  above). Their plumbing is hidden on the pages: the parameter cells and the cells that record
+  values for the report (:func:`plumbing_tags`).
 """
 
 from __future__ import annotations
