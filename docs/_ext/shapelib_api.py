@@ -457,6 +457,39 @@ def resolve_reference(app, env, node, contnode):
         home = obj.__name__ if inspect.ismodule(obj) else (home or (head if inspect.ismodule(owner) else None))
         if home and home in _MODULE_PAGES():
             return make_refnode(app.builder, node["refdoc"], f"api/reference/modules/{home}", "", contnode, name)
+    if node["refdoc"].startswith("api/generated/"):
+        return _class_member(app, env, node, contnode, page, target.rpartition(".")[2])
+    return None
+
+
+def _class_member(app, env, node, contnode, page: str, attr: str):
+    """A bare member name in a class's docstring: a method of that class or of a documented
+    class of its module (``path_grad_hessian`` of ``AlphaPathMetric`` named in ``PathMetric``'s),
+    or a field its Attributes section describes (``mode_shapes``): the member's entry, else the
+    class's page."""
+    import importlib
+    import inspect
+
+    from sphinx.util.nodes import make_refnode
+
+    obj = _locate(page)
+    if obj is None:
+        return None
+    module = obj.__module__ if inspect.isclass(obj) else getattr(obj, "__module__", None)
+    classes = [obj] if inspect.isclass(obj) else []
+    for e in entries():
+        cls = getattr(importlib.import_module(e.module), e.name)
+        if inspect.isclass(cls) and cls.__module__ == module and cls is not obj:
+            classes.append(cls)
+    documented = _documented(env)
+    for cls in classes:
+        fields = set(getattr(cls, "__dataclass_fields__", {})) | set(getattr(cls, "__annotations__", {}))
+        if id(cls) in documented and (hasattr(cls, attr) or attr in fields):
+            qualname = documented[id(cls)]
+            hit = env.domains["py"].resolve_xref(env, node["refdoc"], app.builder, node["reftype"],
+                                                 f"{qualname}.{attr}", node, contnode)
+            return hit or make_refnode(app.builder, node["refdoc"], f"api/generated/{qualname}", qualname,
+                                       contnode, f"{qualname}.{attr}")
     return None
 
 
