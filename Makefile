@@ -33,9 +33,10 @@ quick: setup
 test: setup
 	$(PY) -m pytest -n logical
 
-# the study notebooks are executed (run_all.py: the paper's figures with their full parameters,
-# the others with their quick ones; unchanged ones are not re-run) and rendered with their figures;
-# SHAPELIB_DOCS_NOTEBOOKS=results renders a full run's from results/ instead
+# nitpicky, warnings are errors; the examples of docs/examples are executed (sphinx-gallery; unchanged
+# ones are not re-run), and the study notebooks (run_all.py: the paper's figures with their full
+# parameters, the others with their quick ones; unchanged ones are not re-run), and both rendered with
+# their figures; SHAPELIB_DOCS_NOTEBOOKS=results renders a full run's notebooks from results/ instead
 docs: $(VENV)/.docs-installed
 	$(VENV)/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
 	@echo "documentation: docs/_build/html/index.html"
@@ -54,4 +55,5 @@ bench: setup
 	$(PY) benchmarks/bench_registration.py --record
 
 clean:
-	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/notebooks/*.ipynb
+	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/api/reference docs/auto_examples \
+	       docs/sg_execution_times.rst docs/notebooks/*.ipynb

@@ -17,20 +17,63 @@ author = "the shapelib developers"
 copyright = "the shapelib developers"  # noqa: A001 (Sphinx's name)
 release = version = shapelib.__version__
 
+# The paper whose methods shapelib implements, and the repository: one home each, pyproject.toml's
+# [project.urls]; the header shows them on every page, the landing page and docs/citing.md link them.
+try:
+    import tomllib
+except ImportError:  # Python 3.10: Sphinx brings tomli
+    import tomli as tomllib
+
+_URLS = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"].get("urls", {})
+PAPER_URL = _URLS["Paper"]
+REPOSITORY_URL = _URLS.get("Repository")
+
+
 extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    "sphinx.ext.intersphinx",
     "numpydoc",
     "myst_nb",
     "sphinx_copybutton",
+    "sphinx_gallery.gen_gallery",
     "shapelib_docs",  # docs/_ext: benchmark tables from docs/_data, the study notebooks
 ]
 
 root_doc = "index"
-exclude_patterns = ["_build", "_data", "_scripts", "_templates", "**.ipynb_checkpoints", "notebooks/.runs"]
+exclude_patterns = ["_build", "_data", "_scripts", "_templates", "_intersphinx", "**.ipynb_checkpoints",
+                    "notebooks/.runs", "examples/*.py", "examples/*.md", "examples/README.txt", "auto_examples/*.ipynb",
+                    "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json"]
 templates_path = ["_templates"]
 html_static_path = ["_static"]
+
+# -- cross-references ----------------------------------------------------------------------------
+# Every reference must resolve (warnings are errors in `make docs`). References to the other
+# projects go through intersphinx, with inventories kept in docs/_intersphinx/: the build has no
+# internet (CI and the developers' machines reach package registries only), so Sphinx cannot
+# download the projects' objects.inv. `python docs/_intersphinx/make_inventories.py` writes them
+# from the installed packages (every public name of the modules shapelib refers to, at the page
+# each project's site gives it); the links lead to the projects' own stable documentation.
+nitpicky = True
+_INV = DOCS / "_intersphinx"
+intersphinx_mapping = {
+    "python": ("https://docs.python.org/3/", str(_INV / "python.inv")),
+    "numpy": ("https://numpy.org/doc/stable/", str(_INV / "numpy.inv")),
+    "scipy": ("https://docs.scipy.org/doc/scipy/", str(_INV / "scipy.inv")),
+    "sklearn": ("https://scikit-learn.org/stable/", str(_INV / "sklearn.inv")),
+    "pandas": ("https://pandas.pydata.org/docs/", str(_INV / "pandas.inv")),
+    "dask": ("https://docs.dask.org/en/stable/", str(_INV / "dask.inv")),
+    "distributed": ("https://distributed.dask.org/en/stable/", str(_INV / "distributed.inv")),
+    "matplotlib": ("https://matplotlib.org/stable/", str(_INV / "matplotlib.inv")),
+    "pooch": ("https://www.fatiando.org/pooch/latest/", str(_INV / "pooch.inv")),
+    "skbio": ("https://scikit.bio/docs/latest/", str(_INV / "skbio.inv")),
+}
+intersphinx_timeout = 1
+intersphinx_disabled_reftypes = ["std:doc"]
+# Private names (``_kernels``, ``_alpha_qform_grad``) are not documented: a docstring may name one,
+# which then shows as code without a link.
+nitpick_ignore_regex = [(r"py:.*", r"(.*\.)?_[A-Za-z]\w*(\..*)?")]
 
 # -- API reference -------------------------------------------------------------------------------
 autosummary_generate = True
@@ -51,10 +94,28 @@ _autosummary.WELL_KNOWN_ABBREVIATIONS = (*_autosummary.WELL_KNOWN_ABBREVIATIONS,
 # are built, and rendered from the executed .ipynb: myst-nb never executes them itself.
 nb_execution_mode = "off"
 nb_merge_streams = True
-myst_enable_extensions = ["dollarmath", "colon_fence", "deflist"]
+myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
 myst_heading_anchors = 3
 # outputs without an HTML rendering (none so far) fall back to their text
 suppress_warnings = ["mystnb.unknown_mime_type"]
+
+# -- example gallery -------------------------------------------------------------------------------
+# Every docs/examples/plot_*.py is executed when the documentation is built (sphinx-gallery) and
+# becomes a page of docs/auto_examples/ with its figures and output; a failing example fails the build.
+sphinx_gallery_conf = {
+    "examples_dirs": "examples",
+    "gallery_dirs": "auto_examples",
+    "filename_pattern": r"/plot_",
+    "ignore_pattern": r"__init__\.py",
+    "within_subsection_order": "FileNameSortKey",
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "matplotlib_animations": False,
+    "min_reported_time": 5,
+    "show_memory": False,
+    "only_warn_on_example_error": False,
+    "abort_on_example_error": False,
+}
 
 # -- HTML ----------------------------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
@@ -66,6 +127,12 @@ html_theme_options = {
     "header_links_before_dropdown": 8,
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
+    "icon_links": [
+        {"name": "The paper: Peter & Rangarajan, IEEE TPAMI 31(2), 2009", "url": PAPER_URL,
+         "icon": "fa-solid fa-file-lines", "type": "fontawesome"},
+        *([{"name": "Source repository", "url": REPOSITORY_URL, "icon": "fa-brands fa-git-alt",
+            "type": "fontawesome"}] if REPOSITORY_URL else []),
+    ],
 }
 html_context = {"default_mode": "light"}
 html_show_sourcelink = False

@@ -29,7 +29,6 @@ import numpy as np
 
 from shapelib import geodesic
 from shapelib.plotting import plot_metric_panels
-from matplotlib.lines import Line2D
 
 from shapelib.study import record_values, record_verdict, save_figure
 from shapelib import PoseWarning
@@ -48,13 +47,7 @@ for r in results.values():
     print(r.summary())
 
 # %%
-fig, axes = plot_metric_panels(results, figsize=(12, 3.5))
-# one legend for both panels, below them, so that it covers no landmark
-handles = [Line2D([], [], ls="--", color="0.6", lw=0.8), Line2D([], [], color="k", lw=1.0),
-           Line2D([], [], ls="", marker="o", mfc="white", mec="k", ms=5), Line2D([], [], ls="", marker="s", color="k", ms=4)]
-fig.legend(handles, ["straight-line initialisation", "computed geodesic", "start (straight line)", "end (hinge)"],
-           loc="lower center", ncol=4, fontsize=8, frameon=False)
-fig.tight_layout(rect=(0, 0.1, 1, 1))
+fig, axes = plot_metric_panels(results, figsize=(12, 3.5))  # with one legend for both panels, below them
 save_figure(fig, output_dir, "fig04_line_bending")
 
 # %%

@@ -2,26 +2,9 @@
 
 Shapes are ``(K, d)`` float arrays of landmarks in correspondence; collections are ``(N, K, d)``.
 
-Where each equation lives:
-
-* eq. (5), the GMM shape density, and closed-form L² quantities: :mod:`shapelib.geometry.gmm`
-* eq. (6) Fisher–Rao and eq. (22) α-order metrics: :mod:`shapelib.geometry.metrics`
-  (quadrature rules: :mod:`shapelib.geometry.quadrature`)
-* eqs. (8)–(12), geodesics and their certified lengths: :mod:`shapelib.solver.geodesic`;
-  certified distance brackets ``lower ≤ d ≤ upper`` to a relative width: :mod:`shapelib.solver.bracket`
-* σ against the landmarks' scale: :mod:`shapelib.geometry.scale`
-* comparison distances: :mod:`shapelib.geometry.procrustes`, :mod:`shapelib.comparison.splines`,
-  :mod:`shapelib.comparison.diffeomorphism` (eq. 3, Camion–Younes, through the same path solver)
-* §III-E, eqs. 23–26, extrinsic warp of ambient points: :mod:`shapelib.comparison.warp`
-* one entry point for all distances: :mod:`shapelib.distances`
-* point sets without landmarks (any sizes, no correspondence): checks, density distances, pose
-  search over every rotation: :mod:`shapelib.pointsets`; outlines traced from silhouettes,
-  :mod:`shapelib.pointsets.outline`; density distances modulo translation, scale, rotation and
-  reflection (FFT angle search), :mod:`shapelib.pointsets.invariant`; bull's-eye retrieval
-  scores, :mod:`shapelib.retrieval`
-* log and exp maps (discrete geodesic calculus): :mod:`shapelib.solver.logexp`; Fréchet mean,
-  tangent PCA, geodesic regression, group tests: :mod:`shapelib.statistics` (each takes the engine's
-  ``n_jobs`` / ``client`` / ``scheduler`` itself)
+Each module's docstring derives what it computes. Which function computes which equation of
+the paper, and which module derives it: "The paper's equations in the code" in the API reference
+of the documentation (``make docs``; ``api/reference/equations.html``).
 """
 
 from ._validate import InputError

@@ -1,6 +1,8 @@
 """Sphinx extension of the shapelib documentation.
 
-Two build steps, both run by ``make docs`` (and by any ``sphinx-build docs ...``):
+The API reference comes from one table, ``docs/_ext/shapelib_api.py`` (its pages are written when
+the build starts; references to shapelib's names resolve through it). Two more build steps, both
+run by ``make docs`` (and by any ``sphinx-build docs ...``):
 
 * ``.. benchmark:: NAME`` renders the measurements in ``docs/_data/benchmarks/NAME.json`` as
   tables, headed by the machine, the date and the command they come from. The benchmarks
@@ -13,7 +15,8 @@ Two build steps, both run by ``make docs`` (and by any ``sphinx-build docs ...``
   executed ``.ipynb`` files are copied to ``docs/notebooks/`` for myst-nb to render with their
   figures. ``SHAPELIB_DOCS_NOTEBOOKS=results`` renders the notebooks of a full
   ``python run_all.py`` from ``results/`` instead (one without a full run there is executed as
-  above).
+  above). Their plumbing is hidden on the pages: the parameter cells and the cells that record
+  values for the report (:func:`plumbing_tags`).
 """
 
 from __future__ import annotations
@@ -572,9 +575,37 @@ def _clean_paths(text: str, run_dir: Path, name: str) -> str:
     return text.replace(str(ROOT) + "/", "")
 
 
+#: the study's recording calls (results/<name>/values.json, verdicts): plumbing of the study, not
+#: something a reader of the page needs to see
+RECORDING_CALLS = ("record_values", "record_verdict")
+
+
+def plumbing_tags(source: str) -> list[str]:
+    """myst-nb tags that hide a code cell's plumbing on its page: ``remove-cell`` for the
+    papermill parameter cells and for cells that only record values or verdicts (and the imports
+    they need), ``hide-input`` (the code folded, its output shown) for cells that also compute."""
+    import ast
+
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return []
+
+    def recording(stmt) -> bool:
+        return isinstance(stmt, ast.Expr) and isinstance(stmt.value, ast.Call) and \
+            getattr(stmt.value.func, "id", getattr(stmt.value.func, "attr", None)) in RECORDING_CALLS
+
+    calls = [st for st in tree.body if recording(st)]
+    if not calls:
+        return []
+    rest = [st for st in tree.body if not recording(st) and not isinstance(st, (ast.Import, ast.ImportFrom))]
+    return ["hide-input"] if rest else ["remove-cell"]
+
+
 def notebook_page(name: str, source: Path, info: dict, run_dir: Path) -> dict:
     """The executed notebook as a documentation page: a note on the parameters it ran with after
-    its title cell, the injected parameters without the run's output folder, no absolute paths."""
+    its title cell, no absolute paths, and the plumbing hidden: the parameter cells (the note says
+    which parameters ran) and the cells that record values for the report (:func:`plumbing_tags`)."""
     nb = json.loads(source.read_text())
     output_dir = nb["metadata"].get("papermill", {}).get("parameters", {}).get("output_dir")
     if output_dir:  # the results folder the notebook ran in (run_dir/.tmp-<name>-*), wherever it is now
@@ -583,7 +614,13 @@ def notebook_page(name: str, source: Path, info: dict, run_dir: Path) -> dict:
     for cell in nb["cells"]:
         cell.get("metadata", {}).pop("papermill", None)
         cell.get("metadata", {}).pop("execution", None)
-        if "injected-parameters" in cell.get("metadata", {}).get("tags", []):
+        tags = cell.setdefault("metadata", {}).get("tags", [])
+        if cell["cell_type"] == "code":
+            text = "".join(cell["source"]) if isinstance(cell["source"], list) else cell["source"]
+            hidden = ["remove-cell"] if {"parameters", "injected-parameters"} & set(tags) else plumbing_tags(text)
+            if hidden:
+                cell["metadata"]["tags"] = [*tags, *hidden]
+        if "injected-parameters" in tags:  # not shown, but no build path in the page's source either
             lines = cell["source"] if isinstance(cell["source"], list) else cell["source"].splitlines(True)
             cell["source"] = [ln for ln in lines if not ln.startswith(("output_dir", "store_dir"))]
         for out in cell.get("outputs", []):
@@ -646,27 +683,23 @@ def prepare_notebooks(app, config) -> None:
             target.write_text(text)
 
 
-def api_entries(api_dir: Path = DOCS / "api") -> dict[str, set[str]]:
-    """``{current module: names}`` of the autosummary entries in ``docs/api/*.rst``."""
-    entries: dict[str, set[str]] = {}
-    for path in sorted(api_dir.glob("*.rst")):
-        module, in_summary = None, False
-        for line in path.read_text().splitlines():
-            m = re.match(r"\.\. currentmodule:: (\S+)", line)
-            if m:
-                module = m.group(1)
-                continue
-            if line.startswith(".. autosummary::"):
-                in_summary = True
-                continue
-            if in_summary:
-                if not line.strip() or line.lstrip().startswith(":"):
-                    continue
-                if line.startswith("   "):
-                    entries.setdefault(module, set()).add(line.strip())
-                else:
-                    in_summary = False
-    return entries
+def _api_table():
+    """docs/_ext/shapelib_api.py, the API reference's one table (loaded by path: the tests import
+    this module without Sphinx's sys.path)."""
+    import importlib.util
+
+    name = "shapelib_api"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name("shapelib_api.py"))
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # dataclasses look their module up
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+def api_entries() -> dict[str, set[str]]:
+    """``{module: names}`` of the API reference (the table of docs/_ext/shapelib_api.py)."""
+    return _api_table().api_entries()
 
 
 def prune_api_stubs(app, config) -> None:
@@ -681,6 +714,9 @@ def prune_api_stubs(app, config) -> None:
 def setup(app):
     app.add_directive("benchmark", _benchmark_directive())
     app.add_directive("cli-help", _cli_help_directive())
+    app.add_directive("module-docstring", _api_table().module_docstring_directive())
+    app.connect("config-inited", lambda app, config: _api_table().write_pages())
     app.connect("config-inited", prune_api_stubs)
+    app.connect("missing-reference", lambda app, env, node, contnode: _api_table().resolve_reference(app, env, node, contnode))
     app.connect("config-inited", prepare_notebooks)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
