@@ -9,7 +9,7 @@ PY     := $(VENV)/bin/python
 JOBS   ?=
 ARGS   ?=
 
-.PHONY: setup results quick test docs lab bench clean
+.PHONY: setup results quick test test-all docs lab bench clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -32,6 +32,10 @@ quick: setup
 # the suite on every core (pytest-xdist); `$(PY) -m pytest tests/test_x.py` runs part of it in one process
 test: setup
 	$(PY) -m pytest -n logical
+
+# every test, the slow ones too (the JAX backend's batched and engine paths, the GPU benchmark's CPU check)
+test-all: setup
+	$(PY) -m pytest -n logical -m ""
 
 # nitpicky, warnings are errors; the examples of docs/examples are executed (sphinx-gallery; unchanged
 # ones are not re-run), and the study notebooks (run_all.py: the paper's figures with their full

@@ -110,6 +110,7 @@ def test_converged_geodesic_matches_the_cpu_solver_and_is_certified_the_same_way
     np.testing.assert_array_equal(gpu_path.path[[0, -1]], np.stack([u, v]))
 
 
+@pytest.mark.slow  # JAX compiles new programs here (minutes on 2 cores): `make test-all`
 def test_batched_geodesics_equal_one_by_one(pair2, fr_geodesics):
     u, v = pair2
     v2 = shapelib.procrustes_align(u, _pair(np.random.default_rng(11), 5, 2, 0.3)[1] * 0.2 + 0.8 * v, scaling=False)
@@ -191,6 +192,7 @@ def test_missing_jax_is_a_one_line_import_error_naming_the_extra():
     assert proc.stdout.count("\n") == 1
 
 
+@pytest.mark.slow  # JAX compiles new programs here (minutes on 2 cores): `make test-all`
 def test_bench_gpu_cpu_check_writes_a_record(tmp_path):
     out = tmp_path / "bench_gpu.json"
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_gpu.py"), "--cpu-check", "--json", str(out)],
@@ -224,6 +226,7 @@ def three(pair2):
     return np.stack([u, v, v2])
 
 
+@pytest.mark.slow  # JAX compiles new programs here (minutes on 2 cores): `make test-all`
 @pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
 def test_pairwise_engine_sends_a_block_to_the_device_as_one_batch(three, fr_geodesics):
     d = shapelib.pairwise_distances(three, metric="fisher_rao", sigma2=S2, n_steps=6, tol=1e-8, max_iter=2000,
@@ -233,6 +236,7 @@ def test_pairwise_engine_sends_a_block_to_the_device_as_one_batch(three, fr_geod
     assert d[0, 1] == pytest.approx(fr_geodesics[0].length, rel=1e-6)  # and the CPU one
 
 
+@pytest.mark.slow  # JAX compiles new programs here (minutes on 2 cores): `make test-all`
 @pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
 def test_frechet_mean_with_batched_log_maps_matches_the_cpu_mean(three):
     # α: its programs do not depend on a grid, so the moving base compiles nothing new per iteration

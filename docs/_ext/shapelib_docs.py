@@ -353,13 +353,6 @@ def _registration(r: dict) -> list[Table]:
                   rows, note, key="levels")]
 
 
-RENDERERS = {"bench_registration": _registration, "bench_geodesic": _geodesic, "bench_bracket": _bracket, "bench_pairwise": _pairwise,
-             "bench_solvers": _solvers, "run_times": _run_times, "bench_intrinsic": _intrinsic, "bench_gpu": _gpu,
-             "bench_retrieval": _retrieval}
-#: records that may be absent (measured on hardware that is not always at hand): the page says so
-OPTIONAL = {"bench_gpu": "Pending a measurement on a GPU: run ``python benchmarks/bench_gpu.py`` on a machine "
-                         "with an NVIDIA GPU and ``pip install \"shapelib[gpu]\"``, which writes the record this "
-                         "section is rendered from."}
 def _retrieval(r: dict) -> list[Table]:
     n, pairs = r.get("n_shapes"), r.get("pairs")
     rows = [["tracing the outlines", _seconds(r["trace"]["wall"]), _seconds(r["trace"]["cpu"]), "—", "—"]]
@@ -400,6 +393,15 @@ def _retrieval(r: dict) -> list[Table]:
 
 
 
+
+
+RENDERERS = {"bench_registration": _registration, "bench_geodesic": _geodesic, "bench_bracket": _bracket, "bench_pairwise": _pairwise,
+             "bench_solvers": _solvers, "run_times": _run_times, "bench_intrinsic": _intrinsic, "bench_gpu": _gpu,
+             "bench_retrieval": _retrieval}
+#: records that may be absent (measured on hardware that is not always at hand): the page says so
+OPTIONAL = {"bench_gpu": "Pending a measurement on a GPU: run ``python benchmarks/bench_gpu.py`` on a machine "
+                         "with an NVIDIA GPU and ``pip install \"shapelib[gpu]\"``, which writes the record this "
+                         "section is rendered from."}
 
 def benchmark_tables(name: str, data_dir: Path = DATA) -> Rendered:
     """The tables of ``docs/_data/benchmarks/<name>.json``, with their provenance sentence."""
