@@ -244,6 +244,7 @@ AREAS = (
          shapelib.plotting.plot_mean
          shapelib.plotting.plot_modes
          shapelib.plotting.plot_mean_difference
+         shapelib.plotting.plot_scores
          """),
     Area("registration", "Point sets and registration",
          "Rigid alignment of landmark shapes — Procrustes superimposition, pose alignment with "
