@@ -946,6 +946,45 @@ def plot_scores(scores, groups=None, *, components=(0, 1), hulls: bool = True, l
     group's convex hull drawn (``hulls``), a legend with the group sizes; ``explained`` (the
     variance ratios) labels the axes with their shares. Returns the figure.
 
+    The scores are typically those of principal components in the tangent space of the metric of
+    [1]_, or of Procrustes coordinates [2]_.
+
+    Parameters
+    ----------
+    scores : array_like, shape (N, p)
+        One row of scores per specimen, ``p > max(components)``.
+    groups : array_like, shape (N,), optional
+        Group of each specimen (default: one group, ``"specimens"``).
+    components : (int, int)
+        The two columns plotted, 0-based (PC1 and PC2 by default).
+    hulls : bool
+        Draw each group's convex hull (groups of at least 3 points, not collinear).
+    labels : sequence, optional
+        A text next to each point.
+    explained : array_like, optional
+        Variance ratio of each component, shown in the axis labels as a percentage.
+    ax : matplotlib.axes.Axes, optional
+        Draw there (default: a new figure).
+    title : str
+        The axes' title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+
+    See Also
+    --------
+    shapelib.tangent_pca : Scores in the tangent space of a metric.
+    shapelib.statistics.distance_based.classical_mds : Scores from a distance matrix.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] I. L. Dryden and K. V. Mardia, *Statistical Shape Analysis*, Wiley, 1998.
+
     Examples
     --------
     >>> import numpy as np, matplotlib

@@ -27,6 +27,32 @@ class MissingEstimate:
     method : {"tps", "regression"}
     n_reference : int
         Complete specimens the estimates come from.
+
+    See Also
+    --------
+    estimate_missing : The estimate.
+    tps_map : The spline behind ``method="tps"``.
+
+    Notes
+    -----
+    The ``"tps"`` estimates bend the complete specimens' mean onto the present landmarks by the thin-plate
+    spline of [1]_.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Principal warps: thin-plate splines and the decomposition of deformations",
+       *IEEE Transactions on Pattern Analysis and Machine Intelligence* 11(6), 567–585, 1989.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.comparison.missing import estimate_missing
+    >>> t = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    >>> x = np.stack([np.c_[np.cos(t), (1 + 0.1 * i) * np.sin(t)] for i in range(6)])
+    >>> gone = x.copy(); gone[0, 1] = np.nan
+    >>> res = estimate_missing(gone, method="regression")
+    >>> res.method, res.n_reference, np.argwhere(res.estimated).tolist()
+    ('regression', 5, [[0, 1]])
     """
 
     shapes: np.ndarray
@@ -52,7 +78,31 @@ def _kernel(r, d):
 def tps_map(source, target, points):
     """The thin-plate spline taking ``source`` landmarks (m, d) exactly onto ``target`` (m, d),
     applied to ``points`` (q, d): ``f(x) = a + A x + Σ_i w_i U(|x − s_i|)`` with the bending energy
-    minimal (Bookstein 1989).
+    minimal [1]_.
+
+    Parameters
+    ----------
+    source : array_like, shape (m, d)
+        Landmarks the spline starts from (``m ≥ d + 1``).
+    target : array_like, shape (m, d)
+        Where the spline takes them, exactly.
+    points : array_like, shape (q, d)
+        Points to map (one point may be given as a (d,) array).
+
+    Returns
+    -------
+    ndarray, shape (q, d)
+        ``f(points)``.
+
+    See Also
+    --------
+    estimate_missing : Uses it to place missing landmarks.
+    shapelib.comparison.splines.tps_bending_energy : The bending energy this spline minimises.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Principal warps: thin-plate splines and the decomposition of deformations",
+       *IEEE Transactions on Pattern Analysis and Machine Intelligence* 11(6), 567–585, 1989.
 
     Examples
     --------
@@ -114,6 +164,25 @@ def estimate_missing(shapes, *, method: str = "tps") -> MissingEstimate:
     -------
     MissingEstimate
         ``shapes`` completed, ``estimated`` marks which landmarks were estimated.
+
+    See Also
+    --------
+    tps_map : The thin-plate spline of ``method="tps"``.
+    MissingEstimate : The result.
+    shapelib.geometry.procrustes.generalized_procrustes : The mean of the complete specimens.
+
+    Notes
+    -----
+    ``"tps"`` maps the mean by the minimum-bending-energy thin-plate spline [1]_ that interpolates the present
+    landmarks; the completed shapes may then be compared by the metrics of [2]_, as any shapes.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Principal warps: thin-plate splines and the decomposition of deformations",
+       *IEEE Transactions on Pattern Analysis and Machine Intelligence* 11(6), 567–585, 1989.
+    .. [2] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
 
     Examples
     --------

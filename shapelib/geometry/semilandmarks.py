@@ -45,6 +45,34 @@ class SlideResult:
     n_iter : int
     stop_reason : str
         ``"tol"`` or ``"max_iter"``.
+
+    See Also
+    --------
+    slide_semilandmarks : The sliding.
+    curve_sliders : Sliders of a curve.
+
+    Notes
+    -----
+    The semilandmarks slide by minimum bending energy [1]_ or minimum Procrustes distance [2]_.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Landmark methods for forms without landmarks: morphometrics of group differences in
+       outline shape", *Medical Image Analysis* 1(3), 225–243, 1997.
+    .. [2] P. Gunz and P. Mitteroecker, "Semilandmarks: a method for quantifying curves and surfaces",
+       *Hystrix, the Italian Journal of Mammalogy* 24(1), 103–109, 2013.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.geometry.semilandmarks import curve_sliders, slide_semilandmarks
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.linspace(0, np.pi, 7)                      # 7 points on an arc, its ends fixed
+    >>> shapes = np.stack([np.c_[np.cos(t), (1 + 0.1 * i) * np.sin(t)] + rng.normal(scale=0.02, size=(7, 2))
+    ...                    for i in range(5)])
+    >>> res = slide_semilandmarks(shapes, curve_sliders(0, 7))
+    >>> res.criterion, res.shapes.shape, res.sliders.shape, res.converged
+    ('bending_energy', (5, 7, 2), (5, 3), True)
     """
 
     shapes: np.ndarray
@@ -65,6 +93,34 @@ def curve_sliders(start: int, n_points: int, *, closed: bool = False) -> np.ndar
     """Sliders of a curve of ``n_points`` consecutive landmarks from index ``start``: every interior
     point slides between its neighbours (the ends stay fixed), or, ``closed``, every point.
 
+    Each slider ``(before, point, after)`` lets ``point`` slide along the chord of its two
+    neighbours, the tangent estimate of [1]_ and [2]_.
+
+    Parameters
+    ----------
+    start : int
+        Index of the curve's first landmark.
+    n_points : int
+        Number of consecutive landmarks on the curve.
+    closed : bool
+        The curve closes on itself: its first and last points are neighbours and every point slides.
+
+    Returns
+    -------
+    ndarray of int, shape (m, 3)
+        ``(before, point, after)`` rows: ``n_points − 2`` of them, or ``n_points`` when ``closed``.
+
+    See Also
+    --------
+    slide_semilandmarks : Slides them.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Landmark methods for forms without landmarks: morphometrics of group differences in
+       outline shape", *Medical Image Analysis* 1(3), 225–243, 1997.
+    .. [2] P. Gunz and P. Mitteroecker, "Semilandmarks: a method for quantifying curves and surfaces",
+       *Hystrix, the Italian Journal of Mammalogy* 24(1), 103–109, 2013.
+
     Examples
     --------
     >>> from shapelib.geometry.semilandmarks import curve_sliders
@@ -83,14 +139,42 @@ def bending_energy_matrix(reference) -> np.ndarray:
     3-D, ``P = [1, x]``); ``vᵀ L_K v`` is the bending energy of the spline taking the reference
     onto reference + ``v`` along one coordinate, zero for affine ``v``.
 
+    This is the matrix of [1]_ that minimum-bending-energy sliding [2]_ uses.
+
+    Parameters
+    ----------
+    reference : array_like, shape (K, d)
+        The landmarks the splines start from (the mean shape, when sliding).
+
+    Returns
+    -------
+    ndarray, shape (K, K)
+        ``L_K``: symmetric, positive semi-definite, with the affine functions of the reference in
+        its null space.
+
+    See Also
+    --------
+    slide_semilandmarks : Minimises ``xᵀ (I_d ⊗ L_K) x`` along the sliders.
+    shapelib.comparison.splines.tps_bending_energy : The bending energy of a thin-plate spline.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Principal warps: thin-plate splines and the decomposition of deformations",
+       *IEEE Transactions on Pattern Analysis and Machine Intelligence* 11(6), 567–585, 1989.
+    .. [2] F. L. Bookstein, "Landmark methods for forms without landmarks: morphometrics of group differences in
+       outline shape", *Medical Image Analysis* 1(3), 225–243, 1997.
+
     Examples
     --------
     >>> import numpy as np
     >>> from shapelib.geometry.semilandmarks import bending_energy_matrix
-    >>> ref = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.4]])
-    >>> lk = bending_energy_matrix(ref)
-    >>> bool(np.allclose(lk @ ref, 0))            # an affine change bends nothing
-    True
+    >>> ref = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.4]])
+    >>> L = bending_energy_matrix(ref)
+    >>> L.shape, bool(np.allclose(L, L.T)), bool(np.allclose(L @ np.c_[np.ones(5), ref], 0))
+    ((5, 5), True, True)
+    >>> v = np.array([0, 0, 0, 0, 0.1])            # one landmark moved: the spline bends
+    >>> round(float(v @ L @ v), 4)
+    0.0198
     """
     x = np.asarray(reference, dtype=np.float64)
     k, d = x.shape
@@ -154,6 +238,27 @@ def slide_semilandmarks(shapes, sliders, *, criterion: str = "bending_energy", m
     -------
     SlideResult
         The aligned, slid shapes: any metric of shapelib takes them as shapes.
+
+    See Also
+    --------
+    curve_sliders : Sliders along a curve.
+    bending_energy_matrix : The matrix of the bending-energy criterion.
+    shapelib.geometry.procrustes.generalized_procrustes : The alignment between the slides.
+
+    Notes
+    -----
+    Sliding by minimum bending energy follows [1]_, by minimum Procrustes distance [2]_ (module docstring);
+    the slid shapes are landmark shapes for the metrics of [3]_.
+
+    References
+    ----------
+    .. [1] F. L. Bookstein, "Landmark methods for forms without landmarks: morphometrics of group differences in
+       outline shape", *Medical Image Analysis* 1(3), 225–243, 1997.
+    .. [2] P. Gunz and P. Mitteroecker, "Semilandmarks: a method for quantifying curves and surfaces",
+       *Hystrix, the Italian Journal of Mammalogy* 24(1), 103–109, 2013.
+    .. [3] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
 
     Examples
     --------

@@ -45,6 +45,22 @@ def as_point_set(x, *, name: str = "points", min_points: int = 2) -> np.ndarray:
     InputError
         With ``facts["points"]``: the indices (from 0) of the offending points, where there are.
 
+    See Also
+    --------
+    as_point_sets : A collection of point sets of one dimension.
+    shapelib.pointsets.density.density_distance : Density distances between point sets.
+
+    Notes
+    -----
+    A point set stands for the equal-weight isotropic mixture of eq. (5) of [1]_ with one component per point,
+    so the points need no order and no correspondence with another set.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
     Examples
     --------
     >>> import numpy as np
@@ -108,6 +124,22 @@ def as_point_sets(sets, *, name: str = "point sets", min_points: int = 2) -> lis
     Returns
     -------
     list of ndarray
+
+    See Also
+    --------
+    as_point_set : One point set.
+    shapelib.pointsets.invariant.invariant_distance_matrix : Distances between every pair of sets.
+
+    Notes
+    -----
+    Each set stands for the equal-weight isotropic mixture of eq. (5) of [1]_ with one component per point;
+    the sets may differ in size.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
 
     Examples
     --------

@@ -111,6 +111,22 @@ def density_inner(x, y, *, sigma2) -> float:
     -------
     float
 
+    See Also
+    --------
+    l2_distance_sq : The squared L² distance built from this inner product.
+    shapelib.geometry.gmm.l2_inner : The same inner product for landmark shapes.
+
+    Notes
+    -----
+    The closed form is the L² inner product of two Gaussian mixtures of eq. (5) of [1]_, which needs no
+    correspondence and no equal sizes.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
     Examples
     --------
     >>> import numpy as np
@@ -143,6 +159,22 @@ def l2_distance_sq(x, y, *, sigma2, grad: bool = False):
     Returns
     -------
     float, or (float, ndarray)
+
+    See Also
+    --------
+    density_inner : The inner product it is built from.
+    shapelib.geometry.gmm.l2_distance : The L² distance of landmark shapes in correspondence.
+    density_distance : The bound itself, α or Fisher–Rao.
+
+    Notes
+    -----
+    ``D`` is the L² distance of the densities, the lower bound on the α-order geodesic distance of [1]_.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
 
     Examples
     --------
@@ -181,6 +213,23 @@ def hellinger_sq(x, y, *, sigma2, grad: bool = False, grid_spacing: float = DEFA
     -------
     float, or (float, ndarray)
 
+    See Also
+    --------
+    bhattacharyya_affinity : The affinity ``BC = 1 − H²/2``.
+    shapelib.solver.geodesic.fisher_rao_lower_bound : The bound for landmark shapes.
+    density_distance : The bound itself, α or Fisher–Rao.
+
+    Notes
+    -----
+    With ``ψ = 2√p`` the densities lie on a sphere of radius 2, and ``2 arccos BC = 4 arcsin(H/2)`` is the
+    great-circle lower bound on the Fisher–Rao geodesic distance of [1]_.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
     Examples
     --------
     >>> from shapelib.pointsets import hellinger_sq
@@ -210,6 +259,22 @@ def bhattacharyya_affinity(x, y, *, sigma2, grid_spacing: float = DEFAULT_SPACIN
     -------
     float
         In ``[0, 1]``; 1 exactly when the two mixtures are equal.
+
+    See Also
+    --------
+    hellinger_sq : The squared Hellinger distance ``2 − 2 BC`` and its gradient.
+    density_distance : The bound ``2 arccos BC`` for Fisher–Rao.
+
+    Notes
+    -----
+    ``2 arccos BC`` is the great-circle lower bound on the Fisher–Rao geodesic distance between the mixtures
+    of eq. (5) of [1]_.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
 
     Examples
     --------
@@ -242,6 +307,23 @@ def density_distance(x, y, *, sigma2, metric: str = "alpha", grid_spacing: float
     Returns
     -------
     float
+
+    See Also
+    --------
+    l2_distance_sq : The α bound squared, with its gradient.
+    hellinger_sq : The Hellinger distance behind the Fisher–Rao bound.
+    shapelib.pointsets.invariant.invariant_distance : The same bound modulo the similarity group.
+
+    Notes
+    -----
+    The α bound is the L² distance of the two mixtures and the Fisher–Rao bound the great-circle distance ``2
+    arccos BC``; both are lower bounds on the geodesic distances of [1]_.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
 
     Examples
     --------

@@ -51,7 +51,29 @@ SELECT_RTOL = 0.05
 
 
 class PoseSearchWarning(RuntimeWarning):
-    """The local refinement of the best pose stopped before converging."""
+    """The local refinement of the best pose stopped before converging.
+
+    A :class:`RuntimeWarning`: :func:`align` still returns the best pose found, with ``converged``
+    false and ``stop_reason`` ``"max_iter"``.
+
+    See Also
+    --------
+    align : What warns (``warn=False`` silences it; a larger ``max_iter`` lets it converge).
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> from shapelib.pointsets import align, PoseSearchWarning
+    >>> x = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.5, 1.5], [-0.5, 0.8]])
+    >>> c, s = np.cos(0.7), np.sin(0.7)
+    >>> y = 1.5 * x @ np.array([[c, -s], [s, c]]).T + [3.0, 1.0]
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     pose = align(x, y, sigma2=0.01, max_iter=1)
+    >>> pose.converged, any(issubclass(w.category, PoseSearchWarning) for w in caught)
+    (False, True)
+    """
 
 
 @dataclass
@@ -84,6 +106,36 @@ class Pose:
     candidates : list of (float, ndarray, ndarray)
         Every refined start at the coarsest σ² as ``(objective, A, t)``, best first: the distinct
         poses the search found (:func:`shapelib.register` follows several of them).
+
+    See Also
+    --------
+    align : The search that finds it.
+    shapelib.pointsets.registration.RegistrationResult : A registration, whose ``pose`` this is.
+
+    Notes
+    -----
+    The pose minimises a density distance between the mixtures of eq. (5) of [1]_ (module docstring).
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+
+    Examples
+    --------
+    A similarity found by :func:`align`, then used to move other points:
+
+    >>> import numpy as np
+    >>> from shapelib.pointsets import align
+    >>> x = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.5, 1.5], [-0.5, 0.8]])
+    >>> c, s = np.cos(0.7), np.sin(0.7)
+    >>> y = 1.5 * x @ np.array([[c, -s], [s, c]]).T + [3.0, 1.0]
+    >>> pose = align(x, y, sigma2=0.01, transform="similarity")
+    >>> round(pose.scale, 3), round(pose.angle, 2), pose.reflection, pose.converged
+    (1.5, 40.11, False, True)
+    >>> bool(np.allclose(pose(x), y, atol=1e-4))
+    True
     """
 
     matrix: np.ndarray
@@ -235,6 +287,25 @@ def align(source, target, *, sigma2, transform: str = "rigid", metric: str = "al
     Pose
         ``matrix``, ``translation``, ``points`` (the moved source), ``value`` (the bound at
         ``sigma2``), ``converged``, ``stop_reason``, ``summary()``; call it to move other points.
+
+    See Also
+    --------
+    shapelib.pointsets.density.density_distance : The density distances it minimises.
+    shapelib.pointsets.registration.register : Pose, then a non-rigid deformation.
+    shapelib.pointsets.invariant.invariant_distance : Distances modulo the similarity group.
+
+    Notes
+    -----
+    The α objective is the L² distance between the mixtures of eq. (5) of [1]_, the density-matching criterion
+    also used by rigid point-set registration with Gaussian mixtures [2]_.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] A. Myronenko and X. Song, "Point set registration: coherent point drift", *IEEE Transactions on
+       Pattern Analysis and Machine Intelligence* 32(12), 2262–2275, 2010.
 
     Examples
     --------

@@ -79,7 +79,29 @@ KERNELS = ("weights", "means")
 
 
 class RegistrationWarning(RuntimeWarning):
-    """The registration's EM stopped before meeting its tolerance."""
+    """The registration's EM stopped before meeting its tolerance.
+
+    A :class:`RuntimeWarning`: :func:`register` still returns its last estimate, with
+    ``converged`` false and ``stop_reason`` ``"max_iter"``.
+
+    See Also
+    --------
+    register : What warns (``warn=False`` silences it).
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> x = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.5, 1.5], [-0.5, 0.8]])
+    >>> c, s = np.cos(0.7), np.sin(0.7)
+    >>> y = 1.5 * x @ np.array([[c, -s], [s, c]]).T + [3.0, 1.0]
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     res = sl.register(x, y, transform="similarity", max_iter=1)
+    >>> res.converged, any(issubclass(w.category, sl.RegistrationWarning) for w in caught)
+    (False, True)
+    """
 
 
 def _rms(x):
@@ -173,6 +195,37 @@ class RegistrationResult:
     converged, stop_reason, n_iter
         EM: ``"tolerance"`` (converged), ``"max_iter"`` (not).
     transform, metric : str
+
+    See Also
+    --------
+    register : The registration.
+    shapelib.pointsets.pose.Pose : Its rigid (similarity, affine) part.
+
+    Notes
+    -----
+    The deformation is a geodesic of the metric of [1]_; ``sigma2``, ``w`` and ``probabilities`` are those of
+    Coherent Point Drift's mixture model [2]_, estimated by EM.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] A. Myronenko and X. Song, "Point set registration: coherent point drift", *IEEE Transactions on
+       Pattern Analysis and Machine Intelligence* 32(12), 2262–2275, 2010.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> x = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.5, 1.5], [-0.5, 0.8]])
+    >>> c, s = np.cos(0.7), np.sin(0.7)
+    >>> y = 1.5 * x @ np.array([[c, -s], [s, c]]).T + [3.0, 1.0]
+    >>> res = sl.register(x, y[::-1], transform="similarity")
+    >>> bool(np.abs(res.points - y).max() < 1e-3), res.correspondence.tolist(), res.converged
+    (True, [4, 3, 2, 1, 0], True)
+    >>> round(res.pose.scale, 3)
+    1.5
     """
 
     points: np.ndarray
@@ -330,6 +383,30 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     RegistrationResult
         ``points``, ``correspondence``, ``probabilities``, ``warp(x)``, ``pose``, ``path``,
         ``objective``, ``sigma2``, ``w``, ``converged``, ``stop_reason``, ``summary()``.
+
+    See Also
+    --------
+    shapelib.pointsets.pose.align : The pose search of step 1.
+    shapelib.pointsets.em.fit_mixture : σ² of one point set by maximum likelihood.
+    shapelib.solver.geodesic.geodesic : Geodesics between landmark shapes.
+
+    Notes
+    -----
+    The deformation is a geodesic of the α-order (or Fisher–Rao) metric of [1]_; σ², outliers and
+    correspondences follow Coherent Point Drift's mixture model [2]_, estimated by EM [3]_; the point
+    sets of Chui and Rangarajan's TPS-RPM [4]_ are its benchmark.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] A. Myronenko and X. Song, "Point set registration: coherent point drift", *IEEE Transactions on
+       Pattern Analysis and Machine Intelligence* 32(12), 2262–2275, 2010.
+    .. [3] A. P. Dempster, N. M. Laird and D. B. Rubin, "Maximum likelihood from incomplete data via the EM
+       algorithm", *Journal of the Royal Statistical Society, Series B* 39(1), 1–38, 1977.
+    .. [4] H. Chui and A. Rangarajan, "A new point matching algorithm for non-rigid registration",
+       *Computer Vision and Image Understanding* 89(2–3), 114–141, 2003.
 
     Examples
     --------

@@ -40,8 +40,9 @@ from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
 from .path_metric import GL5_NODES, GL5_WEIGHTS, METRICS, path_metric
 from .result import GeodesicResult, GeodesicWarning, StopReason
 
-__all__ = ["BACKENDS", "DEVICES", "check_backend", "jax_device", "stack_grids", "lbfgs_solve",
-           "batched_geodesics", "batched_lengths", "bucket", "GRID_PAD", "MAX_REGRIDS", "LBFGS_HISTORY"]
+# check_backend, jax_device, stack_grids, lbfgs_solve and bucket are the solvers' internal helpers: importable
+# by the other solver modules, not user API
+__all__ = ["BACKENDS", "DEVICES", "batched_geodesics", "batched_lengths", "GRID_PAD", "MAX_REGRIDS", "LBFGS_HISTORY"]
 
 #: the values of ``backend=``
 BACKENDS = ("cpu", "jax")
@@ -353,9 +354,43 @@ def batched_lengths(paths, *, metric, sigma2, grid_spacing=DEFAULT_SPACING, grid
     Fisher–Rao on the grid :func:`~shapelib.geometry.quadrature.make_grid` places around each path),
     evaluated with JAX on ``device``.
 
+    Parameters
+    ----------
+    paths : array_like, shape (B, n + 1, K, d)
+        Piecewise-linear paths of one size, ``n`` segments each.
+    metric : {"alpha", "fisher_rao"}
+        The metric of eq. (22) or eq. (6).
+    sigma2 : float
+        σ² > 0 of eq. (5).
+    grid_spacing, grid_margin : float
+        The Fisher–Rao quadrature grid, as in :func:`shapelib.path_length`.
+    device : {None, "cpu", "gpu"}
+        JAX device (module docstring).
+
     Returns
     -------
     length, energy : ndarray (B,)
+        Each path's length and discrete path energy, equal to the CPU code's to rounding.
+
+    See Also
+    --------
+    shapelib.solver.geodesic.path_length : One path's length on the CPU.
+    shapelib.solver.energy.path_energy : One path's energy on the CPU.
+    batched_geodesics : Geodesics of many pairs.
+
+    Notes
+    -----
+    The length is that of the paper's infinitesimal element, eq. (8) of [1]_, along the path; the quadrature
+    runs in JAX [2]_.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] J. Bradbury, R. Frostig, P. Hawkins, M. J. Johnson, C. Leary, D. Maclaurin, G. Necula, A. Paszke,
+       J. VanderPlas, S. Wanderman-Milne and Q. Zhang, "JAX: composable transformations of Python+NumPy
+       programs", 2018, https://github.com/jax-ml/jax.
 
     Examples
     --------
@@ -434,6 +469,28 @@ def batched_geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 1
         As the CPU solver's, with ``n_iter`` counting L-BFGS iterations, ``log["hessian"] = None``,
         ``log["solver"] = "lbfgs"`` and ``log["device"]``; ``length`` is certified as on the CPU
         (the returned path's length by the CPU quadrature).
+
+    See Also
+    --------
+    shapelib.solver.geodesic.geodesics : The checked public entry for many pairs.
+    shapelib.solver.geodesic.geodesic : One pair.
+    batched_lengths : Certified lengths of many paths.
+
+    Notes
+    -----
+    Each pair's path minimises the discrete path energy of eq. (8) of [1]_; the minimiser is a limited-memory
+    BFGS [2]_ with a backtracking (Armijo) line search, written in JAX [3]_ so that the whole batch iterates
+    on the device.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] J. Nocedal and S. J. Wright, *Numerical Optimization*, 2nd ed., Springer, 2006.
+    .. [3] J. Bradbury, R. Frostig, P. Hawkins, M. J. Johnson, C. Leary, D. Maclaurin, G. Necula, A. Paszke,
+       J. VanderPlas, S. Wanderman-Milne and Q. Zhang, "JAX: composable transformations of Python+NumPy
+       programs", 2018, https://github.com/jax-ml/jax.
 
     Examples
     --------

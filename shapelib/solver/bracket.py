@@ -658,6 +658,27 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
     list of DistanceBracket
         In the order of the pairs; each certified as :func:`distance_bracket`'s.
 
+    See Also
+    --------
+    distance_bracket : One pair, with the same options.
+    shapelib.solver.geodesic.geodesics : Geodesics of many pairs at one resolution.
+
+    Notes
+    -----
+    Each bracket encloses the geodesic distance of [1]_ between ``us[i]`` and ``vs[i]``, as
+    :func:`distance_bracket`'s; with ``backend="jax"`` the paths of every level are minimised together by
+    L-BFGS [2]_ in JAX [3]_.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] J. Nocedal and S. J. Wright, *Numerical Optimization*, 2nd ed., Springer, 2006.
+    .. [3] J. Bradbury, R. Frostig, P. Hawkins, M. J. Johnson, C. Leary, D. Maclaurin, G. Necula, A. Paszke,
+       J. VanderPlas, S. Wanderman-Milne and Q. Zhang, "JAX: composable transformations of Python+NumPy
+       programs", 2018, https://github.com/jax-ml/jax.
+
     Examples
     --------
     >>> import numpy as np

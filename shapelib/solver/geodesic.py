@@ -733,6 +733,27 @@ def geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: 
     list of GeodesicResult
         In the order of the pairs, each checked and certified as :func:`geodesic`'s.
 
+    See Also
+    --------
+    geodesic : One pair, with the same options.
+    shapelib.solver.batched.batched_geodesics : The batched JAX minimisation behind ``backend="jax"``.
+    shapelib.solver.bracket.distance_brackets : Certified distance brackets of many pairs.
+
+    Notes
+    -----
+    Each result is the minimiser of the discretised path energy of eq. (8) of [1]_ between ``us[i]`` and
+    ``vs[i]``; with ``backend="jax"`` the pairs are minimised together by L-BFGS [2]_ in JAX [3]_.
+
+    References
+    ----------
+    .. [1] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
+    .. [2] J. Nocedal and S. J. Wright, *Numerical Optimization*, 2nd ed., Springer, 2006.
+    .. [3] J. Bradbury, R. Frostig, P. Hawkins, M. J. Johnson, C. Leary, D. Maclaurin, G. Necula, A. Paszke,
+       J. VanderPlas, S. Wanderman-Milne and Q. Zhang, "JAX: composable transformations of Python+NumPy
+       programs", 2018, https://github.com/jax-ml/jax.
+
     Examples
     --------
     >>> import numpy as np

@@ -32,6 +32,31 @@ class AllometryResult:
         Size-corrected shapes: ``mean + residual`` of each shape (the shape it would have at the
         mean log size, under the linear model).
     n_permutations : int
+
+    See Also
+    --------
+    allometry : What returns it.
+    shapelib.statistics.linear_model.ShapeLinearModel : The general linear model's result.
+
+    Notes
+    -----
+    ``p_value`` comes from the residual randomisation of [1]_ (with one term, a permutation of whole rows).
+
+    References
+    ----------
+    .. [1] M. L. Collyer, D. J. Sekora and D. C. Adams, "A method for analysis of phenotypic change for phenotypes
+       described by high-dimensional data", *Heredity* 115, 357–365, 2015.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.statistics.allometry import allometry
+    >>> rng = np.random.default_rng(0)
+    >>> base = np.array([[0, 0], [2, 0], [2, 1], [0, 1.0]])
+    >>> shapes = np.stack([s * base + rng.normal(scale=0.01, size=(4, 2)) for s in (1.0, 1.5, 2.0, 2.5, 3.0)])
+    >>> res = allometry(shapes, n_permutations=19)
+    >>> res.slope.shape, res.corrected.shape, res.n_permutations
+    ((4, 2), (5, 4, 2), 19)
     """
 
     centroid_size: np.ndarray
@@ -69,6 +94,23 @@ def allometry(shapes, *, n_permutations: int = 999, seed: int | None = 0) -> All
     Returns
     -------
     AllometryResult
+
+    See Also
+    --------
+    shapelib.statistics.linear_model.shape_lm : The linear model it fits.
+    shapelib.geometry.procrustes.centroid_size : The size.
+    shapelib.statistics.linear_model.procrustes_coordinates : The response.
+
+    Notes
+    -----
+    Shape is the Procrustes shape of [1]_ and size the centroid size; the test is the one-term residual
+    randomisation of [2]_.
+
+    References
+    ----------
+    .. [1] I. L. Dryden and K. V. Mardia, *Statistical Shape Analysis*, Wiley, 1998.
+    .. [2] M. L. Collyer, D. J. Sekora and D. C. Adams, "A method for analysis of phenotypic change for phenotypes
+       described by high-dimensional data", *Heredity* 115, 357–365, 2015.
 
     Examples
     --------

@@ -63,6 +63,33 @@ class ShapeLinearModel:
         response coordinate.
     fitted, residuals : ndarray (N, p)
         Of the full model, in the response's coordinates.
+
+    See Also
+    --------
+    shape_lm : The fit and its tests.
+    shapelib.statistics.allometry.AllometryResult : The one-covariate case of allometry.
+
+    Notes
+    -----
+    The p-values are those of residual randomisation (RRPP) [1]_; with a single term, PERMANOVA's [2]_.
+
+    References
+    ----------
+    .. [1] M. L. Collyer, D. J. Sekora and D. C. Adams, "A method for analysis of phenotypic change for phenotypes
+       described by high-dimensional data", *Heredity* 115, 357–365, 2015.
+    .. [2] M. J. Anderson, "A new method for non-parametric multivariate analysis of variance", *Austral
+       Ecology* 26, 32–46, 2001.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> from shapelib.statistics.linear_model import shape_lm
+    >>> rng = np.random.default_rng(1)
+    >>> base = np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])
+    >>> shapes = base + rng.normal(scale=0.02, size=(12, 4, 2))
+    >>> fit = shape_lm("~ size", pd.DataFrame({"size": rng.uniform(1, 2, 12)}), shapes, n_permutations=19)
+    >>> fit.table.index.tolist(), fit.null["size"].shape, fit.fitted.shape
+    (['size', 'Residual', 'Total'], (19,), (12, 8))
     """
 
     table: pd.DataFrame
@@ -87,6 +114,29 @@ class ShapeLinearModel:
 def procrustes_coordinates(shapes) -> np.ndarray:
     """Shapes (N, K, d) as rows of aligned Procrustes coordinates (N, K·d): generalized Procrustes
     alignment at unit centroid size, as geomorph's ``gpagen`` then ``two.d.array``.
+
+    These are the Procrustes tangent coordinates of [1]_, aligned by generalized Procrustes
+    analysis [2]_: the response of the linear models of :func:`shape_lm`.
+
+    Parameters
+    ----------
+    shapes : array_like, shape (N, K, d)
+        Landmark configurations, N ≥ 2.
+
+    Returns
+    -------
+    ndarray, shape (N, K·d)
+        One row per shape: its aligned coordinates, landmark by landmark (x₁, y₁, x₂, y₂, …).
+
+    See Also
+    --------
+    shape_lm : Linear models on these coordinates.
+    shapelib.geometry.procrustes.generalized_procrustes : The alignment.
+
+    References
+    ----------
+    .. [1] I. L. Dryden and K. V. Mardia, *Statistical Shape Analysis*, Wiley, 1998.
+    .. [2] J. C. Gower, "Generalized Procrustes analysis", *Psychometrika* 40(1), 33–51, 1975.
 
     Examples
     --------
@@ -210,7 +260,26 @@ def shape_lm(formula: str, data, shapes=None, *, gram=None, ss_type: str = "I", 
     Notes
     -----
     ``SS_j = ‖H_{F_j} Y‖² − ‖H_{R_j} Y‖²``, ``F_j = (SS_j / df_j) / (RSS / (N − rank X))``; the
-    permuted data of term ``j`` are ``H_{R_j} Y + P (I − H_{R_j}) Y`` (module docstring).
+    permuted data of term ``j`` are ``H_{R_j} Y + P (I − H_{R_j}) Y`` (module docstring). This is
+    the residual randomisation in a permutation procedure (RRPP) of [1]_; with one term it is
+    PERMANOVA's test [2]_. The response may be the tangent coordinates of the metrics of [3]_
+    (give their Gram matrix).
+
+    See Also
+    --------
+    procrustes_coordinates : The default response.
+    ShapeLinearModel : The result.
+    shapelib.statistics.allometry.allometry : Shape on log centroid size.
+
+    References
+    ----------
+    .. [1] M. L. Collyer, D. J. Sekora and D. C. Adams, "A method for analysis of phenotypic change for phenotypes
+       described by high-dimensional data", *Heredity* 115, 357–365, 2015.
+    .. [2] M. J. Anderson, "A new method for non-parametric multivariate analysis of variance", *Austral
+       Ecology* 26, 32–46, 2001.
+    .. [3] A. M. Peter and A. Rangarajan, "Information geometry for landmark shape analysis: unifying shape
+       representation and deformation", *IEEE Transactions on Pattern Analysis and Machine Intelligence*
+       31(2), 337–350, 2009.
 
     Examples
     --------
