@@ -151,10 +151,24 @@ LONG_MODULES_ALLOWED = {"shapelib.geometry._kernels": "compiled kernels",
 MAX_MODULE_LINES = 700
 
 
+def _code_lines(source: str) -> int:
+    """Lines of a module less its docstrings (module, class and function): the API pages' formulas,
+    references and examples live in the docstrings by design and do not make a room cramped."""
+    tree = ast.parse(source)
+    doc = 0
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and body and \
+                isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) and \
+                isinstance(body[0].value.value, str):
+            doc += body[0].end_lineno - body[0].lineno + 1
+    return len(source.splitlines()) - doc
+
+
 def test_every_module_is_a_small_room():
-    """No module over ~700 lines: a module with several jobs is a package of small private ones
-    (as :mod:`shapelib.pairwise` is)."""
-    long = {m: len(p.read_text().splitlines()) for m, p in MODULES.items()}
+    """No module over ~700 lines of code (docstrings apart): a module with several jobs is a package
+    of small private ones (as :mod:`shapelib.pairwise` is)."""
+    long = {m: _code_lines(p.read_text()) for m, p in MODULES.items()}
     over = {m: n for m, n in long.items() if n > MAX_MODULE_LINES and m not in LONG_MODULES_ALLOWED}
     assert not over, over
     assert len(MODULES["shapelib.pairwise"].read_text().splitlines()) < 200  # the package's door, not its rooms

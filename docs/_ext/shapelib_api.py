@@ -216,6 +216,11 @@ AREAS = (
          shapelib.datasets.load_fish2d
          shapelib.datasets.load_beijing
          shapelib.datasets.load_tps_rpm
+         shapelib.datasets.load_tps_rpm_case
+         shapelib.datasets.TPS_RPM_LEVELS
+         shapelib.datasets.load_mpeg7
+         shapelib.datasets.mpeg7_classes
+         shapelib.datasets.MPEG7
          shapelib.datasets.load_cpd_fish
          shapelib.datasets.load_gmmreg_fish
          shapelib.datasets.mpeg7_names
