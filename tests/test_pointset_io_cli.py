@@ -76,3 +76,29 @@ def test_shapelib_register_errors_are_one_line_with_a_non_zero_exit(tmp_path, ca
     assert "-o " in (err := capsys.readouterr().err) and "expected a file ending in .csv or .npy" in err
     assert main(["register", str(src), str(src), "-o", str(tmp_path / "m.csv"), "--w", "often"]) == 1
     assert "--w must be a number in [0, 1) or 'auto'" in capsys.readouterr().err
+
+
+def test_distances_of_point_sets_modulo_similarity_equal_the_library(tmp_path, capsys):
+    """`shapelib distances FILE --modulo similarity`: sets of different sizes, one a rotated, scaled,
+    moved and mirrored copy of another, give the library's matrix, with that pair at ~0."""
+    a = outline(40)
+    b = 2.5 * outline(40, angle=1.1)[::-1] * [1, -1] + [3.0, -1.0]  # similar to a (mirrored), points reordered
+    c = np.column_stack([np.cos(np.linspace(0, 2 * np.pi, 31, endpoint=False)),
+                         0.3 * np.sin(np.linspace(0, 2 * np.pi, 31, endpoint=False))])
+    f = tmp_path / "sets.npz"
+    np.savez(f, a=a, b=b, c=c)
+    out = tmp_path / "D.csv"
+    assert main(["distances", str(f), "--metric", "alpha_bound", "--modulo", "similarity", "--sigma2", "0.01",
+                 "-o", str(out), "--no-progress"]) == 0
+    import pandas as pd
+
+    d = pd.read_csv(out, index_col=0)
+    assert list(d.index) == ["a", "b", "c"]
+    want = sl.pairwise_distances([a, b, c], metric="alpha_bound", modulo="similarity", sigma2=0.01, progress=False)
+    np.testing.assert_allclose(d.to_numpy(), want, rtol=1e-12, atol=1e-15)
+    assert d.loc["a", "b"] < 1e-3 * d.loc["a", "c"]
+    capsys.readouterr()
+    assert main(["distances", str(f), "--metric", "alpha", "--modulo", "similarity", "--sigma2", "0.01", "-o",
+                 str(tmp_path / "x.csv")]) != 0
+    err = capsys.readouterr().err
+    assert "alpha_bound or fisher_rao_bound" in err and len(err.strip().splitlines()) == 1

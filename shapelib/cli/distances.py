@@ -10,21 +10,65 @@ from pathlib import Path
 import numpy as np
 
 from ._common import (EXIT_STOPPED, EXIT_UNCONVERGED, PROG, CLIError, _align_pose, _auto_sigma2, _file_options,
-                      _index_of, _metric_options, _metric_params, _notes_from, _output_path, _read, _write_frame)
+                      _index_of, _metric_options, _metric_params, _notes_from, _output_path, _parse_params, _read,
+                      _write_frame)
 
 EXAMPLES = {
     "distances": ("examples:\n  shapelib distances aligned.tps --metric procrustes -o procrustes.csv\n"
                   "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 \\\n"
                   "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
                   "  shapelib distances aligned.tps --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
-                  "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
+                  "      --scheduler tcp://127.0.0.1:8786 -o fr.csv\n"
+                  "  shapelib distances outlines.npz --metric fisher_rao_bound --modulo similarity --sigma2 0.005 \\\n"
+                  "      -o fr.csv                                      (point sets of any sizes, no landmarks)"),
     "geodesic": ("example:\n  shapelib geodesic aligned.tps --from fish-1 --to Heart-1 \\\n"
                  "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --links contour --animate path.gif"),
 }
 
 
+def _point_set_distances(args) -> int:
+    """``shapelib distances FILE --modulo similarity``: point sets of any sizes, no landmarks, compared
+    by their mixture densities modulo translation, scale, rotation and reflection."""
+    import pandas as pd
+
+    from ..pairwise import pairwise_distances
+    from ..pointset_io import read_point_sets
+
+    out = _output_path(args.output, suffixes=(".csv",), option="-o")
+    if args.metric not in ("alpha_bound", "fisher_rao_bound"):
+        raise CLIError(f"--modulo {args.modulo}: point sets are compared by --metric alpha_bound or fisher_rao_bound "
+                       f"(the density distances); got {args.metric}")
+    if args.sigma2 is None or args.sigma2 == "auto":
+        raise CLIError(f"--modulo {args.modulo}: give --sigma2 as a number, in units of each set's RMS radius "
+                       "squared (e.g. 0.01)")
+    for flag, value in (("--rtol", args.rtol), ("--pairs", args.pairs), ("--max-blocks", args.max_blocks)):
+        if value is not None:
+            raise CLIError(f"{flag} does not apply to point sets compared with --modulo")
+    try:
+        sets, ids = read_point_sets(args.file)
+    except ValueError as exc:  # InputError: names the file and the set or point
+        raise CLIError(str(exc)) from None
+    if len(set(ids)) != len(ids):
+        raise CLIError(f"{args.file}: a point-set id occurs more than once; the matrix needs unique ids")
+    params = _parse_params(args.param)
+    try:
+        d = pairwise_distances(sets, metric=args.metric, modulo=args.modulo, sigma2=float(args.sigma2),
+                               n_jobs=args.jobs, scheduler=args.scheduler, store=args.store,
+                               block_size=args.block_size, progress=not args.no_progress, **params)
+    except ValueError as exc:
+        raise CLIError(f"{args.file}: {exc}") from None
+    _write_frame(pd.DataFrame(d, index=pd.Index(ids, name="id"), columns=ids), out,
+                 float_format=lambda v: repr(float(v)))
+    print(f"{args.metric} modulo {args.modulo}: {len(ids)} x {len(ids)} distance matrix of point sets -> {out}"
+          + (f" (store {args.store})" if args.store else ""))
+    return 0
+
+
 def cmd_distances(args) -> int:
     import pandas as pd
+
+    if args.modulo is not None:
+        return _point_set_distances(args)
 
     from ..pairwise import pairwise_distances
     from ..pairwise import PairError
@@ -298,6 +342,10 @@ def register(add) -> None:
     _metric_options(p, metrics=METRICS)
     p.add_argument("--rtol", type=float, metavar="R",
                    help="alpha/fisher_rao: certified bracket, stop when upper/lower - 1 <= R")
+    p.add_argument("--modulo", choices=("similarity",),
+                   help="FILE holds point sets of any sizes, without landmarks (read as by shapelib register): "
+                        "alpha_bound or fisher_rao_bound minimised over translation, scale, rotation and "
+                        "reflection; --sigma2 in units of each set's RMS radius squared")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--jobs", type=int, metavar="N", help="worker processes on this machine (default: chosen "
                        "from the measured cost of one pair)")
