@@ -3,7 +3,7 @@
 Bull's-eye score (MPEG-7 CE-Shape-1 protocol)
     Every shape queries the whole collection; its hits are the shapes of its own class among its
     ``2·c`` nearest (``c`` the class size: 20 of the 40 nearest on MPEG-7), the query itself
-    included. The score is the total number of hits over the largest possible total,
+    included. The score is the total number of hits over the largest possible total, ::
 
         bull's-eye = Σ_q |{j ∈ nearest_{2c}(q) : label_j = label_q}| / Σ_q c_q ,
 
@@ -14,7 +14,7 @@ Procrustes on resampled outlines (in-house baseline)
     Two closed outlines of ``n`` points each (resampled by arc length,
     :func:`shapelib.pointsets.outline.resample_closed`) are compared by the full Procrustes
     fit over similarity transforms *and* over the cyclic start point and direction of the
-    second: as complex vectors ``z, w ∈ Cⁿ`` centred with unit norm,
+    second: as complex vectors ``z, w ∈ Cⁿ`` centred with unit norm, ::
 
         ρ(z, w) = arccos max_{s, w' ∈ {w, w̄, reversed}} |Σ_a z_a conj(w'_{a+s})|
 

@@ -7,7 +7,7 @@ Landmark scatter (``scatter_sigma2``; the rule :func:`shapelib.estimate_sigma2` 
     The generative reading of eq. (5): landmark ``a`` of shape ``i`` is a noisy observation of
     its mixture component, ``x_ia = μ_a + ε_ia``, ``ε ~ N(0, σ² I_d)`` independent. The maximum
     likelihood estimate of σ² is the mean squared deviation of the landmarks from the mean shape
-    per coordinate; with the unbiased denominator, ::
+    per coordinate; with the unbiased denominator,
 
     .. math::
 

@@ -1,7 +1,7 @@
 """Outlines of binary silhouettes as point sets: traced with scikit-image, resampled by arc length.
 
 The boundary of a silhouette is the 0.5 iso-line of its 0/1 image (marching squares,
-:func:`skimage.measure.find_contours`) on the image padded by one background pixel, so every
+``skimage.measure.find_contours``) on the image padded by one background pixel, so every
 boundary is a closed polygon, including those of parts touching the image border.
 
 Parts and holes. A silhouette may have several connected parts and holes. The traced outline
@@ -186,7 +186,7 @@ def trace_outline(image, *, n_points: int) -> np.ndarray:
     """The longest outer boundary of a binary silhouette, resampled to ``n_points`` by arc length.
 
     The boundary is the 0.5 iso-line of the (padded) 0/1 image by marching squares
-    (:func:`skimage.measure.find_contours`); of the silhouette's outer boundaries the longest
+    (``skimage.measure.find_contours``); of the silhouette's outer boundaries the longest
     is kept, holes and other parts are dropped (:func:`outline_components`,
     :func:`outline_topology`). It is then sampled at ``n_points`` equal arc-length steps
     (:func:`resample_closed`), counter-clockwise, in ``(x, y)`` pixel coordinates with ``y`` up.

@@ -173,7 +173,7 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
 
     See Also
     --------
-    shapelib.frechet_mean, shapelib.permanova
+    shapelib.frechet_mean, shapelib.statistics.permanova
 
     Examples
     --------
