@@ -265,8 +265,8 @@ AREAS = (
          """
          shapelib.as_point_set
          shapelib.as_point_sets
-         shapelib.density_inner              (5)
-         shapelib.l2_distance_sq             (5)
+         shapelib.density_inner
+         shapelib.l2_distance_sq
          shapelib.hellinger_sq
          shapelib.bhattacharyya_affinity
          shapelib.density_distance
