@@ -130,6 +130,23 @@ def test_the_docstring_examples_run(module_name, metric_registry):
     assert run_doctests(module_name) >= len(public_objects(module_name))
 
 
+def _other_modules():
+    """Every module of the package whose docstring examples the tests above do not run (the engine,
+    IO, the statistics, the command line): each example runs once, here."""
+    import pkgutil
+
+    import shapelib
+
+    done = set(MATH_MODULES) | {"shapelib.datasets", "shapelib.plotting"}
+    names = [m.name for m in pkgutil.walk_packages(shapelib.__path__, "shapelib.")]
+    return [n for n in sorted(names) if n not in done and not n.endswith("__main__") and ".study" not in n]
+
+
+@pytest.mark.parametrize("module_name", _other_modules())
+def test_the_other_modules_examples_run(module_name, metric_registry):
+    run_doctests(module_name)
+
+
 @requires_data
 def test_the_dataset_examples_run():
     run_doctests("shapelib.datasets")
