@@ -18,9 +18,7 @@ EXAMPLES = {
                   "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 \\\n"
                   "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
                   "  shapelib distances aligned.tps --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
-                  "      --scheduler tcp://127.0.0.1:8786 -o fr.csv\n"
-                  "  shapelib distances outlines.npz --metric fisher_rao_bound --modulo similarity --sigma2 0.005 \\\n"
-                  "      -o fr.csv                                      (point sets of any sizes, no landmarks)"),
+                  "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
     "geodesic": ("example:\n  shapelib geodesic aligned.tps --from fish-1 --to Heart-1 \\\n"
                  "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --links contour --animate path.gif"),
 }
