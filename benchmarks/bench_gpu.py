@@ -84,14 +84,13 @@ def _adhd(args):
     labels = pd.DataFrame({"diagnosis": np.where(clinical["phenotype"].to_numpy() == 0, "TD", "ADHD"),
                            "sex": clinical["gender"].astype(int).astype(str).to_numpy()})
     cells = [(labels.diagnosis.to_numpy() == d) & (labels.sex.to_numpy() == s) for d in ("TD", "ADHD") for s in ("0", "1")]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        shapes = shapelib.to_centroid_size(raw)
     sel = stratified_sample(np.arange(len(raw)), 180, cells, np.random.default_rng(0))
-    x = shapes[sel]
+    x = raw[sel]
     if args.cpu_check:
         x = x[:3, ::10]  # 3 shapes of 5 landmarks
-    return x
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return shapelib.to_centroid_size(x)  # GPA over the analysed shapes, as the study does
 
 
 def main(argv=None) -> int:
@@ -135,6 +134,15 @@ def main(argv=None) -> int:
     report = {"mode": "cpu-check" if args.cpu_check else "gpu", "device": info, "cpus": os.cpu_count(),
               "sigma2": sigma2, "n_steps": n_steps, "batch": args.batch, "rows": {}}
     rows = report["rows"]
+    record_to = args.json if args.json is not None else (None if args.cpu_check else "default")
+    argv_used = sys.argv[1:] if argv is None else list(argv)
+
+    def save(final=False):
+        # after every row, so that a run stopped at its time limit keeps the rows it measured
+        report["complete"] = final
+        if record_to is not None:
+            return record("bench_gpu", report, argv=argv_used, path=None if record_to == "default" else record_to)
+
     warnings.simplefilter("ignore", shapelib.GeodesicWarning)
     warnings.simplefilter("ignore", shapelib.ScaleWarning)
 
@@ -171,6 +179,8 @@ def main(argv=None) -> int:
           f"{sb / len(pairs) * 1e3:.3g} ms per geodesic ({g['speedup_batch']:.3g}x); "
           f"lengths agree to {g['max_rel_length_difference']:.1e}")
 
+    save()
+
     # --- certified brackets ------------------------------------------------------------------------
     # --cpu-check: one level at the geodesics' n_steps and grid, so the programs compiled above serve
     # (each n_steps, batch size and grid size is another compiled program)
@@ -191,13 +201,34 @@ def main(argv=None) -> int:
     print(f"FR brackets (rtol 1e-3), {b['pairs']} CC pairs: {platform} {b['pairs_per_second']:.3g} pairs/s, "
           f"certified {b['certified_rate']:.1%}; CPU {b['cpu_pairs_per_second']:.3g} pairs/s on {b['cpu_pairs']}")
 
-    # --- the 180-shape ADHD-200 matrix, as much as fits the budget --------------------------------
+    save()
+
+    # --- a batch of --batch Fisher–Rao geodesics of ADHD-200 pairs (the corpus callosum has only 21) --
     xa = _adhd(args)
     s2a = float(f"{(2.6 * shapelib.landmark_spacing(xa)) ** 2:.2g}") if args.cpu_check else 1.2
     all_pairs = list(itertools.combinations(range(len(xa)), 2))
+    ii = np.array(all_pairs)
+    gp = ii[: args.batch]
+    akw = dict(metric="fisher_rao", sigma2=s2a, n_steps=n_steps)
+    cpu_a = [_timed(lambda: shapelib.geodesic(xa[i], xa[j], **akw)) for i, j in gp[: min(2, args.cpu_pairs)]]
+    _, a_compile = _timed(lambda: batched_geodesics(xa[gp[:, 0]], xa[gp[:, 1]], **akw, device=device))
+    many_a, sa = _timed(lambda: batched_geodesics(xa[gp[:, 0]], xa[gp[:, 1]], **akw, device=device))
+    cpu_as = float(np.median([t for _, t in cpu_a]))
+    rows["geodesic_batch"] = {
+        "data": "ADHD-200", "K": int(xa.shape[1]), "sigma2": s2a, "pairs": len(gp), "seconds": sa,
+        "seconds_per_geodesic": sa / len(gp), "converged": sum(r.converged for r in many_a),
+        "iterations_max": max(r.n_iter for r in many_a), "cpu_pairs": len(cpu_a), "cpu_seconds_per_geodesic": cpu_as,
+        "speedup": cpu_as / (sa / len(gp)), "compile_seconds": a_compile - sa,
+        "max_rel_length_difference": max(abs(many_a[p].length / r.length - 1) for p, (r, _) in enumerate(cpu_a))}
+    ga = rows["geodesic_batch"]
+    print(f"FR geodesics, ADHD-200 K = {ga['K']}, sigma2 = {s2a}: batch {len(gp)} {sa:.3g} s = "
+          f"{ga['seconds_per_geodesic'] * 1e3:.3g} ms per geodesic ({ga['converged']} converged); CPU {cpu_as:.3g} s "
+          f"({ga['speedup']:.3g}x); lengths agree to {ga['max_rel_length_difference']:.1e}")
+    save()
+
+    # --- the 180-shape ADHD-200 matrix, as much as fits the budget --------------------------------
     mkw = dict(metric="fisher_rao", sigma2=s2a, rtol=1e-3, **small)
     chunk = len(all_pairs) if args.cpu_check else args.batch
-    ii = np.array(all_pairs)
     _, m_warm = _timed(lambda: shapelib.distance_brackets(xa[ii[:chunk, 0]], xa[ii[:chunk, 1]], **mkw, device=device))
     done, certified, t0 = 0, 0, time.perf_counter()
     while done < len(all_pairs) and time.perf_counter() - t0 < args.budget:
@@ -216,10 +247,8 @@ def main(argv=None) -> int:
           f"pairs in {ms:.3g} s ({rate:.3g} pairs/s, certified {m['certified_rate']:.1%}); "
           f"extrapolated: 180 shapes {m['extrapolated_hours_180']:.3g} h, 647 shapes {m['extrapolated_hours_647']:.3g} h")
 
-    path = args.json if args.json is not None else (None if args.cpu_check else "default")
-    if path is not None:
-        argv_used = sys.argv[1:] if argv is None else list(argv)
-        written = record("bench_gpu", report, argv=[a for a in argv_used], path=None if path == "default" else path)
+    written = save(final=True)
+    if written is not None:
         print(f"record: {written}")
     return 0
 

@@ -216,6 +216,10 @@ def test_bench_gpu_cpu_check_writes_a_record(tmp_path):
         assert row["lower"] <= row["length_jax"] and row["lower"] <= row["length_cpu"]
         assert row["length_jax"] == pytest.approx(row["length_cpu"], rel=1e-3)
     assert 0.0 <= rows["brackets"]["certified_rate"] <= 1.0
+    # the batched geodesics of ADHD-200 pairs agree with the CPU path; the record was closed as complete
+    assert rows["geodesic_batch"]["max_rel_length_difference"] < 1e-3
+    assert rows["geodesic_batch"]["converged"] == rows["geodesic_batch"]["pairs"]
+    assert res["complete"] is True
 
 
 @pytest.fixture(scope="module")

@@ -121,6 +121,8 @@ def provenance(data: dict) -> str:
     load = m.get("loadavg")
     parts = [f"Measured {_date(m.get('date'))} on {m.get('cpus', '?')} CPUs ({cpu})",
              f"Python {m.get('python', '?')}"]
+    if m.get("gpu"):
+        parts.append(f"GPU {m['gpu']}")
     if m.get("shapelib"):
         parts.append(f"shapelib {m['shapelib']}")
     if load:
@@ -322,6 +324,17 @@ def _gpu(r: dict) -> list[Table]:
                   f"{_rate(g['speedup_batch'])}×"]],
                 f"Lengths of the pairs solved on both paths agree to {_sci(g.get('max_rel_length_difference'))} "
                 "(relative). Compilation (first call) is not charged.", key="geodesic")
+    tables = [geo]
+    ga = r["rows"].get("geodesic_batch")
+    if ga:
+        tables.append(Table(
+            f"Fisher–Rao geodesics, {ga['data']} (K = {ga['K']}, σ² = {ga['sigma2']}, n_steps = {r.get('n_steps')})",
+            ["path", "seconds per geodesic", "speed-up"],
+            [[f"CPU (compiled kernels), {ga['cpu_pairs']} pairs", _seconds(ga["cpu_seconds_per_geodesic"]), "1"],
+             [f"{where}, batch of {ga['pairs']}", _seconds(ga["seconds_per_geodesic"]), f"{_rate(ga['speedup'])}×"]],
+            f"{ga['converged']} of {ga['pairs']} converged; the batch runs until its slowest pair stops "
+            f"({ga['iterations_max']} L-BFGS iterations). Lengths agree with the CPU path to "
+            f"{_sci(ga.get('max_rel_length_difference'))} (relative).", key="geodesic_batch"))
     rates = Table("Certified Fisher–Rao brackets (rtol 1e-3) and the ADHD-200 matrix",
                   ["row", "pairs/s", "certified", "note"],
                   [[f"brackets, {b['pairs']} corpus callosum pairs, {where}", _rate(b["pairs_per_second"]),
@@ -332,8 +345,9 @@ def _gpu(r: dict) -> list[Table]:
                     f"{m['certified_rate']:.0%}",
                     f"{m['pairs_done']:,} of {m['pairs_total']:,} pairs; extrapolated: {_num(m['extrapolated_hours_180'])} h "
                     f"for the {m['shapes']}, {_num(m['extrapolated_hours_647'])} h for all 647 shapes"]],
+                  m.get("run", {}).get("note", "") and f"The matrix row: {m['run']['note']} ({m['run']['date']}).",
                   key="rates")
-    return [geo, rates]
+    return tables + [rates]
 
 
 def _registration(r: dict) -> list[Table]:
