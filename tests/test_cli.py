@@ -1,6 +1,11 @@
-"""The ``shapelib`` command line, run as users run it (``python -m shapelib`` in a subprocess) on
-real .tps and .csv files, broken ones included: results checked against the library, errors are
-one line on stderr naming the file/specimen/landmark/parameter, never a traceback."""
+"""The ``shapelib`` command line on real .tps and .csv files, broken ones included: results checked
+against the library, errors are one line on stderr naming the file/specimen/landmark/parameter,
+never a traceback.
+
+Commands run through :func:`shapelib.cli.main`, the function the console script and ``python -m
+shapelib`` call, with its exit status, stdout and stderr captured as a process's would be; where
+the process itself is under test (the console entry, exit statuses through ``sys.exit``, Ctrl-C,
+child processes) they run in a subprocess (``run(..., process=True)``)."""
 
 import os
 import re
@@ -16,14 +21,47 @@ from shapelib.geometry.procrustes import centroid_size, procrustes_distance
 from tests.conftest import ROOT
 
 
-def run(*args, cwd=None, check=None):
-    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    env.pop("SHAPELIB_DEBUG", None)
-    proc = subprocess.run([sys.executable, "-m", "shapelib", *map(str, args)], capture_output=True, text=True,
-                          env=env, cwd=cwd, timeout=300)
+def run(*args, cwd=None, check=None, process=False):
+    """``shapelib ARGS``: its exit status, stdout and stderr (a ``CompletedProcess``).
+
+    In this process through :func:`shapelib.cli.main` (no interpreter start and no kernel loading per
+    call), or in a subprocess, ``python -m shapelib``, with ``process=True``."""
+    argv = [str(a) for a in args]
+    if process:
+        env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+        env.pop("SHAPELIB_DEBUG", None)
+        proc = subprocess.run([sys.executable, "-m", "shapelib", *argv], capture_output=True, text=True,
+                              env=env, cwd=cwd, timeout=300)
+    else:
+        proc = _run_in_process(argv, cwd)
     if check is not None:
         assert proc.returncode == check, (proc.returncode, proc.stdout, proc.stderr)
     return proc
+
+
+def _run_in_process(argv, cwd=None):
+    import contextlib
+    import io as _io
+
+    import matplotlib.pyplot as plt
+
+    from shapelib.cli import main
+
+    out, err = _io.StringIO(), _io.StringIO()
+    debug = os.environ.pop("SHAPELIB_DEBUG", None)
+    try:
+        with contextlib.chdir(cwd or os.getcwd()), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(argv)
+            except SystemExit as exc:  # argparse: --help (0) and usage errors (2)
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+                if not isinstance(exc.code, (int, type(None))):
+                    print(exc.code, file=sys.stderr)
+    finally:
+        if debug is not None:
+            os.environ["SHAPELIB_DEBUG"] = debug
+        plt.close("all")
+    return subprocess.CompletedProcess(["shapelib", *argv], int(code or 0), out.getvalue(), err.getvalue())
 
 
 def one_line_error(proc, *fragments):
@@ -228,12 +266,13 @@ def test_parse_assignment():
 
 
 def test_study_lists_notebooks_in_a_checkout_and_refuses_outside_one(tmp_path):
-    out = run("study", "--list", check=0).stdout.split()
+    # in subprocesses: `shapelib study` replaces its process with run_all.py (os.execv)
+    out = run("study", "--list", check=0, process=True).stdout.split()
     assert "table1_pairwise" in out and "fig01_gmm_representation" in out
     # every option goes through to run_all.py, which parses it: its help, its -p, its errors
-    helptext = run("study", "--help", check=0).stdout
+    helptext = run("study", "--help", check=0, process=True).stdout
     assert "--results-dir" in helptext and "-p NAME=VALUE" in helptext and "shapelib study" in helptext
-    proc = run("study", "--only", "fig01_gmm_representation", "-p", "bogus", check=None)
+    proc = run("study", "--only", "fig01_gmm_representation", "-p", "bogus", check=None, process=True)
     assert proc.returncode == 2 and "-p 'bogus': expected NAME=VALUE" in proc.stderr
     # an installed copy of the package without the repository around it
     import shutil
