@@ -295,6 +295,10 @@ def _kernel_options() -> dict:
     return {"config": config, "extra_arguments": ["--matplotlib=inline", "--IPKernelApp.log_level=CRITICAL"]}
 
 
+#: what nbclient says when a kernel exits before it answers (see execute_notebook)
+KERNEL_START_FAILURE = "Kernel died before replying to kernel_info"
+
+
 def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: bool = False,
                      progress: bool | dict = False) -> dict:
     """Run ``notebooks/<name>.py`` with ``params``; outputs (incl. the executed notebook) go to ``output_dir``.
@@ -327,11 +331,20 @@ def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: b
     nbformat.write(nb, src)
     out = output_dir / f"{name}.ipynb"
     try:
-        pm.execute_notebook(
-            str(src), str(out), parameters={**params, "output_dir": str(output_dir)},
-            kernel_name="python3", cwd=str(ROOT), progress_bar=progress, log_output=log_output,
-            **_kernel_options(),
-        )
+        for attempt in (1, 2):
+            try:
+                pm.execute_notebook(
+                    str(src), str(out), parameters={**params, "output_dir": str(output_dir)},
+                    kernel_name="python3", cwd=str(ROOT), progress_bar=progress, log_output=log_output,
+                    **_kernel_options(),
+                )
+                break
+            except RuntimeError as exc:
+                # the kernel died before running a cell: jupyter_client picks free ports and the kernel
+                # binds them a moment later, so on a busy machine another process can take one between
+                # ("Address already in use"); nothing has run, so a second start is safe
+                if attempt == 2 or KERNEL_START_FAILURE not in str(exc) or _STOPPING.is_set():
+                    raise
     except pm.PapermillExecutionError as exc:
         raise NotebookError(
             f"{name}: cell {exc.cell_index} (execution count {exc.exec_count}) raised {exc.ename}: {exc.evalue}"

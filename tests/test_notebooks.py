@@ -10,9 +10,15 @@ from tests.conftest import ROOT, requires_data
 REFERENCE_KEYS = set(pd.read_csv(ROOT / "data" / "reference" / "table1.csv", comment="#")["key"])
 
 
+#: quick runs of 35–60 s each on 2 cores: in `make test-all` (and run in full by `make results`),
+#: so that the default suite stays within its five minutes
+SLOW_QUICK_RUNS = {"intrinsic_statistics", "table1_pairwise", "adhd200_population"}
+
+
 @requires_data
 @pytest.mark.notebooks
-@pytest.mark.parametrize("name", list(run_all.NOTEBOOKS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_QUICK_RUNS else n
+                                  for n in run_all.NOTEBOOKS])
 def test_notebook_runs_quick_and_records_expected_values(name, tmp_path):
     _, status, _, msg = run_all.run_one(name, quick=True, force=True, results_dir=tmp_path)
     assert status == "ok", msg

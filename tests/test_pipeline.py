@@ -217,6 +217,42 @@ def test_run_all_exit_code_and_report(toy, monkeypatch):
     assert "cell 2" in row and "RuntimeError: boom" in row  # cell 1 is papermill's injected parameters
 
 
+def test_a_kernel_that_dies_before_its_first_cell_is_started_once_more(toy, monkeypatch):
+    """The port race of a kernel start (another process binds a port between jupyter_client's pick and
+    the kernel's bind): the fault lands on the first start, the second start runs the notebook; a
+    kernel that dies on both starts is a failure that says so, and a cell's error is never retried."""
+    import papermill as pm
+
+    nbdir, results = toy
+    real, starts = pm.execute_notebook, []
+
+    def dies_first(*args, **kwargs):
+        starts.append(1)
+        if len(starts) == 1:
+            raise RuntimeError(run_all.KERNEL_START_FAILURE)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pm, "execute_notebook", dies_first)
+    assert run_all.run_one("toy", quick=False, force=True, results_dir=results)[1] == "ok"
+    assert len(starts) == 2 and values(results) == {"toy/value": 2.0}
+
+    def always_dies(*args, **kwargs):
+        starts.append(1)
+        raise RuntimeError(run_all.KERNEL_START_FAILURE)
+
+    starts.clear()
+    monkeypatch.setattr(pm, "execute_notebook", always_dies)
+    _, status, _, msg = run_all.run_one("toy", quick=False, force=True, results_dir=results)
+    assert (status, len(starts)) == ("FAILED", 2) and run_all.KERNEL_START_FAILURE in msg
+    assert values(results) == {"toy/value": 2.0}  # the previous results stay
+    starts.clear()
+    monkeypatch.setattr(pm, "execute_notebook", dies_first)
+    (nbdir / "toy.py").write_text(BROKEN)
+    starts.append(1)  # past the first start: the notebook's own error comes back, once
+    _, status, _, msg = run_all.run_one("toy", quick=False, force=True, results_dir=results)
+    assert (status, len(starts)) == ("FAILED", 2) and "RuntimeError: boom" in msg
+
+
 def _kill_tree(proc):
     """SIGKILL ``proc``'s process group and every descendant: the kernel runs in a session of its
     own, outside the group, and an orphaned kernel is not always reaped (a failed assertion here
