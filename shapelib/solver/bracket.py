@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import as_shape_pair, check_positive, check_positive_int, check_sigma2
-from .geodesic import check_entry, fisher_rao_lower_bound
+from .._validate import as_pair_batch, as_shape_pair, check_positive, check_positive_int, check_sigma2
+from .geodesic import _check_entries, check_entry, fisher_rao_lower_bound
 from .batched import batched_geodesics, check_backend
 from .minimise import minimise_path
 from .path_metric import METRICS, path_metric
@@ -682,10 +682,7 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
     """
     t0 = time.perf_counter()
     _check_metric(metric)
-    us = np.asarray(us, dtype=np.float64)
-    vs = np.asarray(vs, dtype=np.float64)
-    if us.ndim != 3 or us.shape != vs.shape:
-        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    us, vs = as_pair_batch(us, vs)
     backend, device = check_backend(backend, device)
     common = dict(metric=metric, sigma2=sigma2, rtol=rtol, n_steps=n_steps, max_n_steps=max_n_steps,
                   level_iter=level_iter, level_tol=level_tol, min_shrink=min_shrink, grid_spacing=grid_spacing,
@@ -693,8 +690,7 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
     if backend == "cpu":
         return [distance_bracket(u, v, warn=warn, hessian=hessian, **common) for u, v in zip(us, vs)]
     s2 = check_sigma2(sigma2)
-    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
-    ratios = [check_entry(u, v, s2, metric=metric, stacklevel=3) for u, v in pairs]
+    us, vs, ratios = _check_entries(us, vs, s2, metric=metric, stacklevel=3)
     rtol = check_positive(rtol, name="rtol")
     n = check_positive_int(n_steps, name="n_steps")
     max_n = check_positive_int(max_n_steps, name="max_n_steps")
@@ -709,7 +705,7 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
     model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter, "level_tol": level_tol,
                "min_shrink": float(min_shrink), "hessian": None, "backend": "jax", **model.settings()}
-    return _jax_brackets(np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), ratios, model=model,
+    return _jax_brackets(us, vs, ratios, model=model,
                          s2=s2, rtol=rtol, n=n, max_n=max_n, level_iter=level_iter, level_tol=level_tol,
                          min_shrink=float(min_shrink), options=options, device=device, batch_size=batch_size,
                          warn=warn, t0=t0)

@@ -80,7 +80,7 @@ import warnings
 
 import numpy as np
 
-from .._validate import as_shape_pair, check_dimension, check_positive, check_sigma2, set_was_checked
+from .._validate import as_pair_batch, as_shape_pair, check_dimension, check_positive, check_sigma2, set_was_checked
 from ..geometry.gmm import l2_distance
 from ..geometry.procrustes import check_pose
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
@@ -382,6 +382,20 @@ def check_entry(u, v, s2, *, metric, stacklevel, what=None):
     if metric == "fisher_rao":  # degenerate quadrature: an error before any work
         check_fisher_rao_scale(pair, sigma2=s2, metric=what or metric, ratio=ratio)
     return ratio
+
+
+def _check_entries(us, vs, s2, *, metric, stacklevel):
+    """:func:`check_entry` for each pair ``(us[i], vs[i])`` of a batch (each shape checked by
+    :func:`~shapelib._validate.as_shape_pair`, named ``us[i]``, ``vs[i]``).
+
+    Returns ``(us, vs, ratios)``: the checked shapes stacked again and each pair's σ / spacing;
+    ``stacklevel`` as in :func:`check_entry` (3: the caller of the entry point).
+    """
+    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
+    ratios = []
+    for u, v in pairs:  # a loop, not a comprehension: on Python < 3.12 that would add a frame to stacklevel
+        ratios.append(check_entry(u, v, s2, metric=metric, stacklevel=stacklevel + 1))
+    return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), ratios
 
 
 def _underflow(result, ratio):
@@ -765,18 +779,14 @@ def geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: 
     [True, True]
     """
     backend, device = check_backend(backend, device)
-    us = np.asarray(us, dtype=np.float64)
-    vs = np.asarray(vs, dtype=np.float64)
-    if us.ndim != 3 or us.shape != vs.shape:
-        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    us, vs = as_pair_batch(us, vs)
     common = dict(metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window,
                   grid_spacing=grid_spacing, grid_margin=grid_margin)
     if backend == "cpu":
         return [geodesic(u, v, hessian=hessian, warn=warn, **common) for u, v in zip(us, vs)]
     s2 = check_sigma2(sigma2)
-    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
-    ratios = [check_entry(u, v, s2, metric=metric, stacklevel=3) for u, v in pairs]
-    out = batched_geodesics(np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), device=device,
+    us, vs, ratios = _check_entries(us, vs, s2, metric=metric, stacklevel=3)
+    out = batched_geodesics(us, vs, device=device,
                             batch_size=batch_size, warn=False, **{**common, "sigma2": s2})
     for result, ratio in zip(out, ratios):
         reason = _underflow(result, ratio)
