@@ -344,6 +344,24 @@ def extrapolate_doublings(gaps):
     return g3 - d2 * d2 / (d1 - d2), float(np.log2(d1 / d2))
 
 
+def _check_levels(*, rtol, n_steps, max_n_steps, level_iter, level_tol, min_shrink, grid_spacing):
+    """The refinement options of :func:`distance_bracket` and :func:`distance_brackets`, checked:
+    ``(rtol, n_steps, max_n_steps, level_iter, level_tol, min_shrink, grid_spacing)`` with the
+    defaults filled in (``level_tol = rtol / 10``; the grid step from ``rtol``)."""
+    rtol = check_positive(rtol, name="rtol")
+    n = check_positive_int(n_steps, name="n_steps")
+    max_n = check_positive_int(max_n_steps, name="max_n_steps")
+    if max_n < n:
+        raise ValueError(f"max_n_steps must be >= n_steps; got max_n_steps={max_n_steps!r}, n_steps={n_steps!r}")
+    level_iter = check_positive_int(level_iter, name="level_iter")
+    level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
+    if not 0.0 <= float(min_shrink) < 1.0:
+        raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
+    if grid_spacing is None:
+        grid_spacing = BRACKET_SPACING if rtol >= BRACKET_SPACING_RTOL else DEFAULT_SPACING
+    return rtol, n, max_n, level_iter, level_tol, float(min_shrink), grid_spacing
+
+
 def _level_stop(levels, prev_gap, *, rtol, min_shrink, max_n):
     """Why the refinement stops after the last of ``levels``, or None to double ``n_steps``."""
     gap, n = levels[-1]["rel_gap"], levels[-1]["n_steps"]
@@ -495,17 +513,9 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
     ratio = check_entry(u, v, s2, metric=metric, stacklevel=3)
-    rtol = check_positive(rtol, name="rtol")
-    n = check_positive_int(n_steps, name="n_steps")
-    max_n = check_positive_int(max_n_steps, name="max_n_steps")
-    if max_n < n:
-        raise ValueError(f"max_n_steps must be >= n_steps; got max_n_steps={max_n_steps!r}, n_steps={n_steps!r}")
-    level_iter = check_positive_int(level_iter, name="level_iter")
-    level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
-    if not 0.0 <= float(min_shrink) < 1.0:
-        raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
-    if grid_spacing is None:
-        grid_spacing = BRACKET_SPACING if rtol >= BRACKET_SPACING_RTOL else DEFAULT_SPACING
+    rtol, n, max_n, level_iter, level_tol, min_shrink, grid_spacing = _check_levels(
+        rtol=rtol, n_steps=n_steps, max_n_steps=max_n_steps, level_iter=level_iter, level_tol=level_tol,
+        min_shrink=min_shrink, grid_spacing=grid_spacing)
     if hessian is None:
         hessian = DEFAULT_HESSIAN[metric]
     if hessian not in ("exact", "model"):
@@ -513,12 +523,12 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     backend, device = check_backend(backend, device)
     model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter,
-               "level_tol": level_tol, "min_shrink": float(min_shrink), "hessian": hessian, "sigma_ratio": ratio,
+               "level_tol": level_tol, "min_shrink": min_shrink, "hessian": hessian, "sigma_ratio": ratio,
                **model.settings()}
     if backend == "jax":
         options.update(hessian=None, backend="jax")
         return _jax_brackets(u[None], v[None], [ratio], model=model, s2=s2, rtol=rtol, n=n, max_n=max_n,
-                             level_iter=level_iter, level_tol=level_tol, min_shrink=float(min_shrink),
+                             level_iter=level_iter, level_tol=level_tol, min_shrink=min_shrink,
                              options=options, device=device, batch_size=None, warn=warn, t0=t0)[0]
 
     if np.array_equal(u, v):
@@ -691,21 +701,13 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
         return [distance_bracket(u, v, warn=warn, hessian=hessian, **common) for u, v in zip(us, vs)]
     s2 = check_sigma2(sigma2)
     us, vs, ratios = _check_entries(us, vs, s2, metric=metric, stacklevel=3)
-    rtol = check_positive(rtol, name="rtol")
-    n = check_positive_int(n_steps, name="n_steps")
-    max_n = check_positive_int(max_n_steps, name="max_n_steps")
-    if max_n < n:
-        raise ValueError(f"max_n_steps must be >= n_steps; got max_n_steps={max_n_steps!r}, n_steps={n_steps!r}")
-    level_iter = check_positive_int(level_iter, name="level_iter")
-    level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
-    if not 0.0 <= float(min_shrink) < 1.0:
-        raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
-    if grid_spacing is None:
-        grid_spacing = BRACKET_SPACING if rtol >= BRACKET_SPACING_RTOL else DEFAULT_SPACING
+    rtol, n, max_n, level_iter, level_tol, min_shrink, grid_spacing = _check_levels(
+        rtol=rtol, n_steps=n_steps, max_n_steps=max_n_steps, level_iter=level_iter, level_tol=level_tol,
+        min_shrink=min_shrink, grid_spacing=grid_spacing)
     model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter, "level_tol": level_tol,
-               "min_shrink": float(min_shrink), "hessian": None, "backend": "jax", **model.settings()}
+               "min_shrink": min_shrink, "hessian": None, "backend": "jax", **model.settings()}
     return _jax_brackets(us, vs, ratios, model=model,
                          s2=s2, rtol=rtol, n=n, max_n=max_n, level_iter=level_iter, level_tol=level_tol,
-                         min_shrink=float(min_shrink), options=options, device=device, batch_size=batch_size,
+                         min_shrink=min_shrink, options=options, device=device, batch_size=batch_size,
                          warn=warn, t0=t0)
