@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.procrustes import generalized_procrustes
+from ..geometry.procrustes import generalized_procrustes, optimal_rotation
 from .splines import _spline_system, tps_kernel
 
 __all__ = ["estimate_missing", "MissingEstimate", "tps_map"]
@@ -130,13 +130,8 @@ def _fit_onto(ref, target):
     returns a function applying it to any points."""
     mr, mt = ref.mean(axis=0), target.mean(axis=0)
     a, b = ref - mr, target - mt
-    u, sv, vt = np.linalg.svd(a.T @ b)
-    r = u @ vt
-    if np.linalg.det(r) < 0:
-        u[:, -1] *= -1
-        sv[-1] *= -1
-        r = u @ vt
-    scale = sv.sum() / np.sum(a ** 2)
+    r, trace = optimal_rotation(b, a)  # a @ r ≈ b, no reflection
+    scale = trace / np.sum(a ** 2)
     return lambda pts: (np.asarray(pts) - mr) @ r * scale + mt
 
 
