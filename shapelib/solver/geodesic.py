@@ -422,6 +422,17 @@ def _underflow(result, ratio):
                 f"is {ratio:.3g} landmark spacings, so the Gaussians of different landmarks do not interact")
 
 
+def _mark_underflow(result, ratio):
+    """Mark ``result`` not converged (``stopped_by`` "underflow", ``log["reason"]``) where
+    :func:`_underflow` says why; the reason, or None."""
+    reason = _underflow(result, ratio)
+    if reason is not None:
+        result.converged = False
+        result.log["stopped_by"] = StopReason.UNDERFLOW.value
+        result.log["reason"] = reason
+    return reason
+
+
 def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: float = 1e-6,
              max_iter: int = 500, window: int = 5, init=None, grid_spacing: float = DEFAULT_SPACING,
              grid_margin: float = DEFAULT_MARGIN, hessian: str = "exact", warn: bool = True,
@@ -549,15 +560,11 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
         model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
         result = minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
                                warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
-    reason = _underflow(result, ratio)
-    if reason is not None:
-        result.converged = False
-        result.log["stopped_by"] = StopReason.UNDERFLOW.value
-        result.log["reason"] = reason
-        if warn:
-            warnings.warn(f"{metric} geodesic not converged: {reason}. Bring the shapes to a scale that fits "
-                          f"sigma2 (shapelib.to_centroid_size) or choose a larger sigma2.",
-                          GeodesicWarning, stacklevel=2)
+    reason = _mark_underflow(result, ratio)
+    if reason is not None and warn:
+        warnings.warn(f"{metric} geodesic not converged: {reason}. Bring the shapes to a scale that fits "
+                      f"sigma2 (shapelib.to_centroid_size) or choose a larger sigma2.",
+                      GeodesicWarning, stacklevel=2)
     return result
 
 
@@ -786,14 +793,9 @@ def geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: 
         return [geodesic(u, v, hessian=hessian, warn=warn, **common) for u, v in zip(us, vs)]
     s2 = check_sigma2(sigma2)
     us, vs, ratios = _check_entries(us, vs, s2, metric=metric, stacklevel=3)
-    out = batched_geodesics(us, vs, device=device,
-                            batch_size=batch_size, warn=False, **{**common, "sigma2": s2})
+    out = batched_geodesics(us, vs, device=device, batch_size=batch_size, warn=False, **{**common, "sigma2": s2})
     for result, ratio in zip(out, ratios):
-        reason = _underflow(result, ratio)
-        if reason is not None:
-            result.converged = False
-            result.log["stopped_by"] = StopReason.UNDERFLOW.value
-            result.log["reason"] = reason
+        _mark_underflow(result, ratio)
     failed = [r for r in out if not r.converged]
     if failed and warn:
         warnings.warn(f"{metric} geodesics: {len(failed)} of {len(out)} pairs did not converge "
