@@ -12,7 +12,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["InputError", "literal", "as_shape", "as_shapes", "as_shape_pair", "check_sigma2", "check_positive", "check_positive_int",
+__all__ = ["InputError", "literal", "as_shape", "as_shapes", "as_shape_pair", "as_pair_batch", "check_sigma2", "check_positive", "check_positive_int",
            "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked",
            "keeps_old_calls", "deprecated_alias"]
 
@@ -115,6 +115,16 @@ def as_shape_pair(u, v, *, names=("u", "v"), min_landmarks: int = 1, dims=LANDMA
             f"got {names[0]}.shape={a.shape} and {names[1]}.shape={b.shape}"
         )
     return a, b
+
+
+def as_pair_batch(us, vs):
+    """``us`` and ``vs`` as float64 ``(B, K, d)`` arrays of one shape (pairs of shapes, one pair per
+    row), or ``ValueError``; each pair is checked by :func:`as_shape_pair` where it is used."""
+    us = np.asarray(us, dtype=np.float64)
+    vs = np.asarray(vs, dtype=np.float64)
+    if us.ndim != 3 or us.shape != vs.shape:
+        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    return us, vs
 
 
 def as_shapes(x, *, name: str = "shapes", min_shapes: int = 1, min_landmarks: int = 1,

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 from functools import lru_cache, partial
 
-from ._validate import InputError, as_shape_pair, literal
+from ._validate import InputError, as_shape_pair, check_positive, literal
 from .comparison.diffeomorphism import landmark_diffeomorphism
 from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
@@ -614,8 +614,7 @@ def check_metric_params(metric, params: dict, *, rtol=None) -> None:
     if rtol is not None:
         if info.bracket is None:
             raise ValueError(f"rtol applies to the certified metrics {BRACKET_METRICS}, not {metric!r}")
-        if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not (math.isfinite(rtol) and rtol > 0):
-            raise ValueError(f"rtol must be a finite number > 0; got {rtol!r}")
+        check_positive(rtol, name="rtol")
     any_option, allowed, required = _options(info.options_of(rtol))
     if any_option:
         return

@@ -54,14 +54,28 @@ def plot_trajectories(ax, path, *, init=None, lw: float = 1.0):
     10
     >>> plt.close(fig)
     """
-    path = np.asarray(path)
+    _draw_trajectories(ax, np.asarray(path), init=init, lw=lw)
+    ax.set_aspect("equal")
+
+
+def _draw_trajectories(ax, path, *, init=None, lw: float = 1.0):
+    """:func:`plot_trajectories` on 2-D or 3-D axes, without the axes' set-up."""
     init = np.linspace(path[0], path[-1], len(path)) if init is None else np.asarray(init)
     for j in range(path.shape[1]):
-        ax.plot(init[:, j, 0], init[:, j, 1], "--", color="0.6", lw=0.8)
-        ax.plot(path[:, j, 0], path[:, j, 1], "-", color="k", lw=lw)
-    ax.plot(path[0, :, 0], path[0, :, 1], "o", mfc="white", mec="k", ms=5, label="start")
-    ax.plot(path[-1, :, 0], path[-1, :, 1], "s", color="k", ms=4, label="end")
-    ax.set_aspect("equal")
+        ax.plot(*init[:, j].T, "--", color="0.6", lw=0.8)
+        ax.plot(*path[:, j].T, "-", color="k", lw=lw)
+    ax.plot(*path[0].T, "o", mfc="white", mec="k", ms=5, ls="none", label="start")
+    ax.plot(*path[-1].T, "s", color="k", ms=4, ls="none", label="end")
+
+
+def _trajectory_legend():
+    """The legend entries of :func:`plot_geodesic`'s trajectories and ends: ``(handles, labels)``."""
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], color="k", lw=1.0), Line2D([], [], ls="--", color="0.6", lw=0.8),
+               Line2D([], [], ls="", marker="o", mfc="white", mec="k", ms=5),
+               Line2D([], [], ls="", marker="s", color="k", ms=4)]
+    return handles, ["landmark trajectory", "straight line (initial path)", "start landmarks", "end landmarks"]
 
 
 def plot_metric_panels(results: dict, *, figsize=(10, 4.5), lw: float = 1.0):
@@ -181,8 +195,7 @@ def animate_geodesic(result, *, title="", closed=True, links=None):
     path = np.asarray(result.path)
     frames = list(range(len(path))) + list(range(len(path) - 2, 0, -1))
     if links is None:
-        k = path.shape[1]
-        links = [(j, j + 1) for j in range(k - 1)] + ([(k - 1, 0)] if closed and k > 2 else [])
+        links = _outline_links(path.shape[1], closed=closed)
     fig, ax = plt.subplots(figsize=_fitted_size(path, long_side=5.0))
     _fit_axes(ax, path)
     _draw_links(ax, path[0], links, ls="--", color="0.7", lw=0.8)
@@ -245,8 +258,7 @@ def parse_links(text, n_landmarks: int) -> list[tuple[int, int]]:
     """
     text = str(text).strip()
     if text.lower() == "contour":
-        k = int(n_landmarks)
-        return [(j, (j + 1) % k) for j in range(k)] if k > 2 else [(0, 1)][: k - 1]
+        return _outline_links(int(n_landmarks), closed=True)
     pairs = []
     for token in filter(None, (t.strip() for t in text.split(","))):
         parts = token.split("-")
@@ -260,6 +272,11 @@ def parse_links(text, n_landmarks: int) -> list[tuple[int, int]]:
     if not pairs:
         raise ValueError("links: no pairs given (e.g. 1-2,2-3, or 'contour')")
     return pairs
+
+
+def _outline_links(k: int, *, closed: bool) -> list[tuple[int, int]]:
+    """The pairs that join ``k`` landmarks in order, the last to the first when ``closed`` (and k > 2)."""
+    return [(j, j + 1) for j in range(k - 1)] + ([(k - 1, 0)] if closed and k > 2 else [])
 
 
 def plot_geodesic(result, *, links=(), title: str = "", long_side: float = 6.0):
@@ -324,10 +341,7 @@ def plot_geodesic(result, *, links=(), title: str = "", long_side: float = 6.0):
     plot_trajectories(ax, path)
     _fit_axes(ax, path)
     ax.set_title(title)
-    handles = [Line2D([], [], color="k", lw=1.0), Line2D([], [], ls="--", color="0.6", lw=0.8),
-               Line2D([], [], ls="", marker="o", mfc="white", mec="k", ms=5),
-               Line2D([], [], ls="", marker="s", color="k", ms=4)]
-    labels = ["landmark trajectory", "straight line (initial path)", "start landmarks", "end landmarks"]
+    handles, labels = _trajectory_legend()
     if links:
         handles += [Line2D([], [], ls="--", color="0.55", lw=0.9), Line2D([], [], ls="-", color="0.55", lw=0.9)]
         labels += ["start shape (links)", "end shape (links)"]
@@ -338,27 +352,16 @@ def plot_geodesic(result, *, links=(), title: str = "", long_side: float = 6.0):
 def _plot_geodesic_3d(result, *, links, title, long_side):
     """:func:`plot_geodesic` for 3-D landmarks: the same trajectories, ends and links on a 3-D axes."""
     import matplotlib.pyplot as plt
-    from matplotlib.lines import Line2D
 
     path = np.asarray(result.path)
-    init = np.linspace(path[0], path[-1], len(path))
     fig = plt.figure(figsize=(long_side, long_side), layout="constrained")
     ax = fig.add_subplot(1, 1, 1, projection="3d")
-    for j in range(path.shape[1]):
-        ax.plot(*init[:, j].T, "--", color="0.6", lw=0.8)
-        ax.plot(*path[:, j].T, "-", color="k", lw=1.0)
-    ax.plot(*path[0].T, "o", mfc="white", mec="k", ms=5, ls="none")
-    ax.plot(*path[-1].T, "s", color="k", ms=4, ls="none")
-    for a, b in links or ():
-        ax.plot(*path[0, [a, b]].T, "--", color="0.55", lw=0.9)
-        ax.plot(*path[-1, [a, b]].T, "-", color="0.55", lw=0.9)
+    _draw_trajectories(ax, path)
+    _draw_links(ax, path[0], links or (), ls="--", color="0.55", lw=0.9)
+    _draw_links(ax, path[-1], links or (), ls="-", color="0.55", lw=0.9)
     _axes_3d_labels(ax)
     ax.set_title(title)
-    handles = [Line2D([], [], color="k", lw=1.0), Line2D([], [], ls="--", color="0.6", lw=0.8),
-               Line2D([], [], ls="", marker="o", mfc="white", mec="k", ms=5),
-               Line2D([], [], ls="", marker="s", color="k", ms=4)]
-    fig.legend(handles, ["landmark trajectory", "straight line (initial path)", "start landmarks", "end landmarks"],
-               loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    fig.legend(*_trajectory_legend(), loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     return fig
 
 
@@ -381,7 +384,8 @@ def _fit_axes(ax, path):
 
 
 def _draw_links(ax, shape, links, **style):
-    return [ax.plot(shape[[a, b], 0], shape[[a, b], 1], **style)[0] for a, b in links]
+    """One line per landmark pair of ``links`` (2-D or 3-D); the lines."""
+    return [ax.plot(*shape[[a, b]].T, **style)[0] for a, b in links]
 
 
 def outline(shape, closed: bool = True) -> np.ndarray:
@@ -436,7 +440,7 @@ def _draw_shape(ax, shape, *, closed, links=None, label=None, **kw):
     three = shape.shape[1] == 3
     if links:
         style = {k: v for k, v in kw.items() if k not in ("marker", "ms")}
-        out = [ax.plot(*shape[[a, b]].T, **style)[0] for a, b in links]
+        out = _draw_links(ax, shape, links, **style)
         pts = ax.plot(*shape.T, ls="none", marker=kw.get("marker") or "o", ms=kw.get("ms", 2.5),
                       color=kw.get("color"))
         out[0].set_label(label)
@@ -447,6 +451,24 @@ def _draw_shape(ax, shape, *, closed, links=None, label=None, **kw):
     if three:
         return ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], label=label, **kw)
     return ax.plot(pts[:, 0], pts[:, 1], label=label, **kw)
+
+
+def _shape_axes(ax, d: int, *, ticks: bool = True) -> None:
+    """Axes for shapes of dimension ``d``: equal scales in 2-D (no ticks unless ``ticks``), x, y, z
+    labels in 3-D."""
+    if d == 2:
+        ax.set_aspect("equal")
+        if not ticks:
+            ax.set_xticks([])
+            ax.set_yticks([])
+    else:
+        _axes_3d_labels(ax)
+
+
+def _draw_ends(ax, start, end, *, closed, links, labels=(None, None)):
+    """A geodesic's start (grey, dashed) and its (magnified) end (black, landmarks marked)."""
+    _draw_shape(ax, start, closed=closed, links=links, color="0.5", ls="--", lw=1.0, label=labels[0])
+    _draw_shape(ax, end, closed=closed, links=links, color="k", lw=1.4, marker="o", ms=2.5, label=labels[1])
 
 
 def _axes_3d_labels(ax) -> None:
@@ -678,11 +700,8 @@ def plot_deformation(ax, result, *, mag: float = 1.0, n_lines: int = 15, closed:
     grid, warped, end = deformation_grid(result, mag=mag, n_lines=n_lines, **grid_kw)
     for line in warped:
         ax.plot(line[:, 0], line[:, 1], "-", color="0.55", lw=lw)
-    _draw_shape(ax, result.path[0], closed=closed, links=links, color="0.5", ls="--", lw=1.0)
-    _draw_shape(ax, end, closed=closed, links=links, color="k", lw=1.4, marker="o", ms=2.5)
-    ax.set_aspect("equal")
-    ax.set_xticks([])
-    ax.set_yticks([])
+    _draw_ends(ax, result.path[0], end, closed=closed, links=links)
+    _shape_axes(ax, 2, ticks=False)
     return grid, warped, end
 
 
@@ -754,10 +773,7 @@ def plot_mean(shapes, result, *, closed: bool | None = True, links=None, title: 
                 label="Procrustes mean (start)")
     _draw_shape(ax, result.mean, closed=closed, links=links, color="k", lw=1.4, marker="o", ms=2.5,
                 label="Fréchet mean")
-    if d == 2:
-        ax.set_aspect("equal")
-    else:
-        _axes_3d_labels(ax)
+    _shape_axes(ax, d)
     ax.legend(loc="lower center", fontsize=8, frameon=False)
     ax.set_title(title, fontsize=9)
     return fig
@@ -831,12 +847,7 @@ def plot_modes(pca, *, components=(0, 1), sd=(-2.0, 0.0, 2.0), closed: bool | No
             ax = fig.add_subplot(len(components), len(sd), r * len(sd) + c + 1, **sub)
             _draw_shape(ax, pca.mean, closed=closed, links=links, color="0.6", ls="--", lw=0.8, ms=1.5)
             _draw_shape(ax, shape, closed=closed, links=links, color="k", lw=1.2, marker="o", ms=2)
-            if d == 2:
-                ax.set_aspect("equal")
-                ax.set_xticks([])
-                ax.set_yticks([])
-            else:
-                _axes_3d_labels(ax)
+            _shape_axes(ax, d, ticks=False)
             ax.set_title(f"PC{j + 1} ({100 * pca.explained_variance_ratio[j]:.1f} %), {s:+g} SD", fontsize=8)
     handles = [Line2D([], [], color="0.6", ls="--", lw=0.8, marker="o", ms=1.5),
                Line2D([], [], color="k", lw=1.2, marker="o", ms=2)]
@@ -923,12 +934,11 @@ def plot_mean_difference(test, *, mag: float = 3.0, closed: bool | None = True, 
         ax0.set_title(f"geodesic from the {a} mean to the {b} mean", fontsize=9)
         ax1 = fig.add_subplot(1, 2, 2, projection="3d")
         end = magnify(test.geodesic, mag).path[-1]
-        _draw_shape(ax1, path[0], closed=closed, links=links, color="0.5", ls="--", lw=1.0, label=f"{a} mean")
-        _draw_shape(ax1, end, closed=closed, links=links, color="k", lw=1.4, marker="o", ms=2.5,
-                    label=f"{b} mean, difference magnified {mag:g}×")
+        _draw_ends(ax1, path[0], end, closed=closed, links=links,
+                   labels=(f"{a} mean", f"{b} mean, difference magnified {mag:g}×"))
         ax1.legend(loc="lower center", fontsize=7, frameon=False)
         for ax in (ax0, ax1):
-            _axes_3d_labels(ax)
+            _shape_axes(ax, 3)
     else:
         fig, axes = plt.subplots(1, 2, figsize=figsize, layout="constrained")
         plot_shapes_along(axes[0], path, closed=closed, every=every, links=links)

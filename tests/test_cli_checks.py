@@ -298,3 +298,20 @@ def test_geodesic_plot_takes_links_from_the_command_line(raw, rng):
     run(*base, "--links", "1-2,2-3", check=0)
     one_line_error(run(*base, "--links", "1-12"), "--links: '1-12' names landmark 12", "landmarks 1 to 9")
     one_line_error(run(*base[:-2], "--links", "contour"), "--links applies to --plot and --animate")
+
+
+@pytest.mark.parametrize("command", [
+    ("distances", "--metric", "procrustes", "--jobs", 0, "-o", "d.csv"),
+    ("mean", "--metric", "alpha", "--sigma2", SIGMA2, "--jobs", -2, "-o", "m.tps"),
+    ("test", "--covariates", "c.csv", "--by", "g", "--metric", "procrustes", "--jobs", 0),
+    ("align", "--size", -1, "-o", "a.tps"),
+    ("pca", "--metric", "alpha", "--sigma2", SIGMA2, "--size", 0, "-o", "s.csv"),
+])
+def test_jobs_and_size_are_checked_alike_by_every_command(raw, command):
+    """--jobs: a positive number of workers or -1; --size: a positive centroid size; the same words everywhere."""
+    name, *options = command
+    flag = "--jobs" if "--jobs" in options else "--size"
+    value = options[options.index(flag) + 1]
+    proc = run(name, raw["tps"], *options, cwd=raw["dir"])
+    line = one_line_error(proc, f"{flag} must be a positive number", f"got {value}")
+    assert not any((raw["dir"] / f).exists() for f in ("d.csv", "m.tps", "a.tps", "s.csv")), line

@@ -80,3 +80,7 @@ def test_errors(pair):
         landmark_diffeomorphism(u, v, kernel_width=-1)
     with pytest.raises(ValueError, match="same number of landmarks"):
         landmark_diffeomorphism(u, v[:2])
+    r = landmark_diffeomorphism(u, v, n_steps=4)
+    for bad in ({"lam": 0.0}, {"kernel_width": -1.0}, {"lam": float("nan")}):  # the warp checks what it is given
+        with pytest.raises(ValueError, match=f"{next(iter(bad))} must be a positive finite number"):
+            diffeomorphism_warp(u, r, **bad)

@@ -93,6 +93,9 @@ def test_unknown_metric_parameter_or_rtol_is_named(shapes):
         pair_record(u, v, metric="cosine")
     with pytest.raises(ValueError, match="rtol applies"):
         pair_record(u, v, metric="tps", rtol=1e-3)
+    for bad in (0.0, -1e-3, float("nan"), True, "1e-3"):  # the bracket's own check and words, before any work
+        with pytest.raises(ValueError, match="rtol must be a positive finite number"):
+            distance(u, v, metric="alpha", sigma2=0.5, rtol=bad)
     with pytest.raises(ValueError, match="unknown metric"):
         pairwise_distances(np.stack([u, v]), metric="cosine")
 

@@ -250,3 +250,13 @@ def test_frechet_mean_with_batched_log_maps_matches_the_cpu_mean(three):
     assert jx.converged and jx.certificate <= 1e-4
     spread = np.abs(three - cpu.mean).max()
     assert np.abs(jx.mean - cpu.mean).max() <= 1e-3 * spread
+
+
+@pytest.mark.parametrize("batched_entry", ["geodesics", "distance_brackets"])
+def test_a_batch_warns_at_the_callers_line_as_a_single_pair_does(batched_entry):
+    """The pose check of each pair of a batch names the line that called the batched entry point."""
+    u = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.5]])
+    v = u @ np.array([[0.0, -1.0], [1.0, 0.0]]) + 5.0  # rotated and moved: not aligned
+    with pytest.warns(shapelib.PoseWarning) as record:
+        getattr(shapelib, batched_entry)(u[None], v[None], metric="alpha", sigma2=S2, device="cpu", warn=False)
+    assert {w.filename for w in record if issubclass(w.category, shapelib.PoseWarning)} == {__file__}

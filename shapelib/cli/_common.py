@@ -329,6 +329,27 @@ def _file_options(p):
     g.add_argument("--pkn", action="store_true", help=".npy/.npz: the array is geomorph's p x k x n layout")
 
 
+def _where_options(p, *, unit):
+    """``--jobs N`` or ``--scheduler ADDRESS`` (one or the other); ``unit``: what the default number of
+    workers is measured on ("one pair", "one log map")."""
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--jobs", type=int, metavar="N", help="worker processes on this machine (default: chosen "
+                       f"from the measured cost of {unit})")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
+
+
+def _check_jobs(args) -> None:
+    """One-line error for a ``--jobs`` that is neither a positive number of workers nor -1."""
+    if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
+        raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")
+
+
+def _check_size(args) -> None:
+    """One-line error for a ``--size`` (centroid size to scale to) that is not a positive number."""
+    if args.size is not None and not (np.isfinite(args.size) and args.size > 0):
+        raise CLIError(f"--size must be a positive number; got {args.size}")
+
+
 def _metric_options(p, *, metrics, required_sigma2=False):
     p.add_argument("--metric", required=True, metavar="M", help=", ".join(metrics) + " (listed below)")
     p.add_argument("--sigma2", type=_sigma2_arg, metavar="S", required=required_sigma2,

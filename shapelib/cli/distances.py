@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import (EXIT_STOPPED, EXIT_UNCONVERGED, PROG, CLIError, _align_pose, _auto_sigma2, _file_options,
-                      _index_of, _metric_options, _metric_params, _notes_from, _output_path, _parse_params, _read,
-                      _write_frame)
+from ._common import (EXIT_STOPPED, EXIT_UNCONVERGED, PROG, CLIError, _align_pose, _auto_sigma2, _check_jobs,
+                      _file_options, _index_of, _metric_options, _metric_params, _notes_from, _output_path,
+                      _parse_params, _read, _where_options, _write_frame)
 
 EXAMPLES = {
     "distances": ("examples:\n  shapelib distances aligned.tps --metric procrustes -o procrustes.csv\n"
@@ -77,8 +77,7 @@ def cmd_distances(args) -> int:
     if diag is not None and diag.resolve() == out.resolve():
         raise CLIError(f"--pairs {args.pairs}: the same file as -o; give the pair table its own name")
     params = _metric_params(args)
-    if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
-        raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")
+    _check_jobs(args)
     shapes, spec = _read(args)
     ids = spec["id"].astype(str).tolist()
     if len(set(ids)) != len(ids):
@@ -344,10 +343,7 @@ def register(add) -> None:
                    help="FILE holds point sets of any sizes, without landmarks (read as by shapelib register): "
                         "alpha_bound or fisher_rao_bound minimised over translation, scale, rotation and "
                         "reflection; --sigma2 in units of each set's RMS radius squared")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--jobs", type=int, metavar="N", help="worker processes on this machine (default: chosen "
-                       "from the measured cost of one pair)")
-    where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
+    _where_options(p, unit="one pair")
     p.add_argument("--store", metavar="D.zarr", help="zarr store of finished blocks; rerun the command to resume")
     p.add_argument("--max-blocks", type=int, metavar="N",
                    help=f"with --store: stop after computing N blocks, write no -o and exit with status {EXIT_STOPPED} "

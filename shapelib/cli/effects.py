@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 
-from ._common import (CLIError, _align_pose, _auto_sigma2, _file_options, _metric_options, _metric_params,
+from ._common import (CLIError, _align_pose, _auto_sigma2, _check_jobs, _file_options, _metric_options, _metric_params,
                       _output_path, _read, _write_frame)
 
 EXAMPLES = {
@@ -59,8 +59,7 @@ def _distances(args, shapes):
 def _check(args):
     if args.permutations < 19:
         raise CLIError(f"--permutations must be at least 19; got {args.permutations}")
-    if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
-        raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")
+    _check_jobs(args)
 
 
 def cmd_test(args) -> int:

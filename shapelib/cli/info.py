@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import PROG, CLIError, _file_options, _output_path, _read
+from ._common import PROG, CLIError, _check_size, _file_options, _output_path, _read
 
 EXAMPLES = {
     "info": "example:\n  shapelib info fish.tps",
@@ -92,8 +92,7 @@ def cmd_align(args) -> int:
     if out_fmt != fmt:
         raise CLIError(f"-o {args.output}: align writes the input's format ({fmt}); name the output *.{fmt}")
     _output_path(out, suffixes=(f".{fmt}",), option="-o")
-    if args.size is not None and not (np.isfinite(args.size) and args.size > 0):
-        raise CLIError(f"--size must be a positive number; got {args.size}")
+    _check_size(args)
     if args.sizes:
         _output_path(args.sizes, suffixes=(".csv",), option="--sizes")
     shapes, spec = _read(args, missing="nan" if args.estimate_missing else "error")

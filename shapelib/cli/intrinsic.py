@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import (CLIError, _auto_sigma2, _backend_options, _backend_params, _file_options, _output_path, _read,
-                      _sigma2_arg, _write_frame)
+from ._common import (CLIError, _auto_sigma2, _backend_options, _backend_params, _check_jobs, _check_size, _file_options,
+                      _output_path, _read, _sigma2_arg, _where_options, _write_frame)
 
 EXAMPLES = {
     "mean": ("example:\n  shapelib mean wings.tps --size 20 --metric alpha --sigma2 1.2 --jobs 2 -o mean.tps --plot mean.png"),
@@ -28,12 +28,10 @@ def _intrinsic_input(args):
             continue
         if not (np.isfinite(value) and value > 0):
             raise CLIError(f"--{name.replace('_', '-')} must be a positive number; got {value}")
-    if args.size is not None and not (np.isfinite(args.size) and args.size > 0):
-        raise CLIError(f"--size must be a positive number; got {args.size}")
+    _check_size(args)
     if args.n_steps < 1:
         raise CLIError(f"--n-steps must be >= 1; got {args.n_steps}")
-    if args.jobs is not None and args.jobs < 1 and args.jobs != -1:
-        raise CLIError(f"--jobs must be a positive number of worker processes (or -1: all cores); got {args.jobs}")
+    _check_jobs(args)
     shapes, spec = _read(args)
     if shapes.shape[1] < 3:
         raise CLIError(f"{args.file}: {shapes.shape[1]} landmark(s): after alignment (position, orientation, size) "
@@ -168,10 +166,7 @@ def _intrinsic_options(p):
     p.add_argument("--links", metavar="L", help="landmarks to join in --plot: pairs of landmark numbers as in the file, "
                    "e.g. 1-2,2-3,3-1 (geomorph's and Momocs' links), or 'contour' for a closed outline in landmark "
                    "order; default: points only")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--jobs", type=int, metavar="N", help="worker processes on this machine (default: chosen "
-                       "from the measured cost of one log map)")
-    where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
+    _where_options(p, unit="one log map")
 
 
 def register(add) -> None:

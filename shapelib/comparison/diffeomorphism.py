@@ -94,6 +94,11 @@ class DiffeomorphismPathMetric(PathMetric):
         return {"lam": self.lam, "kernel_width": self.width}
 
 
+def _path_metric(lam, kernel_width) -> DiffeomorphismPathMetric:
+    """The path metric of λ = ``lam`` and kernel width ``kernel_width``, both checked (finite, > 0)."""
+    return DiffeomorphismPathMetric(check_positive(lam, name="lam"), check_positive(kernel_width, name="kernel_width"))
+
+
 def diffeomorphism_quadratic_form(theta, velocity, *, lam: float = 10.0, kernel_width: float = 1.0) -> float:
     r"""The reduced Camion–Younes energy density of landmarks ``theta`` moving with ``velocity``.
 
@@ -155,7 +160,7 @@ def diffeomorphism_quadratic_form(theta, velocity, *, lam: float = 10.0, kernel_
     vel = as_shape(velocity, name="velocity")
     if vel.shape != theta.shape:
         raise ValueError(f"velocity must have the shape of theta {theta.shape}; got {vel.shape}")
-    m = DiffeomorphismPathMetric(check_positive(lam, name="lam"), check_positive(kernel_width, name="kernel_width"))
+    m = _path_metric(lam, kernel_width)
     return float(m.qform(theta[None], vel[None], None)[0])
 
 
@@ -239,10 +244,9 @@ def landmark_diffeomorphism(u, v, *, lam: float = 10.0, kernel_width: float = 1.
     """
     u, v = as_shape_pair(u, v)
     check_pose(np.stack([u, v]), metric="diffeomorphism")  # the kernel sees where the landmarks are
-    width = check_positive(kernel_width, name="kernel_width")
-    model = DiffeomorphismPathMetric(check_positive(lam, name="lam"), width)
+    model = _path_metric(lam, kernel_width)
     return minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
-                         warn=warn, length_scale=width, stacklevel=3)
+                         warn=warn, length_scale=model.width, stacklevel=3)
 
 
 def diffeomorphism_warp(points, result: GeodesicResult, *, lam: float | None = None,
@@ -280,7 +284,7 @@ def diffeomorphism_warp(points, result: GeodesicResult, *, lam: float | None = N
     Raises
     ------
     ValueError
-        If ``points`` is not a finite ``(M, d)`` array.
+        If ``points`` is not a finite ``(M, d)`` array, or ``lam`` or ``kernel_width`` is not a positive number.
 
     See Also
     --------
@@ -310,7 +314,7 @@ def diffeomorphism_warp(points, result: GeodesicResult, *, lam: float | None = N
     x = as_shape(points, name="points").copy()
     path = result.path
     n = len(path) - 1
-    model = DiffeomorphismPathMetric(lam, width)
+    model = _path_metric(lam, width)
 
     def field(pts, phi, vel):
         _, _, w = model._solve(phi[None], vel[None])

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.procrustes import generalized_procrustes
+from ..geometry.procrustes import generalized_procrustes, optimal_rotation
+from .splines import _spline_system, tps_kernel
 
 __all__ = ["estimate_missing", "MissingEstimate", "tps_map"]
 
@@ -69,10 +70,7 @@ class MissingEstimate:
 
 def _kernel(r, d):
     """Thin-plate radial basis: ``r² log r`` in 2-D, ``−r`` in 3-D (the biharmonic Green's functions)."""
-    if d == 2:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(r > 0, r ** 2 * np.log(r), 0.0)
-    return -r
+    return tps_kernel(r, kernel="r2logr" if d == 2 else "r")
 
 
 def tps_map(source, target, points):
@@ -120,10 +118,8 @@ def tps_map(source, target, points):
     if m < d + 1:
         raise ValueError(f"a thin-plate spline in {d}-D needs at least {d + 1} landmarks; got {m}")
     k = _kernel(np.linalg.norm(s[:, None] - s[None], axis=-1), d)
-    p = np.hstack([np.ones((m, 1)), s])
-    lhs = np.block([[k, p], [p.T, np.zeros((d + 1, d + 1))]])
     rhs = np.vstack([t, np.zeros((d + 1, d))])
-    coef = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    coef = np.linalg.lstsq(_spline_system(k, s), rhs, rcond=None)[0]
     w, a = coef[:m], coef[m:]
     u = _kernel(np.linalg.norm(q[:, None] - s[None], axis=-1), d)
     return u @ w + np.hstack([np.ones((len(q), 1)), q]) @ a
@@ -134,13 +130,8 @@ def _fit_onto(ref, target):
     returns a function applying it to any points."""
     mr, mt = ref.mean(axis=0), target.mean(axis=0)
     a, b = ref - mr, target - mt
-    u, sv, vt = np.linalg.svd(a.T @ b)
-    r = u @ vt
-    if np.linalg.det(r) < 0:
-        u[:, -1] *= -1
-        sv[-1] *= -1
-        r = u @ vt
-    scale = sv.sum() / np.sum(a ** 2)
+    r, trace = optimal_rotation(b, a)  # a @ r ≈ b, no reflection
+    scale = trace / np.sum(a ** 2)
     return lambda pts: (np.asarray(pts) - mr) @ r * scale + mt
 
 

@@ -147,17 +147,24 @@ def _default_kernel(kernel, d: int) -> str:
         ) from None
 
 
-def _bending_matrix(kmat: np.ndarray, u: np.ndarray, affine: bool) -> np.ndarray:
+def _spline_system(kmat: np.ndarray, u: np.ndarray) -> np.ndarray:
+    r"""The bordered matrix :math:`L = \begin{pmatrix} K & P \\ P^\top & 0 \end{pmatrix}`,
+    :math:`P = [1\; u]`, of a spline with an affine part through the landmarks ``u`` (K, d)."""
     k = len(u)
-    if not affine:
-        return np.linalg.inv(kmat)
     p = np.hstack([np.ones((k, 1)), u])
     lmat = np.zeros((k + p.shape[1], k + p.shape[1]))
     lmat[:k, :k] = kmat
     lmat[:k, k:] = p
     lmat[k:, :k] = p.T
+    return lmat
+
+
+def _bending_matrix(kmat: np.ndarray, u: np.ndarray, affine: bool) -> np.ndarray:
+    k = len(u)
+    if not affine:
+        return np.linalg.inv(kmat)
     try:
-        inv = np.linalg.inv(lmat)
+        inv = np.linalg.inv(_spline_system(kmat, u))
     except np.linalg.LinAlgError:
         raise ValueError("the landmarks are degenerate (collinear in 2-D, coplanar in 3-D, or coincident): "
                          "the spline system is singular") from None

@@ -157,6 +157,14 @@ def _dummy_grid(batch):
     return np.zeros((batch, 1, 1)), np.zeros((batch, 1))
 
 
+def _path_args(paths, s2, nodes, weights):
+    """The compiled energy's arguments for a batch of paths: interiors, ends, σ², grid (a dummy one for α)."""
+    paths = np.asarray(paths, dtype=np.float64)
+    if nodes is None:
+        nodes, weights = _dummy_grid(len(paths))
+    return paths[:, 1:-1], paths[:, [0, -1]], float(s2), nodes, weights
+
+
 def batched_energy(paths, s2, nodes=None, weights=None, *, metric):
     """``E_n`` of a batch of paths (B, n + 1, K, d) as a numpy array (B,).
 
@@ -174,20 +182,12 @@ def batched_energy(paths, s2, nodes=None, weights=None, *, metric):
     (1,)
     """
     with x64():
-        paths = np.asarray(paths, dtype=np.float64)
-        x, ends = paths[:, 1:-1], paths[:, [0, -1]]
-        if nodes is None:
-            nodes, weights = _dummy_grid(len(paths))
-        return np.asarray(_compiled(metric, "value")(x, ends, float(s2), nodes, weights))
+        return np.asarray(_compiled(metric, "value")(*_path_args(paths, s2, nodes, weights)))
 
 
 def batched_value_and_grad(paths, s2, nodes=None, weights=None, *, metric):
     """``(E_n (B,), ∂E_n/∂interior (B, n − 1, K, d))`` of a batch of paths, by ``jax.grad``; as
     :func:`batched_energy`."""
     with x64():
-        paths = np.asarray(paths, dtype=np.float64)
-        x, ends = paths[:, 1:-1], paths[:, [0, -1]]
-        if nodes is None:
-            nodes, weights = _dummy_grid(len(paths))
-        e, g = _compiled(metric, "value_and_grad")(x, ends, float(s2), nodes, weights)
+        e, g = _compiled(metric, "value_and_grad")(*_path_args(paths, s2, nodes, weights))
         return np.asarray(e), np.asarray(g)

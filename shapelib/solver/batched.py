@@ -34,7 +34,7 @@ import warnings
 
 import numpy as np
 
-from .._validate import check_nonnegative_int, check_positive, check_positive_int
+from .._validate import as_pair_batch, check_nonnegative_int, check_positive, check_positive_int
 from ..geometry import _jax_kernels as jk
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, make_grid
 from .path_metric import GL5_NODES, GL5_WEIGHTS, METRICS, path_metric
@@ -505,10 +505,7 @@ def batched_geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 1
     t0 = time.perf_counter()
     if metric not in METRICS:
         raise ValueError(f"metric must be one of {METRICS}; got {metric!r}")
-    us = np.asarray(us, dtype=np.float64)
-    vs = np.asarray(vs, dtype=np.float64)
-    if us.ndim != 3 or us.shape != vs.shape:
-        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    us, vs = as_pair_batch(us, vs)
     b, k, d = us.shape
     n = check_positive_int(n_steps, name="n_steps")
     tol = check_positive(tol, name="tol")

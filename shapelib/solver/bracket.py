@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import as_shape_pair, check_positive, check_positive_int, check_sigma2
-from .geodesic import check_entry, fisher_rao_lower_bound
+from .._validate import as_pair_batch, as_shape_pair, check_positive, check_positive_int, check_sigma2
+from .geodesic import _check_entries, check_entry, fisher_rao_lower_bound
 from .batched import batched_geodesics, check_backend
 from .minimise import minimise_path
 from .path_metric import METRICS, path_metric
@@ -344,6 +344,24 @@ def extrapolate_doublings(gaps):
     return g3 - d2 * d2 / (d1 - d2), float(np.log2(d1 / d2))
 
 
+def _check_levels(*, rtol, n_steps, max_n_steps, level_iter, level_tol, min_shrink, grid_spacing):
+    """The refinement options of :func:`distance_bracket` and :func:`distance_brackets`, checked:
+    ``(rtol, n_steps, max_n_steps, level_iter, level_tol, min_shrink, grid_spacing)`` with the
+    defaults filled in (``level_tol = rtol / 10``; the grid step from ``rtol``)."""
+    rtol = check_positive(rtol, name="rtol")
+    n = check_positive_int(n_steps, name="n_steps")
+    max_n = check_positive_int(max_n_steps, name="max_n_steps")
+    if max_n < n:
+        raise ValueError(f"max_n_steps must be >= n_steps; got max_n_steps={max_n_steps!r}, n_steps={n_steps!r}")
+    level_iter = check_positive_int(level_iter, name="level_iter")
+    level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
+    if not 0.0 <= float(min_shrink) < 1.0:
+        raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
+    if grid_spacing is None:
+        grid_spacing = BRACKET_SPACING if rtol >= BRACKET_SPACING_RTOL else DEFAULT_SPACING
+    return rtol, n, max_n, level_iter, level_tol, float(min_shrink), grid_spacing
+
+
 def _level_stop(levels, prev_gap, *, rtol, min_shrink, max_n):
     """Why the refinement stops after the last of ``levels``, or None to double ``n_steps``."""
     gap, n = levels[-1]["rel_gap"], levels[-1]["n_steps"]
@@ -495,17 +513,9 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     u, v = as_shape_pair(u, v)
     s2 = check_sigma2(sigma2)
     ratio = check_entry(u, v, s2, metric=metric, stacklevel=3)
-    rtol = check_positive(rtol, name="rtol")
-    n = check_positive_int(n_steps, name="n_steps")
-    max_n = check_positive_int(max_n_steps, name="max_n_steps")
-    if max_n < n:
-        raise ValueError(f"max_n_steps must be >= n_steps; got max_n_steps={max_n_steps!r}, n_steps={n_steps!r}")
-    level_iter = check_positive_int(level_iter, name="level_iter")
-    level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
-    if not 0.0 <= float(min_shrink) < 1.0:
-        raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
-    if grid_spacing is None:
-        grid_spacing = BRACKET_SPACING if rtol >= BRACKET_SPACING_RTOL else DEFAULT_SPACING
+    rtol, n, max_n, level_iter, level_tol, min_shrink, grid_spacing = _check_levels(
+        rtol=rtol, n_steps=n_steps, max_n_steps=max_n_steps, level_iter=level_iter, level_tol=level_tol,
+        min_shrink=min_shrink, grid_spacing=grid_spacing)
     if hessian is None:
         hessian = DEFAULT_HESSIAN[metric]
     if hessian not in ("exact", "model"):
@@ -513,12 +523,12 @@ def distance_bracket(u, v, *, metric: str, sigma2, rtol: float = 1e-3, n_steps: 
     backend, device = check_backend(backend, device)
     model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter,
-               "level_tol": level_tol, "min_shrink": float(min_shrink), "hessian": hessian, "sigma_ratio": ratio,
+               "level_tol": level_tol, "min_shrink": min_shrink, "hessian": hessian, "sigma_ratio": ratio,
                **model.settings()}
     if backend == "jax":
         options.update(hessian=None, backend="jax")
         return _jax_brackets(u[None], v[None], [ratio], model=model, s2=s2, rtol=rtol, n=n, max_n=max_n,
-                             level_iter=level_iter, level_tol=level_tol, min_shrink=float(min_shrink),
+                             level_iter=level_iter, level_tol=level_tol, min_shrink=min_shrink,
                              options=options, device=device, batch_size=None, warn=warn, t0=t0)[0]
 
     if np.array_equal(u, v):
@@ -682,10 +692,7 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
     """
     t0 = time.perf_counter()
     _check_metric(metric)
-    us = np.asarray(us, dtype=np.float64)
-    vs = np.asarray(vs, dtype=np.float64)
-    if us.ndim != 3 or us.shape != vs.shape:
-        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    us, vs = as_pair_batch(us, vs)
     backend, device = check_backend(backend, device)
     common = dict(metric=metric, sigma2=sigma2, rtol=rtol, n_steps=n_steps, max_n_steps=max_n_steps,
                   level_iter=level_iter, level_tol=level_tol, min_shrink=min_shrink, grid_spacing=grid_spacing,
@@ -693,23 +700,14 @@ def distance_brackets(us, vs, *, metric: str, sigma2, rtol: float = 1e-3, n_step
     if backend == "cpu":
         return [distance_bracket(u, v, warn=warn, hessian=hessian, **common) for u, v in zip(us, vs)]
     s2 = check_sigma2(sigma2)
-    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
-    ratios = [check_entry(u, v, s2, metric=metric, stacklevel=3) for u, v in pairs]
-    rtol = check_positive(rtol, name="rtol")
-    n = check_positive_int(n_steps, name="n_steps")
-    max_n = check_positive_int(max_n_steps, name="max_n_steps")
-    if max_n < n:
-        raise ValueError(f"max_n_steps must be >= n_steps; got max_n_steps={max_n_steps!r}, n_steps={n_steps!r}")
-    level_iter = check_positive_int(level_iter, name="level_iter")
-    level_tol = rtol / 10 if level_tol is None else check_positive(level_tol, name="level_tol")
-    if not 0.0 <= float(min_shrink) < 1.0:
-        raise ValueError(f"min_shrink must lie in [0, 1); got {min_shrink!r}")
-    if grid_spacing is None:
-        grid_spacing = BRACKET_SPACING if rtol >= BRACKET_SPACING_RTOL else DEFAULT_SPACING
+    us, vs, ratios = _check_entries(us, vs, s2, metric=metric, stacklevel=3)
+    rtol, n, max_n, level_iter, level_tol, min_shrink, grid_spacing = _check_levels(
+        rtol=rtol, n_steps=n_steps, max_n_steps=max_n_steps, level_iter=level_iter, level_tol=level_tol,
+        min_shrink=min_shrink, grid_spacing=grid_spacing)
     model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
     options = {"rtol": rtol, "n_steps": n, "max_n_steps": max_n, "level_iter": level_iter, "level_tol": level_tol,
-               "min_shrink": float(min_shrink), "hessian": None, "backend": "jax", **model.settings()}
-    return _jax_brackets(np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), ratios, model=model,
+               "min_shrink": min_shrink, "hessian": None, "backend": "jax", **model.settings()}
+    return _jax_brackets(us, vs, ratios, model=model,
                          s2=s2, rtol=rtol, n=n, max_n=max_n, level_iter=level_iter, level_tol=level_tol,
-                         min_shrink=float(min_shrink), options=options, device=device, batch_size=batch_size,
+                         min_shrink=min_shrink, options=options, device=device, batch_size=batch_size,
                          warn=warn, t0=t0)

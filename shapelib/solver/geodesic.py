@@ -80,7 +80,7 @@ import warnings
 
 import numpy as np
 
-from .._validate import as_shape_pair, check_dimension, check_positive, check_sigma2, set_was_checked
+from .._validate import as_pair_batch, as_shape_pair, check_dimension, check_positive, check_sigma2, set_was_checked
 from ..geometry.gmm import l2_distance
 from ..geometry.procrustes import check_pose
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
@@ -384,6 +384,20 @@ def check_entry(u, v, s2, *, metric, stacklevel, what=None):
     return ratio
 
 
+def _check_entries(us, vs, s2, *, metric, stacklevel):
+    """:func:`check_entry` for each pair ``(us[i], vs[i])`` of a batch (each shape checked by
+    :func:`~shapelib._validate.as_shape_pair`, named ``us[i]``, ``vs[i]``).
+
+    Returns ``(us, vs, ratios)``: the checked shapes stacked again and each pair's σ / spacing;
+    ``stacklevel`` as in :func:`check_entry` (3: the caller of the entry point).
+    """
+    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
+    ratios = []
+    for u, v in pairs:  # a loop, not a comprehension: on Python < 3.12 that would add a frame to stacklevel
+        ratios.append(check_entry(u, v, s2, metric=metric, stacklevel=stacklevel + 1))
+    return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), ratios
+
+
 def _underflow(result, ratio):
     """Why a "converged" result is not, or None.
 
@@ -406,6 +420,17 @@ def _underflow(result, ratio):
                 f"{result.length / result.lower_bound:.3g} times the lower bound {result.lower_bound:.4g}, "
                 f"because the gradient underflows (norm {result.grad_norm or 0.0:.2e}): sigma = {np.sqrt(result.sigma2):.3g} "
                 f"is {ratio:.3g} landmark spacings, so the Gaussians of different landmarks do not interact")
+
+
+def _mark_underflow(result, ratio):
+    """Mark ``result`` not converged (``stopped_by`` "underflow", ``log["reason"]``) where
+    :func:`_underflow` says why; the reason, or None."""
+    reason = _underflow(result, ratio)
+    if reason is not None:
+        result.converged = False
+        result.log["stopped_by"] = StopReason.UNDERFLOW.value
+        result.log["reason"] = reason
+    return reason
 
 
 def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: float = 1e-6,
@@ -535,15 +560,11 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
         model = path_metric(metric, s2, grid_spacing=grid_spacing, grid_margin=grid_margin)
         result = minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window, init=init,
                                warn=warn, length_scale=np.sqrt(s2), sigma2=s2, hessian=hessian, stacklevel=3)
-    reason = _underflow(result, ratio)
-    if reason is not None:
-        result.converged = False
-        result.log["stopped_by"] = StopReason.UNDERFLOW.value
-        result.log["reason"] = reason
-        if warn:
-            warnings.warn(f"{metric} geodesic not converged: {reason}. Bring the shapes to a scale that fits "
-                          f"sigma2 (shapelib.to_centroid_size) or choose a larger sigma2.",
-                          GeodesicWarning, stacklevel=2)
+    reason = _mark_underflow(result, ratio)
+    if reason is not None and warn:
+        warnings.warn(f"{metric} geodesic not converged: {reason}. Bring the shapes to a scale that fits "
+                      f"sigma2 (shapelib.to_centroid_size) or choose a larger sigma2.",
+                      GeodesicWarning, stacklevel=2)
     return result
 
 
@@ -765,25 +786,16 @@ def geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: 
     [True, True]
     """
     backend, device = check_backend(backend, device)
-    us = np.asarray(us, dtype=np.float64)
-    vs = np.asarray(vs, dtype=np.float64)
-    if us.ndim != 3 or us.shape != vs.shape:
-        raise ValueError(f"us and vs must be (B, K, d) arrays of one shape; got {us.shape} and {vs.shape}")
+    us, vs = as_pair_batch(us, vs)
     common = dict(metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window,
                   grid_spacing=grid_spacing, grid_margin=grid_margin)
     if backend == "cpu":
         return [geodesic(u, v, hessian=hessian, warn=warn, **common) for u, v in zip(us, vs)]
     s2 = check_sigma2(sigma2)
-    pairs = [as_shape_pair(u, v, names=(f"us[{i}]", f"vs[{i}]")) for i, (u, v) in enumerate(zip(us, vs))]
-    ratios = [check_entry(u, v, s2, metric=metric, stacklevel=3) for u, v in pairs]
-    out = batched_geodesics(np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]), device=device,
-                            batch_size=batch_size, warn=False, **{**common, "sigma2": s2})
+    us, vs, ratios = _check_entries(us, vs, s2, metric=metric, stacklevel=3)
+    out = batched_geodesics(us, vs, device=device, batch_size=batch_size, warn=False, **{**common, "sigma2": s2})
     for result, ratio in zip(out, ratios):
-        reason = _underflow(result, ratio)
-        if reason is not None:
-            result.converged = False
-            result.log["stopped_by"] = StopReason.UNDERFLOW.value
-            result.log["reason"] = reason
+        _mark_underflow(result, ratio)
     failed = [r for r in out if not r.converged]
     if failed and warn:
         warnings.warn(f"{metric} geodesics: {len(failed)} of {len(out)} pairs did not converge "
