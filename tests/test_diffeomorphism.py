@@ -84,3 +84,6 @@ def test_errors(pair):
     for bad in ({"lam": 0.0}, {"kernel_width": -1.0}, {"lam": float("nan")}):  # the warp checks what it is given
         with pytest.raises(ValueError, match=f"{next(iter(bad))} must be a positive finite number"):
             diffeomorphism_warp(u, r, **bad)
+    for bad in (0, -2, 1.5):  # substeps divide each segment: never zero, never fractional
+        with pytest.raises(ValueError, match="substeps"):
+            diffeomorphism_warp(u, r, substeps=bad)

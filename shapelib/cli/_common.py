@@ -292,10 +292,9 @@ def _align_pose(args, shapes, params):
     aligned, moved = pose_align(shapes)
     if moved.max() <= POSE_TOL:
         return shapes  # aligned already (e.g. by `shapelib align`): the file's values as they are
-    if moved.max() > POSE_TOL:
-        print(f"{PROG}: note: {args.metric} depends on the pose of the shapes: aligned the {len(shapes)} specimens of "
-              f"{args.file} first (generalized Procrustes rotations and translations, sizes kept), which moved them "
-              f"by up to {100 * moved.max():.3g} % of their size; --no-align uses the file's pose", file=sys.stderr)
+    print(f"{PROG}: note: {args.metric} depends on the pose of the shapes: aligned the {len(shapes)} specimens of "
+          f"{args.file} first (generalized Procrustes rotations and translations, sizes kept), which moved them "
+          f"by up to {100 * moved.max():.3g} % of their size; --no-align uses the file's pose", file=sys.stderr)
     return aligned
 
 

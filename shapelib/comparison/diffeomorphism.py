@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validate import as_shape, as_shape_pair, check_positive
+from .._validate import as_shape, as_shape_pair, check_positive, check_positive_int
 from ..geometry.procrustes import check_pose
 from ..solver.minimise import minimise_path
 from ..solver.path_metric import PathMetric
@@ -312,6 +312,7 @@ def diffeomorphism_warp(points, result: GeodesicResult, *, lam: float | None = N
     lam = result.log["lam"] if lam is None else lam
     width = result.log["kernel_width"] if kernel_width is None else kernel_width
     x = as_shape(points, name="points").copy()
+    substeps = check_positive_int(substeps, name="substeps")
     path = result.path
     n = len(path) - 1
     model = _path_metric(lam, width)
