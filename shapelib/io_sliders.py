@@ -25,6 +25,8 @@ import numpy as np
 __all__ = ["read_sliders"]
 
 _COLUMNS = ("before", "slide", "after")
+#: a decimal number (``7``, ``7.0``, ``7.000000000000000000e+00`` as numpy.savetxt writes it)
+_NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?")
 
 
 def _tokens(line: str) -> list[str]:
@@ -33,11 +35,8 @@ def _tokens(line: str) -> list[str]:
 
 
 def _landmark_number(text: str, where: str, column: str) -> int:
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value == int(value)) or not re.fullmatch(r"[+-]?\d+(\.0*)?([eE]\+?\d+)?", text):
+    value = float(text) if _NUMBER.fullmatch(text) else math.nan
+    if not (math.isfinite(value) and value == int(value)):
         raise ValueError(f"{where}: {column} {text!r} is not a landmark number (a whole number from 1)")
     return int(value)
 
