@@ -13,8 +13,8 @@ from ._common import EXIT_UNCONVERGED, PROG, CLIError, _file_options, _output_pa
 EXAMPLES = {
     "info": "example:\n  shapelib info fish.tps",
     "align": "examples:\n  shapelib align fish.tps -o aligned.tps --size 20\n  shapelib align fish.csv -o aligned.csv\n"
-             "  shapelib align wings.csv -o aligned.csv --slide curveslide.csv    (geomorph's define.sliders table)\n"
-             "  shapelib align wings.tps -o aligned.tps --slide curves           (the file's CURVES= blocks slide)",
+             "  shapelib align wings.csv -o aligned.csv --slide curveslide.csv    # geomorph's define.sliders table\n"
+             "  shapelib align wings.tps -o aligned.tps --slide curves           # the file's CURVES= blocks slide",
 }
 
 
@@ -208,7 +208,8 @@ def cmd_align(args) -> int:
               f"so in a COMMENT= line, which shapelib reads back as coordinates (tpsDig itself reads negative values "
               f"as missing landmarks)", file=sys.stderr)
     if slid is not None and not slid.converged:
-        print(f"{PROG}: warning: sliding did not converge: after {slid.n_iter} iteration{'s' if slid.n_iter != 1 else ''} "
+        iterations = f"{slid.n_iter} iteration{'s' if slid.n_iter != 1 else ''}"
+        print(f"{PROG}: warning: sliding did not converge: after {iterations} "
               f"the Procrustes sum of squares around the mean still changed by more than 1e-4 of itself; {out} holds "
               f"the shapes as slid so far (raise --slide-max-iter); exit status {EXIT_UNCONVERGED}", file=sys.stderr)
         return EXIT_UNCONVERGED
