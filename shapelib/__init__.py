@@ -65,7 +65,7 @@ _LAZY_SUBMODULES = ("io", "pairwise", "population", "statistics", "datasets", "s
 #: earlier names of submodules, still served on first use
 _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
-_LAZY_FUNCTIONS = {"read_point_sets": "pointset_io", "write_point_set": "pointset_io",
+_LAZY_FUNCTIONS = {"read_point_sets": "pointset_io", "write_point_set": "pointset_io", "read_sliders": "io_sliders",
                    "pairwise_distances": "pairwise", "frechet_mean": "statistics", "tangent_pca": "statistics",
                    "geodesic_regression": "statistics", "mean_difference_test": "statistics",
                    "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple",
@@ -93,6 +93,7 @@ __all__ = [
     "slide_semilandmarks",
     "SlideResult",
     "curve_sliders",
+    "read_sliders",  # shapelib.io_sliders, loaded on first use
     "bending_energy_matrix",
     "estimate_missing",
     "MissingEstimate",

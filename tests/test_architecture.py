@@ -20,7 +20,7 @@ RANK = {
     "solver": 2,
     "comparison": 3,
     "distances": 4, "statistics": 4, "pointsets": 4, "retrieval": 5,
-    "io": 5, "pointset_io": 5, "pairwise": 5, "plotting": 5, "population": 6,
+    "io": 5, "pointset_io": 5, "io_sliders": 5, "pairwise": 5, "plotting": 5, "population": 6,
     "datasets": 6,
     "study": 7,
     "cli": 8,

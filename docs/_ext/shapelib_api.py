@@ -191,10 +191,10 @@ AREAS = (
          """),
     Area("io", "Input, output and datasets",
          "Landmark files — tpsDig ``.tps``, CSV (wide or long), NumPy ``.npy``/``.npz``, geomorph's "
-         "``p × k × n`` arrays — the input errors every entry point raises, and the study's raw "
-         "data, fetched and checked against the registry's checksums or read from "
-         "``SHAPELIB_DATA_DIR``.",
-         ("shapelib.io", "shapelib.datasets"),
+         "``p × k × n`` arrays and sliding-semilandmark tables (``curveslide.csv``) — the input errors "
+         "every entry point raises, and the study's raw data, fetched and checked against the "
+         "registry's checksums or read from ``SHAPELIB_DATA_DIR``.",
+         ("shapelib.io", "shapelib.io_sliders", "shapelib.datasets"),
          """
          shapelib.InputError
          shapelib.io.read_landmarks
@@ -211,6 +211,7 @@ AREAS = (
          shapelib.io.NEGATIVE_COORDINATES_COMMENT
          shapelib.read_point_sets
          shapelib.write_point_set
+         shapelib.read_sliders
          shapelib.datasets.load_corpus_callosum
          shapelib.datasets.load_adhd200
          shapelib.datasets.load_fish2d

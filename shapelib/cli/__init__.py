@@ -3,7 +3,7 @@
 Subcommands (``shapelib <command> --help`` shows an example for each)::
 
     shapelib info FILE
-    shapelib align FILE -o OUT [--size S]
+    shapelib align FILE -o OUT [--size S] [--slide SLIDERS.csv|curves [--slide-criterion C]]
     shapelib distances FILE --metric M [--sigma2 S|auto] [--rtol R] [--jobs N | --scheduler ADDRESS]
                            [--store D.zarr [--max-blocks N]] [--no-progress] -o D.csv
     shapelib geodesic FILE --from ID --to ID --metric M --sigma2 S|auto -o path.csv [--plot P.png] [--animate A.gif]

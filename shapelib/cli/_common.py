@@ -35,7 +35,9 @@ EXIT_UNCONVERGED = 4
 # ---------------------------------------------------------------------------------------------
 
 
-def _read(args, *, missing="error"):
+def _read(args, *, missing="error", curves=False):
+    """The shapes and specimens table of ``args.file``; with ``curves`` (a .tps file), also its
+    ``CURVES=`` semilandmarks (:func:`shapelib.io.read_tps` ``return_curves=True``)."""
     from .. import io
 
     kw = {"missing": missing}
@@ -51,7 +53,12 @@ def _read(args, *, missing="error"):
     elif args.pkn:
         raise CLIError(f"--pkn applies to .npy/.npz files only; {args.file} is {fmt}")
     try:
-        shapes, spec = io.read_landmarks(args.file, **kw)
+        if curves:
+            if not Path(args.file).is_file():
+                raise ValueError(f"{args.file}: no such file")
+            shapes, spec, curve_points = io.read_tps(args.file, return_curves=True, **kw)
+        else:
+            shapes, spec = io.read_landmarks(args.file, **kw)
     except InputError as exc:
         raise CLIError(_in_cli_words(exc)) from None
     except ValueError as exc:
@@ -63,7 +70,7 @@ def _read(args, *, missing="error"):
         print(f"{PROG}: note: read {args.file} as geomorph's p x k x n array: {n} specimens of {k} landmarks in {d}-D "
               f"(if it is (N, d, K) instead, {k} specimens of {n} landmarks, save it as (N, K, d): "
               "numpy.swapaxes(array, 1, 2), and read it without --pkn)", file=sys.stderr)
-    return shapes, spec
+    return (shapes, spec, curve_points) if curves else (shapes, spec)
 
 
 def _warn_coincident(shapes, spec, path) -> None:
