@@ -94,13 +94,13 @@ def procrustes_mean(shapes) -> np.ndarray:
     already aligned by GPA this is their arithmetic mean up to the size normalisation; it is the
     start of :func:`frechet_mean` and does not depend on the order of the shapes.
 
-    With :math:`\mu` the GPA mean, :math:`ar s = rac1N \sum_i \operatorname{CS}(x_i)` the
-    mean centroid size and :math:`ar x = rac1N \sum_i x_i`,
+    With :math:`\mu` the GPA mean, :math:`\bar s = \frac1N \sum_i \operatorname{CS}(x_i)` the
+    mean centroid size and :math:`\bar x = \frac1N \sum_i x_i`,
 
     .. math::
 
-        m = ar s\, \mu R^* + \mathbf{1} t^{*	op}, \qquad
-        (R^*, t^*) = \operatorname*{arg\,min}_{R \in SO(d),\, t} ig\| ar s\, \mu R + \mathbf{1} t^	op - ar x ig\|_F^2 .
+        m = \bar s\, \mu R^* + \mathbf{1} t^{*\top}, \qquad
+        (R^*, t^*) = \operatorname*{arg\,min}_{R \in SO(d),\, t} \big\| \bar s\, \mu R + \mathbf{1} t^\top - \bar x \big\|_F^2 .
 
     Parameters
     ----------

@@ -99,8 +99,8 @@ def min_p_adjusted(observed, null, *, rtol: float = 0.0):
 
     .. math::
 
-        p_{ks} = rac{\#\{k' : t_{k's} \ge t_{ks}\}}{1 + P}, \qquad
-        p_	ext{family} = rac{\#\{k : \min_s p_{ks} \le \min_s p_{0s}\}}{1 + P}.
+        p_{ks} = \frac{\#\{k' : t_{k's} \ge t_{ks}\}}{1 + P}, \qquad
+        p_\text{family} = \frac{\#\{k : \min_s p_{ks} \le \min_s p_{0s}\}}{1 + P}.
 
     Parameters
     ----------
