@@ -153,6 +153,32 @@ def local_cluster(n_workers: int):
     their own KeyboardInterrupt tracebacks: the engine has its workers ignore SIGINT
     (:func:`ignore_sigint`, run on them once they are up; spawned processes do not inherit a
     blocked mask), since the caller stops the run and closing the cluster ends them.
+
+    Parameters
+    ----------
+    n_workers : int
+        Worker processes (one thread each), a positive integer.
+
+    Returns
+    -------
+    distributed.LocalCluster
+        The running cluster; close it (or leave its ``with`` block) to end the worker processes.
+
+    See Also
+    --------
+    engine_executor : The same cluster as an executor, for maps over shapes.
+    shapelib.pairwise.compute_pairwise : Starts one for ``n_jobs=k > 1``.
+
+    Examples
+    --------
+    Starting worker processes takes a few seconds (each imports shapelib), so this example is
+    not run in the doctests:
+
+    >>> from distributed import Client
+    >>> from shapelib.pairwise import local_cluster
+    >>> with local_cluster(2) as cluster, Client(cluster) as client:  # doctest: +SKIP
+    ...     print(len(cluster.workers), client.submit(sum, [1, 2, 3]).result())
+    2 6
     """
     import dask
     from distributed import LocalCluster
@@ -223,6 +249,49 @@ def engine_executor(*, n_jobs=None, client=None, scheduler=None, serial_seconds=
     caller's projection of the serial time) is below the break-even
     ``CLUSTER_OVERHEAD_SECONDS · W / (W − 1)`` on ``W`` cores, else on one worker per core — the
     rule :func:`compute_pairwise` applies to matrices.
+
+    Parameters
+    ----------
+    n_jobs : int, optional
+        ``1``: in this process; ``k > 1``: a local cluster of ``k`` worker processes; ``None``
+        or ``-1``: chosen from ``serial_seconds``.
+    client : distributed.Client, optional
+        Use this Dask cluster.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``"tcp://host:8786"``).
+    serial_seconds : float, optional
+        The caller's projection of the work's serial time, for ``n_jobs=None``; None: in this
+        process.
+
+    Yields
+    ------
+    executor : concurrent.futures.Executor or None
+        Where to ``submit`` or ``map`` the work; None: run it in this process.
+    n_workers : int
+        Workers it has (1 in this process).
+    mode : str
+        ``"in-process"``, ``"LocalCluster(k processes)"`` or ``"cluster"``, for the caller's log.
+
+    Raises
+    ------
+    ValueError
+        For ``n_jobs`` not a positive integer, -1 or None, for both ``client`` and
+        ``scheduler``, or ``n_jobs`` with either; when the scheduler cannot be reached.
+
+    See Also
+    --------
+    local_cluster : The cluster started for ``n_jobs=k > 1``.
+
+    Examples
+    --------
+    A second of serial work is below the break-even of starting a cluster, so it runs here:
+
+    >>> from shapelib.pairwise import engine_executor
+    >>> with engine_executor(n_jobs=None, serial_seconds=1.0) as (executor, n_workers, mode):
+    ...     results = (list(executor.map(abs, [-1, 2, -3])) if executor is not None
+    ...                else [abs(v) for v in [-1, 2, -3]])
+    >>> executor, n_workers, mode, results
+    (None, 1, 'in-process', [1, 2, 3])
     """
     from distributed import Client
 

@@ -50,6 +50,30 @@ class InputError(ValueError):
         What a caller may act on: ``landmarks`` (indices named in the message, counted from 0),
         ``negative_as_missing`` (a tps reader read negative coordinates as missing), ``metric``
         and ``parameters`` (a metric's missing required options).
+
+    Attributes
+    ----------
+    template : str
+        The message with its remedy fields.
+    facts : dict
+        As given (empty if none).
+
+    See Also
+    --------
+    shapelib.io.read_landmarks : Raises it for a missing landmark.
+
+    Examples
+    --------
+    The same error in the library's words and in the command line's:
+
+    >>> from shapelib import InputError
+    >>> exc = InputError("fish.tps: specimen 'b': landmark 3 is missing; {keep_missing}", {"landmarks": (2,)})
+    >>> isinstance(exc, ValueError), exc.facts["landmarks"]
+    (True, (2,))
+    >>> print(exc)
+    fish.tps: specimen 'b': landmark 3 is missing; pass missing='nan' to keep them as NaN (shapelib's distances do not accept NaN: estimate or drop them first)
+    >>> print(exc.phrase({"keep_missing": "pass --keep-missing"}))
+    fish.tps: specimen 'b': landmark 3 is missing; pass --keep-missing
     """
 
     def __init__(self, template: str, facts: dict | None = None):

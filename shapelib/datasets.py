@@ -785,6 +785,15 @@ class MPEG7(NamedTuple):
     The shapes of the MPEG-7 core experiment CE-Shape-1 [1]_, scored by the bull's-eye test
     (:func:`shapelib.retrieval.bullseye`).
 
+    Attributes
+    ----------
+    shapes : list of ndarray of bool, or ndarray, shape (N, n_points, 2)
+        The silhouettes as boolean images, or (``n_points`` given) their traced outlines.
+    labels : ndarray of str, shape (N,)
+        The class of each shape, e.g. ``"deer"``.
+    names : list of str
+        The file name of each shape without ``.gif``, e.g. ``"deer-7"``.
+
     See Also
     --------
     shapelib.datasets.load_mpeg7 : What returns it.

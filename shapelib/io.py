@@ -305,6 +305,33 @@ def read_tps(path, *, scale: bool = False, missing: str = "error", negative: str
         any other ``KEY=`` fields in lower case.
     curves : list of list of ndarray
         Only with ``return_curves=True``.
+
+    See Also
+    --------
+    write_tps : The writer that reads back through this reader.
+    read_landmarks : Any format, chosen by the file's extension.
+
+    Examples
+    --------
+    Two specimens of three landmarks; tpsDig's ``-1 -1`` marks the second one's third landmark
+    as missing:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from shapelib.io import read_tps
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = Path(tmp.name) / "fish.tps"
+    >>> _ = path.write_text("LM=3\\n1 2\\n3 4\\n5 6\\nID=a\\nLM=3\\n1.5 2\\n3 4.5\\n-1 -1\\nID=b\\n")
+    >>> shapes, specimens = read_tps(path, missing="nan")
+    >>> shapes.shape, specimens["id"].tolist(), specimens["n_missing"].tolist()
+    ((2, 3, 2), ['a', 'b'], [0, 1])
+    >>> shapes[1, 2]
+    array([nan, nan])
+    >>> read_tps(path)
+    Traceback (most recent call last):
+    ...
+    shapelib._validate.InputError: ...: line 9, specimen 'b' (#2): landmark 3 is missing ...
+    >>> tmp.cleanup()
     """
     _check_missing_option(missing)
     if negative not in (None, "missing", "coordinates"):
@@ -446,6 +473,11 @@ def write_tps(path, shapes, specimens=None, *, curves=None, missing_value: float
         What NaN (missing) landmarks are written as, in each coordinate (tpsDig: negative), in a
         file without negative coordinates.
 
+    Returns
+    -------
+    Path
+        ``path``, written atomically (a reader never sees half a file).
+
     Notes
     -----
     tpsDig reads negative coordinates as missing landmarks. When some coordinates are negative
@@ -453,6 +485,35 @@ def write_tps(path, shapes, specimens=None, *, curves=None, missing_value: float
     :func:`read_tps` (and so ``shapelib`` commands) honours, and missing landmarks are written
     ``NA``: the file reads back as written, with no options. tpsDig itself would still take the
     negative values as missing.
+
+    See Also
+    --------
+    read_tps : Reads the file back.
+    write_landmarks : Any format, chosen by the file's extension.
+
+    Examples
+    --------
+    The second shape has a negative coordinate, so the file marks its negative values as
+    coordinates and reads back as written:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from shapelib.io import read_tps, write_tps
+    >>> shapes = np.array([[[0, 0], [1, 0], [0, 1.5]], [[0, 0], [2, 0], [0, -1]]])
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = write_tps(Path(tmp.name) / "two.tps", shapes, ["a", "b"])
+    >>> print(path.read_text().split("\\n\\n")[0])
+    LM=3
+    0 0
+    1 0
+    0 1.5
+    ID=a
+    COMMENT=shapelib: negative values are coordinates, not missing landmarks
+    >>> back, specimens = read_tps(path)
+    >>> np.array_equal(back, shapes), specimens["id"].tolist()
+    (True, ['a', 'b'])
+    >>> tmp.cleanup()
     """
     path = Path(path)
     x = _as_writable(shapes, path)
@@ -570,6 +631,32 @@ def read_csv(path, *, layout: str = "auto", missing: str = "error", id_column: s
     specimens : DataFrame
         ``id`` first, then the other non-coordinate columns (wide layout), ``line``,
         ``n_missing``; ``attrs["landmarks"]`` holds the landmark labels in order.
+
+    See Also
+    --------
+    write_csv : Writes both layouts.
+    read_landmarks : Any format, chosen by the file's extension.
+
+    Examples
+    --------
+    A wide file, one specimen per row, with a metadata column:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from shapelib.io import read_csv
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = Path(tmp.name) / "wide.csv"
+    >>> _ = path.write_text("id,sex,x1,y1,x2,y2,x3,y3\\na,F,0,0,1,0,0,1\\nb,M,0,0,2,0,0,1\\n")
+    >>> shapes, specimens = read_csv(path)
+    >>> shapes.shape, specimens["id"].tolist(), specimens["sex"].tolist()
+    ((2, 3, 2), ['a', 'b'], ['F', 'M'])
+    >>> shapes[1]
+    array([[0., 0.],
+           [2., 0.],
+           [0., 1.]])
+    >>> specimens.attrs["layout"], specimens.attrs["landmarks"]
+    ('wide', ['1', '2', '3'])
+    >>> tmp.cleanup()
     """
     _check_missing_option(missing)
     if layout not in ("auto", "wide", "long"):
@@ -714,8 +801,46 @@ def write_csv(path, shapes, specimens=None, *, layout: str = "wide", landmarks=N
     """Write shapes as CSV: ``wide`` (``id, [metadata…], x1, y1, x2, y2, …``) or ``long``
     (``specimen, landmark, x, y[, z]``). Missing (NaN) coordinates are written as ``NA``.
 
-    ``landmarks`` gives landmark labels (default ``1…K``); wide columns are then ``<label>_x``
-    unless the labels are ``1…K``.
+    Parameters
+    ----------
+    path : str or Path
+        The file to write (replaced atomically if it exists).
+    shapes : array_like, shape (N, K, d) or (K, d), d = 2 or 3
+        The landmarks; NaN marks a missing landmark.
+    specimens : DataFrame or sequence of str, optional
+        The specimen ids (a table's ``id`` column); a table's other columns are written as
+        metadata columns of the wide layout (all-NaN columns and the readers' ``line``,
+        ``n_missing`` and ``scaled`` are left out). Default ids: ``0, 1, …``.
+    layout : {"wide", "long"}
+        ``"wide"``: one row per specimen; ``"long"``: one row per landmark.
+    landmarks : sequence of str, optional
+        Landmark labels, one per landmark (default ``1…K``). Wide columns are then named
+        ``<label>_x, <label>_y`` unless the labels are ``1…K``.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    See Also
+    --------
+    read_csv : Reads either layout back.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from shapelib.io import read_csv, write_csv
+    >>> shapes = np.array([[[0, 0], [1, 0], [0, 1.5]], [[0, 0], [2, 0], [0, -1]]])
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = write_csv(Path(tmp.name) / "long.csv", shapes, ["a", "b"], layout="long")
+    >>> print(path.read_text().splitlines()[:3])
+    ['specimen,landmark,x,y', 'a,1,0.0,0.0', 'a,2,1.0,0.0']
+    >>> back, specimens = read_csv(path)
+    >>> np.array_equal(back, shapes), specimens.attrs["layout"]
+    (True, 'long')
+    >>> tmp.cleanup()
     """
     path = Path(path)
     x = _as_writable(shapes, path)
@@ -751,7 +876,46 @@ def write_csv(path, shapes, specimens=None, *, layout: str = "wide", landmarks=N
 
 def read_npy(path, *, missing: str = "error", layout: str = "nkd"):
     """Read an ``(N, K, d)`` array from ``.npy`` or ``.npz`` (key ``shapes``, else the only array;
-    optional ``ids``). ``layout="pkn"`` reads geomorph's ``p × k × n`` order (:func:`from_pkn`)."""
+    optional ``ids``). ``layout="pkn"`` reads geomorph's ``p × k × n`` order (:func:`from_pkn`).
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.npy`` file (one numeric array) or ``.npz`` archive (``shapes``, else its only
+        array, and optionally ``ids``).
+    missing : {"error", "nan"}
+        A NaN coordinate raises ``ValueError`` naming the file, specimen and landmark unless
+        ``"nan"``.
+    layout : {"nkd", "pkn"}
+        ``"nkd"``: specimens first, shapelib's ``(N, K, d)``; ``"pkn"``: geomorph's
+        ``(K, d, N)``.
+
+    Returns
+    -------
+    shapes : ndarray, shape (N, K, d), float64
+        The landmarks.
+    specimens : DataFrame
+        Column ``id``: the archive's ``ids``, else ``0, 1, …``; ``attrs["format"]`` is
+        ``"npy"`` or ``"npz"``.
+
+    See Also
+    --------
+    write_npy : Writes both.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from shapelib.io import read_npy
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = Path(tmp.name) / "shapes.npz"
+    >>> np.savez(path, shapes=np.zeros((2, 4, 2)), ids=np.array(["left", "right"]))
+    >>> shapes, specimens = read_npy(path)
+    >>> shapes.shape, specimens["id"].tolist(), specimens.attrs["format"]
+    ((2, 4, 2), ['left', 'right'], 'npz')
+    >>> tmp.cleanup()
+    """
     _check_missing_option(missing)
     path = Path(path)
     ids = None
@@ -797,7 +961,41 @@ def read_npy(path, *, missing: str = "error", layout: str = "nkd"):
 
 
 def write_npy(path, shapes, specimens=None) -> Path:
-    """Write ``.npy`` (the array only) or ``.npz`` (``shapes`` and ``ids``)."""
+    """Write ``.npy`` (the array only) or ``.npz`` (``shapes`` and ``ids``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; its suffix chooses ``.npz`` (an archive with ``shapes`` and ``ids``), else
+        ``.npy`` (the array only: the ids are not kept). Replaced atomically if it exists.
+    shapes : array_like, shape (N, K, d) or (K, d), d = 2 or 3
+        The landmarks.
+    specimens : DataFrame or sequence of str, optional
+        The specimen ids (a table's ``id`` column); default ``0, 1, …``.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    See Also
+    --------
+    read_npy : Reads both back.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from shapelib.io import read_npy, write_npy
+    >>> shapes = np.arange(12.0).reshape(2, 3, 2)
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = write_npy(Path(tmp.name) / "shapes.npz", shapes, ["a", "b"])
+    >>> back, specimens = read_npy(path)
+    >>> np.array_equal(back, shapes), specimens["id"].tolist()
+    (True, ['a', 'b'])
+    >>> tmp.cleanup()
+    """
     path = Path(path)
     x = _as_writable(shapes, path)
     table = _specimen_table(specimens, len(x), path)
@@ -812,7 +1010,32 @@ def write_npy(path, shapes, specimens=None) -> Path:
 
 def from_pkn(array) -> np.ndarray:
     """geomorph's ``p × k × n`` landmark array (``p`` landmarks, ``k`` = 2 or 3 coordinates,
-    ``n`` specimens, as ``readland.tps`` returns) as shapelib's ``(n, p, k)`` float64 array."""
+    ``n`` specimens, as ``readland.tps`` returns) as shapelib's ``(n, p, k)`` float64 array.
+
+    Parameters
+    ----------
+    array : array_like, shape (p, k, n), k = 2 or 3
+        Landmarks in geomorph's order.
+
+    Returns
+    -------
+    ndarray, shape (n, p, k), float64
+        The same landmarks, specimens first (C-contiguous): ``out[i, j] == array[j, :, i]``.
+
+    See Also
+    --------
+    to_pkn : The inverse.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.io import from_pkn
+    >>> pkn = np.zeros((5, 2, 3))          # 5 landmarks, 2-D, 3 specimens
+    >>> pkn[:, 0, 2] = np.arange(5)        # the x coordinates of the third specimen
+    >>> shapes = from_pkn(pkn)
+    >>> shapes.shape, shapes[2, :, 0].tolist()
+    ((3, 5, 2), [0.0, 1.0, 2.0, 3.0, 4.0])
+    """
     a = np.asarray(array, dtype=np.float64)
     if a.ndim != 3:
         raise ValueError(f"a p x k x n array must be 3-D; got shape {a.shape}")
@@ -823,7 +1046,30 @@ def from_pkn(array) -> np.ndarray:
 
 
 def to_pkn(shapes) -> np.ndarray:
-    """shapelib's ``(N, K, d)`` array as geomorph's ``p × k × n`` (``K × d × N``)."""
+    """shapelib's ``(N, K, d)`` array as geomorph's ``p × k × n`` (``K × d × N``).
+
+    Parameters
+    ----------
+    shapes : array_like, shape (N, K, d), d = 2 or 3
+        Landmarks, specimens first.
+
+    Returns
+    -------
+    ndarray, shape (K, d, N), float64
+        The same landmarks in geomorph's order (C-contiguous): ``out[j, :, i] == shapes[i, j]``.
+
+    See Also
+    --------
+    from_pkn : The inverse.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.io import from_pkn, to_pkn
+    >>> shapes = np.random.default_rng(0).normal(size=(3, 5, 2))
+    >>> to_pkn(shapes).shape, np.array_equal(from_pkn(to_pkn(shapes)), shapes)
+    ((5, 2, 3), True)
+    """
     x = np.asarray(shapes, dtype=np.float64)
     if x.ndim != 3:
         raise ValueError(f"shapes must have shape (N, K, d); got {x.shape}")
@@ -851,7 +1097,26 @@ def read_landmarks(path, *, format: str | None = None, **kw):
     Returns
     -------
     shapes : ndarray, shape (N, K, d), float64
-    specimens : DataFrame, column ``id`` first; ``attrs["format"]`` records the format read.
+        The landmarks.
+    specimens : DataFrame
+        Column ``id`` first; ``attrs["format"]`` records the format read.
+
+    See Also
+    --------
+    write_landmarks : The writer, by extension too.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from shapelib.io import read_landmarks
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = Path(tmp.name) / "long.csv"
+    >>> _ = path.write_text("specimen,landmark,x,y\\nA,1,0,0\\nA,2,1,0\\nB,1,0,0\\nB,2,0,2\\n")
+    >>> shapes, specimens = read_landmarks(path)
+    >>> shapes.shape, specimens["id"].tolist(), specimens.attrs["format"]
+    ((2, 2, 2), ['A', 'B'], 'csv')
+    >>> tmp.cleanup()
     """
     fmt = _format_of(path, format)
     if not Path(path).is_file():
@@ -866,7 +1131,48 @@ def read_landmarks(path, *, format: str | None = None, **kw):
 
 def write_landmarks(path, shapes, specimens=None, *, format: str | None = None, **kw) -> Path:
     """Write shapes in the format given by ``path``'s extension (or ``format``); ``**kw`` go to
-    :func:`write_tps` (``curves``, ``missing_value``) or :func:`write_csv` (``layout``, ``landmarks``)."""
+    :func:`write_tps` (``curves``, ``missing_value``) or :func:`write_csv` (``layout``, ``landmarks``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write; its extension (``.tps``, ``.csv``, ``.npy``, ``.npz``) chooses the
+        format.
+    shapes : array_like, shape (N, K, d) or (K, d), d = 2 or 3
+        The landmarks.
+    specimens : DataFrame or sequence of str, optional
+        Specimen ids and metadata, as the format's writer takes them; default ``0, 1, …``.
+    format : {"tps", "csv", "npy", "npz"}, optional
+        Override the extension.
+    **kw
+        Options of :func:`write_tps` (``curves``, ``missing_value``) or :func:`write_csv`
+        (``layout``, ``landmarks``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    See Also
+    --------
+    read_landmarks : The reader, by extension too.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from shapelib.io import read_landmarks, write_landmarks
+    >>> shapes = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]])
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> for name in ("one.tps", "one.csv", "one.npz"):
+    ...     back, specimens = read_landmarks(write_landmarks(Path(tmp.name) / name, shapes, ["s1"]))
+    ...     print(specimens.attrs["format"], np.array_equal(back, shapes), specimens["id"].tolist())
+    tps True ['s1']
+    csv True ['s1']
+    npz True ['s1']
+    >>> tmp.cleanup()
+    """
     fmt = _format_of(path, format)
     if fmt == "tps":
         return write_tps(path, shapes, specimens, **kw)

@@ -163,13 +163,42 @@ def _count(value, p, lineno, key):
 def write_point_set(path, points) -> Path:
     """Write one point set to ``.csv`` (columns x, y[, z]) or ``.npy``; returns the path.
 
+    Parameters
+    ----------
+    path : str or Path
+        The file; its suffix, ``.csv`` or ``.npy``, chooses the format. A CSV file is replaced
+        atomically if it exists.
+    points : array_like, shape (n, d)
+        The points, one row each (d = 2 or 3 for CSV: columns ``x, y[, z]``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        For a suffix other than ``.csv`` or ``.npy``.
+
+    See Also
+    --------
+    read_point_sets : Reads it back.
+
     Examples
     --------
-    >>> import tempfile, pathlib
+    >>> import tempfile
+    >>> from pathlib import Path
     >>> from shapelib.pointset_io import read_point_sets, write_point_set
-    >>> f = write_point_set(pathlib.Path(tempfile.mkdtemp()) / "p.csv", [[0.5, 1.0], [2.0, -1.0]])
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> f = write_point_set(Path(tmp.name) / "p.csv", [[0.5, 1.0], [2.0, -1.0]])
+    >>> print(f.read_text(), end="")
+    x,y
+    0.5,1.0
+    2.0,-1.0
     >>> read_point_sets(f)[0][0].tolist()
     [[0.5, 1.0], [2.0, -1.0]]
+    >>> tmp.cleanup()
     """
     from ._files import write_text_atomic
 

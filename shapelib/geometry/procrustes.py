@@ -518,6 +518,12 @@ class PoseWarning(UserWarning):
     (:func:`~shapelib.geometry.procrustes.check_pose`). Filter it with :mod:`warnings` like any
     :class:`UserWarning`.
 
+    Parameters
+    ----------
+    *args : str
+        The message, as for any warning (:func:`warnings.warn` passes its text when given this
+        category).
+
     See Also
     --------
     shapelib.pose_align : The fix: align the shapes first.

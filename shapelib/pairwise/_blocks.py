@@ -53,14 +53,54 @@ def _n_blocks(n: int, b: int) -> int:
 
 
 def block_pairs(n: int, block_size: int, *, symmetric: bool) -> list[tuple[int, int]]:
-    """Block indices ``(I, J)`` of the tasks: ``I ≤ J`` for symmetric metrics, all for asymmetric ones."""
+    """Block indices ``(I, J)`` of the tasks: ``I ≤ J`` for symmetric metrics, all for asymmetric ones.
+
+    Block ``(I, J)`` holds rows ``I·b … (I+1)·b − 1`` and columns ``J·b … (J+1)·b − 1`` of the
+    ``n × n`` matrix (``b = block_size``; the last block of a side may be smaller), so there are
+    ``⌈n / b⌉`` blocks a side.
+
+    Parameters
+    ----------
+    n : int
+        Shapes (the matrix is ``n × n``).
+    block_size : int
+        Shapes per block side.
+    symmetric : bool
+        Whether the metric is symmetric: then only the blocks on and above the diagonal are
+        tasks (the others are their mirror images).
+
+    Returns
+    -------
+    list of tuple of int
+        ``(I, J)`` in row-major order.
+
+    See Also
+    --------
+    compute_block : One task's pairs.
+    default_block_size : How ``block_size`` is chosen.
+
+    Examples
+    --------
+    Five shapes in blocks of two: three blocks a side.
+
+    >>> from shapelib.pairwise import block_pairs
+    >>> block_pairs(5, 2, symmetric=True)
+    [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+    >>> len(block_pairs(5, 2, symmetric=False))
+    9
+    """
     nb = _n_blocks(n, block_size)
     return [(a, b) for a in range(nb) for b in range(nb) if not symmetric or a <= b]
 
 
 def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, params: dict,
                   offset=(0, 0)) -> dict:
-    """All pairs of one block: ``{array: (bi, bj)}`` (the arrays of :data:`ARRAYS`).
+    r"""All pairs of one block: ``{array: (bi, bj)}`` (the arrays of :data:`ARRAYS`).
+
+    Entry ``[a, b]`` of each array is the metric's record of the pair
+    ``(xi[a], xj[b])``: its distance :math:`D_{ij} = d(\mathbf{x}_i, \mathbf{x}_j)` (``matrix``,
+    the record's ``value``), the certified ``lower`` and ``upper`` bounds, the path ``energy``,
+    ``seconds``, ``converged`` and ``n_iter``.
 
     ``metric`` is a name or a :class:`~shapelib.distances.MetricInfo` record: the engine sends
     the record with each task, so a metric registered in the client runs on workers that can
@@ -75,6 +115,58 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
     ``i ≠ j`` are computed (``i < j``, then mirrored, for symmetric metrics) and the diagonal is
     zero. Solver warnings are not emitted: convergence is recorded per pair instead; nor are
     scale and pose warnings, which :func:`compute_pairwise` gives once for all the shapes.
+
+    Parameters
+    ----------
+    xi : array_like, shape (bi, K, d)
+        The block's row shapes.
+    xj : array_like, shape (bj, K, d)
+        Its column shapes (the same object as ``xi`` on a diagonal block).
+    diagonal : bool
+        Whether this is a diagonal block (``xi`` and ``xj`` are the same shapes).
+    symmetric : bool
+        Whether the metric is symmetric (a diagonal block then computes ``i < j`` and mirrors).
+    metric : str or MetricInfo
+        A registered metric's name or its record.
+    rtol : float or None
+        The certified relative tolerance of the geodesic metrics' brackets; None for none.
+    params : dict
+        The metric's options (e.g. ``{"sigma2": 0.5}``).
+    offset : tuple of int
+        Row and column of ``xi[0]`` and ``xj[0]`` in the whole matrix.
+
+    Returns
+    -------
+    dict of str to ndarray
+        One ``(bi, bj)`` array per name of :data:`ARRAYS`: ``matrix`` (float64), ``lower``,
+        ``upper``, ``energy``, ``seconds`` (float64), ``converged`` (bool), ``n_iter`` (int64).
+
+    Raises
+    ------
+    PairError
+        When the metric rejects a pair, naming its row and column of the whole matrix.
+
+    See Also
+    --------
+    block_pairs : Which blocks there are.
+    compute_pairwise : Runs the blocks and stores them.
+
+    Examples
+    --------
+    The off-diagonal block of rows 0–1 and columns 2–4 of five shapes:
+
+    >>> import numpy as np
+    >>> from shapelib.distances import distance
+    >>> from shapelib.pairwise import compute_block
+    >>> x = np.random.default_rng(0).normal(size=(5, 6, 2))
+    >>> out = compute_block(x[:2], x[2:], diagonal=False, symmetric=True, metric="procrustes",
+    ...                     rtol=None, params={}, offset=(0, 2))
+    >>> sorted(out), out["matrix"].shape
+    (['converged', 'energy', 'lower', 'matrix', 'n_iter', 'seconds', 'upper'], (2, 3))
+    >>> bool(np.isclose(out["matrix"][1, 0], distance(x[1], x[2], metric="procrustes")))
+    True
+    >>> bool(out["converged"].all()), np.array_equal(out["lower"], out["matrix"])
+    (True, True)
     """
     info = metric_info(metric)
     if params.get("modulo") is not None:  # point sets of any sizes, modulo a group (:mod:`._pointsets`),
@@ -195,8 +287,49 @@ def _matrix_block(d: np.ndarray, *, diagonal: bool, seconds: float) -> dict:
 
 
 def default_block_size(seconds_per_pair: float, n: int, *, n_workers: int = 1, symmetric: bool = True) -> int:
-    """Block side ``b`` with ``b² · seconds_per_pair ≤ TASK_SECONDS`` and ≥ ``TASKS_PER_WORKER`` tasks
-    per worker (see the module docstring)."""
+    r"""Block side ``b`` with ``b² · seconds_per_pair ≤ TASK_SECONDS`` and ≥ ``TASKS_PER_WORKER`` tasks
+    per worker (see the module docstring).
+
+    A task of ``b²`` pairs then takes about :data:`TASK_SECONDS` (:math:`T`):
+
+    .. math::
+
+        b = \min\Big(n,\ \max\Big(1,\ \Big\lfloor \sqrt{T / t_\text{pair}} \Big\rfloor\Big)\Big),
+
+    made smaller, with ``W > 1`` workers, until there are at least ``TASKS_PER_WORKER · W``
+    blocks (``⌈n/b⌉ (⌈n/b⌉ + 1) / 2`` of them for a symmetric metric).
+
+    Parameters
+    ----------
+    seconds_per_pair : float
+        :math:`t_\text{pair}`, the measured seconds of one pair.
+    n : int
+        Shapes.
+    n_workers : int
+        Worker processes the blocks are shared among.
+    symmetric : bool
+        Whether the metric is symmetric (only the blocks on and above the diagonal are tasks).
+
+    Returns
+    -------
+    int
+        The block side, between 1 and ``n``.
+
+    See Also
+    --------
+    block_pairs : The blocks of that side.
+
+    Examples
+    --------
+    At 1 ms a pair a two-second task holds 44² pairs; with two workers, 100 shapes are cut
+    finer so that each worker gets at least four tasks:
+
+    >>> from shapelib.pairwise import default_block_size
+    >>> default_block_size(1e-3, 1000), default_block_size(1e-3, 100, n_workers=2)
+    (44, 25)
+    >>> default_block_size(30.0, 100)   # a pair longer than a task: one pair per block
+    1
+    """
     b = max(1, int(math.sqrt(TASK_SECONDS / max(seconds_per_pair, 1e-9))))
     if n_workers > 1:
         want = TASKS_PER_WORKER * n_workers

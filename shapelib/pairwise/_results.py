@@ -16,6 +16,38 @@ class PairError(ValueError):
     and ``shapes[j]`` its ``v``; ``reason`` is the metric's own message (which speaks of ``u``
     and ``v`` and counts landmarks from 0); ``landmarks``: the landmark indices it names (from 0),
     empty if none. Raised in-process and, unchanged, through Dask.
+
+    Parameters
+    ----------
+    i, j : int
+        The pair's row and column of the matrix.
+    reason : str or Exception
+        The metric's rejection; an :class:`~shapelib.InputError` also gives the landmarks.
+    landmarks : sequence of int, optional
+        Landmark indices (from 0) the reason names; default: those of an
+        :class:`~shapelib.InputError` reason, else none.
+
+    Attributes
+    ----------
+    i, j : int
+        As given.
+    reason : str
+        The metric's message.
+    landmarks : tuple of int
+        The landmarks it names.
+
+    See Also
+    --------
+    compute_pairwise : Raises it, before or during the run.
+
+    Examples
+    --------
+    >>> from shapelib.pairwise import PairError
+    >>> exc = PairError(2, 5, ValueError("u and v have different numbers of landmarks"))
+    >>> print(exc)
+    pair (shapes[2], shapes[5]) as (u, v): u and v have different numbers of landmarks
+    >>> isinstance(exc, ValueError), exc.i, exc.j, exc.landmarks
+    (True, 2, 5, ())
     """
 
     def __init__(self, i, j, reason, landmarks=()):
@@ -204,6 +236,27 @@ class BlockProgress:
         Blocks computed by this call so far.
     pairs_done, pairs_total : int
         The same counted in pairs (one per unordered pair for symmetric metrics).
+
+    See Also
+    --------
+    compute_pairwise : Calls the callback.
+
+    Examples
+    --------
+    Five shapes in blocks of two are six blocks; the callback stops the run after the second:
+
+    >>> import numpy as np
+    >>> from shapelib.pairwise import compute_pairwise
+    >>> x = np.random.default_rng(0).normal(size=(5, 6, 2))
+    >>> def stop_after_two(p):
+    ...     print(p.block, p.rows, p.cols, f"{p.pairs_done}/{p.pairs_total} pairs")
+    ...     return p.blocks_done == 2
+    >>> r = compute_pairwise(x, metric="procrustes", n_jobs=1, block_size=2, progress=False,
+    ...                      callback=stop_after_two)
+    (0, 0) range(0, 2) range(0, 2) 1/10 pairs
+    (0, 1) range(0, 2) range(2, 4) 5/10 pairs
+    >>> r.complete, r.log["stopped"], int(r.computed.sum())
+    (False, True, 12)
     """
 
     block: tuple

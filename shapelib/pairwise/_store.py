@@ -236,6 +236,43 @@ def open_store(path) -> PairwiseResult:
 
     Raises ``ValueError`` naming the store and the array/block when it is corrupt or truncated.
     Pairs not yet computed are NaN in the float arrays and ``False`` in ``result.computed``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The zarr directory that ``compute_pairwise(..., store=path)`` wrote.
+
+    Returns
+    -------
+    PairwiseResult
+        The stored arrays (``matrix`` and the ``lower``, ``upper``, ``converged`` … of every
+        pair), the metric and its parameters as recorded, ``computed`` and ``log``
+        (``blocks_done`` of ``blocks_total``).
+
+    Raises
+    ------
+    ValueError
+        When ``path`` is not a pairwise store, or a chunk is missing, unreadable or fails its
+        checksum (naming the array and the block).
+
+    See Also
+    --------
+    compute_pairwise : Writes the store, and resumes it.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from shapelib.pairwise import compute_pairwise, open_store
+    >>> x = np.random.default_rng(0).normal(size=(4, 6, 2))
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> store = Path(tmp.name) / "procrustes.zarr"
+    >>> r = compute_pairwise(x, metric="procrustes", store=store, n_jobs=1, progress=False)
+    >>> back = open_store(store)
+    >>> back.metric, back.complete, np.array_equal(back.matrix, r.matrix)
+    ('procrustes', True, True)
+    >>> tmp.cleanup()
     """
     store = _Store.open(path)
     data, computed = store.read()

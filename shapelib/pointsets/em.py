@@ -47,6 +47,12 @@ class EMWarning(RuntimeWarning):
     A :class:`RuntimeWarning`: :func:`fit_mixture` still returns the last estimate, with
     ``converged`` false and ``stop_reason`` ``"max_iter"``.
 
+    Parameters
+    ----------
+    *args : str
+        The message, as for any warning (:func:`warnings.warn` passes its text when given this
+        category).
+
     See Also
     --------
     fit_mixture : What warns (``warn=False`` silences it).

@@ -56,6 +56,12 @@ class PoseSearchWarning(RuntimeWarning):
     A :class:`RuntimeWarning`: :func:`align` still returns the best pose found, with ``converged``
     false and ``stop_reason`` ``"max_iter"``.
 
+    Parameters
+    ----------
+    *args : str
+        The message, as for any warning (:func:`warnings.warn` passes its text when given this
+        category).
+
     See Also
     --------
     align : What warns (``warn=False`` silences it; a larger ``max_iter`` lets it converge).

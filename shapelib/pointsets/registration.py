@@ -84,6 +84,12 @@ class RegistrationWarning(RuntimeWarning):
     A :class:`RuntimeWarning`: :func:`register` still returns its last estimate, with
     ``converged`` false and ``stop_reason`` ``"max_iter"``.
 
+    Parameters
+    ----------
+    *args : str
+        The message, as for any warning (:func:`warnings.warn` passes its text when given this
+        category).
+
     See Also
     --------
     register : What warns (``warn=False`` silences it).

@@ -166,6 +166,12 @@ class GeodesicWarning(RuntimeWarning):
     actual path, so ``lower_bound ≤ d(u, v) ≤ length`` holds [1]_; only the path is not (yet)
     the geodesic.
 
+    Parameters
+    ----------
+    *args : str
+        The message, as for any warning (:func:`warnings.warn` passes its text when given this
+        category).
+
     See Also
     --------
     shapelib.geodesic : What raises it (``warn=False`` silences it).

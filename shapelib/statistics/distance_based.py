@@ -89,6 +89,25 @@ def as_distance_matrix(d, *, name: str = "distances", atol: float = 1e-9) -> np.
     ------
     ValueError
         Naming ``name`` and the first offending entry.
+
+    See Also
+    --------
+    permanova, knn_loo_accuracy, classical_mds, mantel_test : What validates its input with it.
+
+    Examples
+    --------
+    Rounding noise is symmetrised away; an asymmetric matrix is refused, naming the entries:
+
+    >>> import numpy as np
+    >>> from shapelib.statistics import as_distance_matrix
+    >>> D = np.array([[0.0, 1.0, 2.0], [1.0 + 1e-12, 0.0, 1.0], [2.0, 1.0, 0.0]])
+    >>> out = as_distance_matrix(D)
+    >>> np.array_equal(out, out.T), float(out[1, 0])
+    (True, 1.0000000000005)
+    >>> as_distance_matrix([[0, 1, 2], [1, 0, 1], [2, 3, 0]], name="D")
+    Traceback (most recent call last):
+    ...
+    ValueError: D is not symmetric: [1, 2] = 1.0 but [2, 1] = 3.0 (symmetrise an asymmetric measure first)
     """
     x = np.asarray(d, dtype=np.float64)
     if x.ndim != 2 or x.shape[0] != x.shape[1]:
@@ -120,7 +139,46 @@ def as_distance_matrix(d, *, name: str = "distances", atol: float = 1e-9) -> np.
 
 
 def gower_centered(d) -> np.ndarray:
-    """Gower's centred matrix ``G = −½ J (D∘D) J`` (McArdle & Anderson 2001, eq. 2)."""
+    r"""Gower's centred matrix ``G = −½ J (D∘D) J`` (McArdle & Anderson 2001, eq. 2).
+
+    With the centring matrix :math:`J = I - \mathbf{1}\mathbf{1}^\top / N`,
+
+    .. math::
+
+        G = J A J, \qquad A_{ij} = -\tfrac12 d_{ij}^2,
+
+    so that :math:`G = Y Y^\top` for the centred coordinates :math:`Y` of Euclidean distances,
+    and :math:`\operatorname{tr} G = \sum_{i<j} d_{ij}^2 / N` is the total sum of squares of
+    :func:`permanova`.
+
+    Parameters
+    ----------
+    d : array_like, shape (N, N)
+        A distance matrix (checked by :func:`as_distance_matrix`).
+
+    Returns
+    -------
+    ndarray, shape (N, N), float64
+        :math:`G`, symmetric, rows and columns summing to zero.
+
+    See Also
+    --------
+    permanova : Its sums of squares are traces of :math:`G`.
+    classical_mds : The principal coordinates are :math:`G`'s scaled eigenvectors.
+
+    Examples
+    --------
+    For Euclidean distances :math:`G` is the Gram matrix of the centred points:
+
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> from shapelib.statistics import gower_centered
+    >>> points = np.random.default_rng(0).normal(size=(6, 2))
+    >>> G = gower_centered(squareform(pdist(points)))
+    >>> Y = points - points.mean(axis=0)
+    >>> bool(np.allclose(G, Y @ Y.T)), bool(np.allclose(G.sum(axis=0), 0))
+    (True, True)
+    """
     x = as_distance_matrix(d)
     a = -0.5 * x * x
     a -= a.mean(axis=0, keepdims=True)
@@ -154,6 +212,27 @@ class PermanovaResult:
     n_permutations, seed : int
     by : {"margin", "terms"}
     permute : {"residuals", "rows"}
+
+    See Also
+    --------
+    permanova : What returns it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> rng = np.random.default_rng(0)
+    >>> group = np.repeat(["a", "b"], 6)
+    >>> points = rng.normal(size=(12, 2)) + 3.0 * (group == "b")[:, None]   # two clusters
+    >>> D = squareform(pdist(points))
+    >>> from shapelib.statistics import permanova
+    >>> result = permanova(D, {"group": group}, n_permutations=99)
+    >>> result.table.loc["group", ["df", "pseudo_F", "p_value"]].round(3).tolist()
+    [1.0, 33.363, 0.01]
+    >>> result.null["group"].shape
+    (99,)
+    >>> print(result.summary().splitlines()[0])
+    PERMANOVA, 99 permutations (Freedman-Lane: residuals of the model without the term permuted); sums of squares marginal (type III)
     """
 
     table: pd.DataFrame
@@ -223,7 +302,7 @@ def _quadratic_by_column(e: np.ndarray, q: np.ndarray, perms: np.ndarray, chunk:
 @keeps_old_calls(renamed={"permutations": "n_permutations"})
 def permanova(distances, covariates, *, terms=None, by: str = "margin", permute: str = "residuals",
               n_permutations: int = 999, seed: int | None = 0) -> PermanovaResult:
-    """Multi-term PERMANOVA on a distance matrix (McArdle & Anderson 2001; R vegan's ``adonis2``).
+    r"""Multi-term PERMANOVA on a distance matrix (McArdle & Anderson 2001; R vegan's ``adonis2``).
 
     Parameters
     ----------
@@ -256,6 +335,45 @@ def permanova(distances, covariates, *, terms=None, by: str = "margin", permute:
     Returns
     -------
     PermanovaResult
+        ``table`` (per term: ``df``, ``sum_of_squares``, ``r2``, ``pseudo_F``, ``p_value``),
+        ``null`` (the permuted pseudo-F of each term) and ``summary()``.
+
+    Notes
+    -----
+    With Gower's centred matrix :math:`G` (:func:`gower_centered`), the hat matrices
+    :math:`H_X` of the design with the term and :math:`H_Z` of the reduced model without it,
+    and :math:`H` of the full model,
+
+    .. math::
+
+        F = \frac{\operatorname{tr}\big((H_X - H_Z) G\big) / \mathrm{df}_\text{term}}
+                 {\operatorname{tr}\big((I - H) G\big) / \mathrm{df}_\text{res}},
+        \qquad
+        p = \frac{1 + \#\{F^* \ge F\}}{1 + n_\text{permutations}}.
+
+    See Also
+    --------
+    permanova_sweep : The same test over several matrices, with a family-wise adjustment.
+    gower_centered : The matrix whose traces are the sums of squares.
+
+    Examples
+    --------
+    Two clusters of points, their Euclidean distances, and a covariate without effect:
+
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> rng = np.random.default_rng(0)
+    >>> group = np.repeat(["a", "b"], 6)
+    >>> points = rng.normal(size=(12, 2)) + 3.0 * (group == "b")[:, None]   # two clusters
+    >>> D = squareform(pdist(points))
+    >>> from shapelib.statistics import permanova
+    >>> age = rng.uniform(20, 60, size=12)
+    >>> result = permanova(D, {"group": group, "age": age}, n_permutations=99)
+    >>> result.table.loc[["group", "age"], "df"].tolist()
+    [1, 1]
+    >>> p = result.table["p_value"]
+    >>> bool(p["group"] <= 0.05), bool(p["age"] > 0.05)
+    (True, True)
     """
     d = as_distance_matrix(distances)
     n = len(d)
@@ -380,6 +498,25 @@ class KnnResult:
     predictions : ndarray, shape (N,)
         Leave-one-out predicted label of each object.
     n_neighbors, n_permutations : int
+
+    See Also
+    --------
+    knn_loo_accuracy : What returns it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> rng = np.random.default_rng(0)
+    >>> group = np.repeat(["a", "b"], 6)
+    >>> points = rng.normal(size=(12, 2)) + 3.0 * (group == "b")[:, None]   # two clusters
+    >>> D = squareform(pdist(points))
+    >>> from shapelib.statistics import knn_loo_accuracy
+    >>> result = knn_loo_accuracy(D, group, n_neighbors=3, n_permutations=99)
+    >>> result.accuracy, result.p_value, result.majority_rate
+    (1.0, 0.01, 0.5)
+    >>> result.predictions[:3], result.null.shape
+    (array(['a', 'a', 'a'], dtype='<U1'), (99,))
     """
 
     accuracy: float
@@ -396,7 +533,7 @@ class KnnResult:
 @keeps_old_calls(renamed={"permutations": "n_permutations"})
 def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, n_permutations: int = 999,
                      seed: int | None = 0) -> KnnResult:
-    """Leave-one-out k-nearest-neighbour accuracy on a precomputed distance matrix, with a
+    r"""Leave-one-out k-nearest-neighbour accuracy on a precomputed distance matrix, with a
     label-permutation p-value.
 
     The statistic is exactly that of ``permutation_test_score(KNeighborsClassifier(n_neighbors,
@@ -427,6 +564,35 @@ def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, n_permutations:
     Returns
     -------
     KnnResult
+        ``accuracy``, its permutation ``p_value`` and ``null``, the ``majority_rate`` and each
+        object's leave-one-out ``predictions``.
+
+    Notes
+    -----
+    With :math:`\hat y_{-i}` the majority label of object :math:`i`'s ``k`` nearest other
+    objects and :math:`a^*` the accuracies of permuted labels,
+
+    .. math::
+
+        a = \frac1N \sum_{i=1}^N [\hat y_{-i} = y_i], \qquad
+        p = \frac{1 + \#\{a^* \ge a\}}{1 + n_\text{permutations}}.
+
+    See Also
+    --------
+    knn_sweep : The same over several matrices, with a family-wise adjustment.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> rng = np.random.default_rng(0)
+    >>> group = np.repeat(["a", "b"], 6)
+    >>> points = rng.normal(size=(12, 2)) + 3.0 * (group == "b")[:, None]   # two clusters
+    >>> D = squareform(pdist(points))
+    >>> from shapelib.statistics import knn_loo_accuracy
+    >>> result = knn_loo_accuracy(D, group, n_neighbors=3, n_permutations=99)
+    >>> result.accuracy, result.p_value
+    (1.0, 0.01)
     """
     from sklearn.neighbors import KNeighborsClassifier
 
@@ -468,7 +634,23 @@ def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, n_permutations:
 
 
 def classical_mds(distances, *, n_components: int = 2):
-    """Classical (Torgerson) MDS / principal coordinates of a distance matrix (scikit-learn).
+    r"""Classical (Torgerson) MDS / principal coordinates of a distance matrix (scikit-learn).
+
+    The coordinates are the leading eigenvectors :math:`v_k` of Gower's centred matrix
+    :math:`G` (:func:`gower_centered`) scaled by the square roots of their eigenvalues,
+
+    .. math::
+
+        G v_k = \lambda_k v_k, \qquad 	ext{coords}_{:, k} = \sqrt{\lambda_k}\, v_k, \qquad
+        	ext{explained}_k = \lambda_k / \operatorname{tr} G.
+
+    Parameters
+    ----------
+    distances : array_like, shape (N, N)
+        A distance matrix (checked by :func:`as_distance_matrix`).
+    n_components : int
+        Axes to return, between 1 and ``N − 1`` (and at most the number of positive
+        eigenvalues).
 
     Returns
     -------
@@ -485,6 +667,23 @@ def classical_mds(distances, *, n_components: int = 2):
     ValueError
         If the distances are all zero, or ``n_components`` exceeds the number of positive
         eigenvalues (a Euclidean embedding has no more axes).
+
+    See Also
+    --------
+    gower_centered : The matrix it diagonalises.
+
+    Examples
+    --------
+    Euclidean distances of planar points are reproduced exactly by two axes:
+
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> from shapelib.statistics import classical_mds
+    >>> points = np.random.default_rng(0).normal(size=(8, 2)) * [3.0, 1.0]
+    >>> D = squareform(pdist(points))
+    >>> coords, explained = classical_mds(D, n_components=2)
+    >>> coords.shape, bool(np.allclose(squareform(pdist(coords)), D)), round(float(explained.sum()), 6)
+    ((8, 2), True, 1.0)
     """
     from sklearn.manifold import ClassicalMDS
 
@@ -508,7 +707,7 @@ def classical_mds(distances, *, n_components: int = 2):
 
 @keeps_old_calls(renamed={"permutations": "n_permutations"})
 def mantel_test(x, y, *, method: str = "spearman", n_permutations: int = 999, seed: int | None = 0):
-    """Mantel correlation between two distance matrices over the same objects (scikit-bio).
+    r"""Mantel correlation between two distance matrices over the same objects (scikit-bio).
 
     Parameters
     ----------
@@ -525,6 +724,29 @@ def mantel_test(x, y, *, method: str = "spearman", n_permutations: int = 999, se
         Correlation of the upper-triangle entries.
     p_value : float
         Two-sided permutation p-value (objects permuted in one matrix).
+
+    Notes
+    -----
+    The statistic is the correlation of the upper-triangle entries,
+    :math:`r = \operatorname{corr}\big((x_{ij})_{i<j}, (y_{ij})_{i<j}\big)` (of their ranks for
+    Spearman), and :math:`p = (1 + \#\{|r^*| \ge |r|\}) / (1 + n_\text{permutations})` over
+    simultaneous permutations of the rows and columns of ``x``.
+
+    See Also
+    --------
+    permanova : Distances against covariates rather than another matrix.
+
+    Examples
+    --------
+    Squaring a distance keeps the ranking of the pairs, so Spearman's correlation is 1:
+
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> from shapelib.statistics import mantel_test
+    >>> D = squareform(pdist(np.random.default_rng(0).normal(size=(8, 2))))
+    >>> r, p = mantel_test(D, D ** 2, n_permutations=99)
+    >>> round(r, 12), p <= 0.05
+    (1.0, True)
     """
     from skbio.stats.distance import mantel
 

@@ -72,6 +72,28 @@ class MeanDifferenceResult:
         on the geodesic distance; ``geodesic.lower_bound`` is a lower one).
     geodesic : GeodesicResult or None
         From the mean of ``A`` to the mean of ``B``.
+
+    See Also
+    --------
+    mean_difference_test : What returns it.
+
+    Examples
+    --------
+    Two groups of ellipses of different widths:
+
+    >>> import numpy as np
+    >>> import shapelib as sl
+    >>> s = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    >>> rng = np.random.default_rng(1)
+    >>> x = np.stack([np.c_[(2.0 + 0.3 * (i % 2)) * np.cos(s), np.sin(s)] + 0.02 * rng.normal(size=(8, 2))
+    ...               for i in range(12)])
+    >>> x = sl.pose_align(x)[0]
+    >>> test = sl.mean_difference_test(x, np.arange(12) % 2, sigma2=0.5, n_permutations=199, group_means=False,
+    ...                                n_jobs=1)
+    >>> test.labels, test.sizes, test.null.shape, test.difference.shape
+    ((0, 1), (6, 6), (199,), (8, 2))
+    >>> print(test.summary())
+    0 (n = 6) vs 1 (n = 6), alpha: tangent distance between the group means 0.04038, permutation p = 0.01 (199 permutations)
     """
 
     labels: tuple

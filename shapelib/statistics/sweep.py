@@ -45,7 +45,32 @@ class SweepTest:
         Westfall–Young min-P p-value of the whole sweep: how often the best of the sweep is at
         least this good when the labels carry no information. Report this, not ``p_values[best]``.
     name : str
+        What the statistic is, for :meth:`summary`.
     n_permutations : int
+        Permutations, the same at every value.
+    results : list
+        The result of each value's test (:class:`PermanovaResult` or :class:`KnnResult`).
+
+    See Also
+    --------
+    permanova_sweep, knn_sweep : What return it.
+    min_p_adjusted : The family-wise p-value.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> rng = np.random.default_rng(0)
+    >>> group = np.repeat(["a", "b"], 6)
+    >>> points = rng.normal(size=(12, 2))
+    >>> # three matrices: the groups drawn 0, 1 and 3 units apart
+    >>> sweep = [squareform(pdist(points + shift * (group == "b")[:, None])) for shift in (0.0, 1.0, 3.0)]
+    >>> from shapelib.statistics import permanova_sweep
+    >>> test = permanova_sweep(sweep, {"group": group}, term="group", n_permutations=99)
+    >>> test.statistic.round(2), test.best, test.p_family
+    (array([ 1.46,  3.43, 33.36]), 2, 0.02)
+    >>> print(test.summary())
+    PERMANOVA pseudo-F of group: best at sweep value 2 (33.36, plain p = 0.01); over the whole sweep of 3 values p = 0.02 (Westfall-Young min-P, 99 permutations)
     """
 
     statistic: np.ndarray
@@ -66,7 +91,16 @@ class SweepTest:
 
 
 def min_p_adjusted(observed, null, *, rtol: float = 0.0):
-    """Plain and family-wise (min-P) p-values of a statistic observed at S values of a sweep.
+    r"""Plain and family-wise (min-P) p-values of a statistic observed at S values of a sweep.
+
+    With the observed row :math:`t_{0s}` and the permuted rows :math:`t_{ks}`,
+    :math:`k = 1 … P`, each row's p-value at value :math:`s` among all :math:`1 + P` rows, and
+    Westfall & Young's (1993) min-P adjustment over the sweep, are
+
+    .. math::
+
+        p_{ks} = \frac{\#\{k' : t_{k's} \ge t_{ks}\}}{1 + P}, \qquad
+        p_\text{family} = \frac{\#\{k : \min_s p_{ks} \le \min_s p_{0s}\}}{1 + P}.
 
     Parameters
     ----------
@@ -85,6 +119,22 @@ def min_p_adjusted(observed, null, *, rtol: float = 0.0):
     p_family : float
         ``#{k : min_s p_ks ≤ min_s p_s} / (1 + P)`` over the observed (k = 0) and permuted rows,
         where ``p_ks`` is the p-value of row k's statistic at value s among all ``1 + P`` rows.
+
+    See Also
+    --------
+    permanova_sweep, knn_sweep : The sweeps it adjusts.
+
+    Examples
+    --------
+    The smallest plain p of three values is not a p-value for the sweep; the family-wise one
+    is larger:
+
+    >>> import numpy as np
+    >>> from shapelib.statistics import min_p_adjusted
+    >>> null = np.random.default_rng(0).normal(size=(99, 3))   # 99 permutations, 3 values
+    >>> p, p_family = min_p_adjusted([0.5, 2.5, 1.0], null)
+    >>> p, p_family
+    (array([0.3 , 0.02, 0.15]), 0.06)
     """
     obs = np.asarray(observed, dtype=np.float64)
     nul = np.asarray(null, dtype=np.float64)
@@ -133,6 +183,24 @@ def permanova_sweep(distances, covariates, *, term: str, n_permutations: int = 9
     -------
     SweepTest
         Statistic: the term's pseudo-F; ``results``: the :class:`PermanovaResult` of each matrix.
+
+    See Also
+    --------
+    min_p_adjusted : The family-wise p-value over the sweep.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> rng = np.random.default_rng(0)
+    >>> group = np.repeat(["a", "b"], 6)
+    >>> points = rng.normal(size=(12, 2))
+    >>> # three matrices: the groups drawn 0, 1 and 3 units apart
+    >>> sweep = [squareform(pdist(points + shift * (group == "b")[:, None])) for shift in (0.0, 1.0, 3.0)]
+    >>> from shapelib.statistics import permanova_sweep
+    >>> test = permanova_sweep(sweep, {"group": group}, term="group", n_permutations=99)
+    >>> test.p_values, test.best, test.p_family
+    (array([0.21, 0.1 , 0.01]), 2, 0.02)
     """
     cov = pd.DataFrame(covariates)
     if term not in cov.columns:
@@ -152,10 +220,42 @@ def knn_sweep(distances, labels, *, n_neighbors: int = 5, n_permutations: int = 
     """Leave-one-out k-NN accuracy (:func:`shapelib.statistics.distance_based.knn_loo_accuracy`) at
     every matrix of a sweep, the same label permutations for all, with the family-wise test.
 
+    Parameters
+    ----------
+    distances : sequence of array_like, each (N, N)
+        One distance matrix per value of the sweep (e.g. per σ²), rows in the same order.
+    labels : array_like, shape (N,)
+        Class of each object.
+    n_neighbors : int
+        ``k``, as :func:`knn_loo_accuracy`.
+    n_permutations : int
+        Label permutations, the same for every matrix.
+    seed : int or None
+        As :func:`knn_loo_accuracy`; the same seed gives every matrix the same permutations,
+        which the family-wise test needs.
+
     Returns
     -------
     SweepTest
         Statistic: the accuracy; ``results``: the :class:`KnnResult` of each matrix.
+
+    See Also
+    --------
+    min_p_adjusted : The family-wise p-value over the sweep.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.spatial.distance import pdist, squareform
+    >>> rng = np.random.default_rng(0)
+    >>> group = np.repeat(["a", "b"], 6)
+    >>> points = rng.normal(size=(12, 2))
+    >>> # three matrices: the groups drawn 0, 1 and 3 units apart
+    >>> sweep = [squareform(pdist(points + shift * (group == "b")[:, None])) for shift in (0.0, 1.0, 3.0)]
+    >>> from shapelib.statistics import knn_sweep
+    >>> test = knn_sweep(sweep, group, n_neighbors=3, n_permutations=99)
+    >>> test.statistic.round(3), test.p_values, test.p_family
+    (array([0.333, 0.667, 1.   ]), array([0.71, 0.13, 0.01]), 0.02)
     """
     results: list[KnnResult] = [knn_loo_accuracy(d, labels, n_neighbors=n_neighbors, n_permutations=n_permutations,
                                                  seed=seed) for d in distances]
