@@ -143,10 +143,8 @@ def test_the_mathematics_imports_no_io_dask_or_plotting(area):
     assert not wrong, "\n".join(wrong)
 
 
-#: the compiled kernels (numba), long by nature, and the two modules another change splits
-LONG_MODULES_ALLOWED = {"shapelib.geometry._kernels": "compiled kernels",
-                        "shapelib.cli": "being split into a package by command group",
-                        "shapelib.io": "being split with the command line"}
+#: the compiled kernels (numba), long by nature
+LONG_MODULES_ALLOWED = {"shapelib.geometry._kernels": "compiled kernels"}
 #: the most lines a module of the package may have
 MAX_MODULE_LINES = 700
 
