@@ -29,13 +29,13 @@ results: setup
 quick: setup
 	$(PY) run_all.py --quick $(ARGS)
 
-# the suite on every core (pytest-xdist); `$(PY) -m pytest tests/test_x.py` runs part of it in one process
+# the suite on every core (pytest-xdist; idle workers take queued tests from busy ones); `$(PY) -m pytest tests/test_x.py` runs part of it in one process
 test: setup
-	$(PY) -m pytest -n logical
+	$(PY) -m pytest -n logical --dist worksteal
 
 # every test, the slow ones too (the JAX backend's batched and engine paths, the GPU benchmark's CPU check)
 test-all: setup
-	$(PY) -m pytest -n logical -m ""
+	$(PY) -m pytest -n logical --dist worksteal -m ""
 
 # nitpicky, warnings are errors; the examples of docs/examples are executed (sphinx-gallery; unchanged
 # ones are not re-run), and the study notebooks (run_all.py: the paper's figures with their full
