@@ -253,6 +253,14 @@ def test_a_kernel_that_dies_before_its_first_cell_is_started_once_more(toy, monk
     assert (status, len(starts)) == ("FAILED", 2) and "RuntimeError: boom" in msg
 
 
+def _ppid(process):
+    """The parent's pid of a process listed a moment ago, or None if it has exited since."""
+    try:
+        return process.ppid()
+    except psutil.NoSuchProcess:
+        return None
+
+
 def _kill_tree(proc):
     """SIGKILL ``proc``'s process group and every descendant: the kernel runs in a session of its
     own, outside the group, and an orphaned kernel is not always reaped (a failed assertion here
@@ -337,8 +345,9 @@ def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig)
 
         def kernel_and_two_workers_up():
             children[:] = parent.children(recursive=True)  # one snapshot for the test and the assertion
-            kernels = [c for c in children if c.ppid() == proc.pid]
-            return bool(kernels) and sum(c.ppid() == kernels[0].pid for c in children) >= 2
+            ppid = {c: _ppid(c) for c in children}  # a short-lived child may be gone by now
+            kernels = [c for c in children if ppid[c] == proc.pid]
+            return bool(kernels) and sum(ppid[c] == kernels[0].pid for c in children) >= 2
 
         wait_for(kernel_and_two_workers_up, "the kernel and its two workers")
         assert list(results.glob(".tmp-toy-*"))
