@@ -56,11 +56,10 @@ CC_FILES = ["cdfhc/cdfhc_data2D_CC.mat"]
 
 
 def _registered(prefix: str, suffix: str) -> list[str]:
-    """Registry paths (``data/registry.csv``) under ``prefix`` ending in ``suffix``."""
-    import csv
+    """Registry paths (:func:`shapelib.datasets.registry`) under ``prefix`` ending in ``suffix``."""
+    from shapelib.datasets import registry
 
-    with open(ROOT / "data" / "registry.csv", newline="") as fh:
-        return sorted(r["path"] for r in csv.DictReader(fh) if r["path"].startswith(prefix) and r["path"].endswith(suffix))
+    return sorted(p for p in registry() if p.startswith(prefix) and p.endswith(suffix))
 
 
 MPEG7_GIFS = _registered("mpeg7/", ".gif")

@@ -1,7 +1,8 @@
 """Dataset registry, fetching and loaders.
 
-Every raw file the study uses is listed in ``data/registry.csv`` with its upstream URL
-(pinned to a commit) and its sha256. Files are never committed to this repository:
+Every raw file the study uses is listed in the registry ``shapelib/data/registry.csv`` (shipped
+inside the package, read with :mod:`importlib.resources`) with its upstream URL (pinned to a
+commit) and its sha256. Files are never committed to this repository:
 
 * when the environment variable ``SHAPELIB_DATA_DIR`` is set, files are taken from that
   folder (same layout as the registry paths, e.g. ``$SHAPELIB_DATA_DIR/cdfhc/...``) and
@@ -17,6 +18,7 @@ from __future__ import annotations
 import csv
 import functools
 import hashlib
+import importlib.resources
 import os
 import re
 import warnings
@@ -51,7 +53,8 @@ __all__ = [
 
 DATA_DIR_ENV = "SHAPELIB_DATA_DIR"
 CACHE_DIR_ENV = "SHAPELIB_CACHE_DIR"
-REGISTRY_PATH = Path(__file__).resolve().parents[1] / "data" / "registry.csv"
+#: the registry as a package resource (``shapelib/data/registry.csv``; in a wheel or a checkout alike)
+REGISTRY_PATH = importlib.resources.files("shapelib") / "data" / "registry.csv"
 
 #: Paper ids (Fig. 10 / Table I numbering) of the 7 shapes in ``cdfhc_data2D_CC.mat``, in file order.
 CC_PAPER_IDS = (1, 3, 8, 2, 6, 7, 9)
@@ -77,8 +80,8 @@ class DataError(ValueError):
 def registry() -> dict[str, tuple[str, str]]:
     r"""Return ``{relative path: (upstream url, sha256)}`` for every registered raw file.
 
-    Read once from ``data/registry.csv`` (cached): each file the study uses, with its upstream URL
-    pinned to a commit and the SHA-256 :math:`h` that :func:`~shapelib.datasets.fetch` checks,
+    Read once (cached) from ``shapelib/data/registry.csv``, a file shipped inside the package: each
+    file the study uses, with its upstream URL pinned to a commit and the SHA-256 :math:`h` that :func:`~shapelib.datasets.fetch` checks,
 
     .. math::
 
@@ -115,7 +118,7 @@ def registry() -> dict[str, tuple[str, str]]:
     """
     if not REGISTRY_PATH.is_file():
         raise DataError(f"dataset registry not found at {REGISTRY_PATH}")
-    with open(REGISTRY_PATH, newline="") as fh:
+    with REGISTRY_PATH.open(newline="") as fh:
         return {row["path"]: (row["url"], row["sha256"]) for row in csv.DictReader(fh)}
 
 

@@ -22,6 +22,7 @@ def test_environment_yml_in_sync_with_pyproject():
         if in_deps and m:
             conda_names.add(_name(m.group(1)))
     conda_names -= {"python", "pip"}  # conda-only conveniences
+    conda_names = {{"python-build": "build"}.get(n, n) for n in conda_names}  # conda-forge's name for pypa/build
     assert pip_names == conda_names
 
 
@@ -42,3 +43,26 @@ def test_import_shapelib_is_light_and_its_other_modules_load_on_use():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "has no attribute 'no_such_thing'" in proc.stdout
+
+
+def test_the_dataset_registry_ships_inside_the_package():
+    """The loaders read the registry as a package resource, so a wheel carries it: it is a file under
+    the package, setuptools' package-data names it, and it is the repository's only copy."""
+    import importlib.resources
+
+    from shapelib import datasets
+
+    resource = importlib.resources.files("shapelib") / "data" / "registry.csv"
+    assert resource.is_file() and str(datasets.REGISTRY_PATH) == str(resource)
+    assert resource.read_text().splitlines()[0] == "path,url,sha256"
+    package_data = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    assert "registry.csv" in package_data["shapelib.data"]
+    assert not (ROOT / "data" / "registry.csv").exists()  # its old place beside the package: one copy
+
+
+def test_the_statistics_need_no_optional_extra():
+    """scikit-learn is a core dependency (TangentPCA is a scikit-learn transformer; knn_classify and pcoa are
+    scikit-learn's), so the statistics a wheel installs import with the core dependencies alone."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert "scikit-learn" in {_name(r) for r in project["dependencies"]}
+    assert "build" in {_name(r) for r in project["optional-dependencies"]["dev"]}
