@@ -13,8 +13,7 @@ import numbers
 import numpy as np
 
 __all__ = ["InputError", "literal", "as_shape", "as_shapes", "as_shape_pair", "as_pair_batch", "check_sigma2", "check_positive", "check_positive_int",
-           "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked",
-           "keeps_old_calls", "deprecated_alias"]
+           "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked"]
 
 #: landmark dimensions every shape-taking entry point accepts (``dims=`` of :func:`as_shape`)
 LANDMARK_DIMS = (2, 3)
@@ -254,77 +253,3 @@ def set_checked():
 def set_was_checked() -> bool:
     """True inside :func:`set_checked`."""
     return _SET_CHECKED.get()
-
-
-def keeps_old_calls(*, renamed: dict | None = None, keyword_only: tuple = ()):
-    """Decorator: calls in a previous release's form keep working for one release, with a
-    :class:`DeprecationWarning` saying what to write instead.
-
-    ``renamed``: ``{old keyword: new keyword}``; ``keyword_only``: the keyword-only options (in
-    their old positional order) that used to be positional, e.g. ``("sigma2",)``. The wrapped
-    function's signature (what ``inspect.signature`` and the docs show) is the new one.
-
-    Examples
-    --------
-    >>> import warnings
-    >>> @keeps_old_calls(renamed={"spacing": "grid_spacing"}, keyword_only=("sigma2",))
-    ... def f(x, *, sigma2, grid_spacing=0.5):
-    ...     return x, sigma2, grid_spacing
-    >>> with warnings.catch_warnings(record=True) as w:
-    ...     warnings.simplefilter("always")
-    ...     f(1, 2.0, spacing=0.25), len(w)
-    ((1, 2.0, 0.25), 2)
-    """
-    import functools
-    import inspect
-    import warnings
-
-    renamed = dict(renamed or {})
-
-    def decorate(function):
-        params = inspect.signature(function).parameters.values()
-        n_positional = sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params)
-        name = function.__qualname__
-
-        @functools.wraps(function)
-        def wrapper(*args, **kwargs):
-            if len(args) > n_positional and keyword_only:
-                extra = args[n_positional:]
-                if len(extra) > len(keyword_only):
-                    raise TypeError(f"{name}() takes {n_positional + len(keyword_only)} positional arguments at most "
-                                    f"(deprecated form); got {len(args)}")
-                names = keyword_only[:len(extra)]
-                for key, value in zip(names, extra):
-                    if key in kwargs:
-                        raise TypeError(f"{name}() got multiple values for argument {key!r}")
-                    kwargs[key] = value
-                args = args[:n_positional]
-                warnings.warn(f"{name}(): pass {', '.join(f'{k}=...' for k in names)} by keyword; positional "
-                              f"{'arguments' if len(names) > 1 else 'argument'} will be an error in the next release",
-                              DeprecationWarning, stacklevel=2)
-            for old, new in renamed.items():
-                if old in kwargs:
-                    if new in kwargs:
-                        raise TypeError(f"{name}() got both {old}= (deprecated) and {new}=")
-                    kwargs[new] = kwargs.pop(old)
-                    warnings.warn(f"{name}(): {old}= is deprecated, use {new}= (the old name goes in the next "
-                                  "release)", DeprecationWarning, stacklevel=2)
-            return function(*args, **kwargs)
-
-        return wrapper
-
-    return decorate
-
-
-def deprecated_alias(old: str, new: str, *, owner: str) -> property:
-    """A read-only property ``old`` of a result class that returns its attribute ``new`` with a
-    :class:`DeprecationWarning` (a result attribute renamed, kept for one release)."""
-    import warnings
-
-    def get(self):
-        warnings.warn(f"{owner}.{old} is deprecated, use {owner}.{new} (the old name goes in the next release)",
-                      DeprecationWarning, stacklevel=2)
-        return getattr(self, new)
-
-    get.__name__ = old
-    return property(get, doc=f"Deprecated name of :attr:`{new}`.")

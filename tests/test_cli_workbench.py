@@ -162,15 +162,15 @@ def test_a_sequential_permanova_table_says_what_each_p_tests_and_why_f_and_p_dis
     x = z + 0.05 * rng.normal(size=60)  # x carries z's effect, none of its own
     y = np.c_[2 * z, rng.normal(size=60)] + rng.normal(size=(60, 2))
     d = cdist(y, y)
-    seq = permanova(d, {"x": x, "z": z}, by="terms", permutations=199)
+    seq = permanova(d, {"x": x, "z": z}, by="terms", n_permutations=199)
     t = seq.table
     assert t.loc["x", "pseudo_F"] > 20 and t.loc["x", "p_value"] > 0.05  # the contradiction the table showed
     assert t.loc["x", "ss_type"] == "I (sequential)" and "given z" in t.loc["x", "p_tests"]
     assert len(seq.notes) == 1 and seq.notes[0].startswith("x:") and "shared with z" in seq.notes[0]
     assert "note: x:" in seq.summary() and "p of x: no effect of x given z" in seq.summary()
-    marg = permanova(d, {"x": x, "z": z}, by="margin", permutations=199)
+    marg = permanova(d, {"x": x, "z": z}, by="margin", n_permutations=199)
     assert marg.notes == [] and marg.table.loc["x", "ss_type"] == "III (marginal)"
-    rows = permanova(d, {"x": x, "z": z}, by="terms", permute="rows", permutations=199)
+    rows = permanova(d, {"x": x, "z": z}, by="terms", permute="rows", n_permutations=199)
     assert rows.table.loc["x", "p_value"] <= 0.01 and "no effect of any term" in rows.table.loc["x", "p_tests"]
 
 
@@ -300,7 +300,7 @@ def test_shapelib_test_is_permanova_of_the_metric_with_holm_adjusted_pairs(adhd_
     x, spec = io.read_landmarks(d / "aligned.tps")
     cov = pd.read_csv(d / "cov.csv", dtype={"id": str}).set_index("id").loc[spec["id"].astype(str)]
     dist = sl.pairwise_distances(x, metric="procrustes", n_jobs=1, progress=False)
-    want = permanova(dist, {"site": cov["site"].to_numpy()}, permutations=99, seed=0).table.loc["site"]
+    want = permanova(dist, {"site": cov["site"].to_numpy()}, n_permutations=99, seed=0).table.loc["site"]
     assert table.loc[0, "pseudo_F"] == pytest.approx(want["pseudo_F"], rel=1e-12)
     assert table.loc[0, "p_value"] == want["p_value"]
     np.testing.assert_allclose(table["p_holm"][1:], sl.holm_adjust(table["p_value"][1:]))
@@ -321,7 +321,7 @@ def test_shapelib_regress_is_distance_based_regression_with_a_permutation_p(adhd
     x, spec = io.read_landmarks(d / "aligned.tps")
     age = pd.read_csv(d / "cov.csv", dtype={"id": str}).set_index("id").loc[spec["id"].astype(str), "age"]
     dist = sl.pairwise_distances(x, metric="procrustes", n_jobs=1, progress=False)
-    want = permanova(dist, {"age": np.log(age.to_numpy())}, permutations=99, seed=0).table.loc["age"]
+    want = permanova(dist, {"age": np.log(age.to_numpy())}, n_permutations=99, seed=0).table.loc["age"]
     got = pd.read_csv(d / "r.csv").set_index("term").loc["age"]
     assert got["r2"] == pytest.approx(want["r2"], rel=1e-12) and got["p_value"] == want["p_value"]
     # R² of one centred numeric term: the squared-distance share of a linear fit of the coordinates

@@ -73,28 +73,28 @@ def test_batched_search_equals_brute_force(pair):
     angles = np.linspace(0, 2 * np.pi, 720, endpoint=False)
     best = (-np.inf, None, None)
     for refl in (False, True):
-        vals = np.array([l2_inner(x, _apply(y, t, refl), S2) for t in angles])
+        vals = np.array([l2_inner(x, _apply(y, t, refl), sigma2=S2) for t in angles])
         k = int(np.argmax(vals))
-        res = minimize_scalar(lambda t: -l2_inner(x, _apply(y, t, refl), S2),
+        res = minimize_scalar(lambda t: -l2_inner(x, _apply(y, t, refl), sigma2=S2),
                               bounds=(angles[k] - 0.009, angles[k] + 0.009), method="bounded",
                               options={"xatol": 1e-10})
         if -res.fun > best[0]:
             best = (-res.fun, res.x, refl)
-    d_brute = np.sqrt(l2_inner(x, x, S2) + l2_inner(y, y, S2) - 2 * best[0])
+    d_brute = np.sqrt(l2_inner(x, x, sigma2=S2) + l2_inner(y, y, sigma2=S2) - 2 * best[0])
     r = invariant_distance(x, y, sigma2=S2)
     assert r.reflected == best[2]
     assert np.angle(np.exp(1j * (r.angle - best[1]))) == pytest.approx(0.0, abs=1e-6)
     assert r.value == pytest.approx(d_brute, rel=1e-9)
     # the pose reported is the pose used: the closed form there is the distance
     moved = _apply(y, r.angle, r.reflected)
-    assert np.sqrt(l2_inner(x, x, S2) + l2_inner(y, y, S2) - 2 * l2_inner(x, moved, S2)) == pytest.approx(r.value, rel=1e-12)
+    assert np.sqrt(l2_inner(x, x, sigma2=S2) + l2_inner(y, y, sigma2=S2) - 2 * l2_inner(x, moved, sigma2=S2)) == pytest.approx(r.value, rel=1e-12)
 
 
 def test_polar_quadrature_agrees_with_the_closed_form_overlap():
     x, y = (normalise_points(p)[0] for p in (X, Z))
     sp = polar_spectra([x, y], sigma2=S2)
     value, angle, refl = rotation_search(sp, sp, pairs=(np.array([0]), np.array([1])))
-    assert value[0] == pytest.approx(l2_inner(x, _apply(y, angle[0], refl[0]), S2), rel=1e-7)
+    assert value[0] == pytest.approx(l2_inner(x, _apply(y, angle[0], refl[0]), sigma2=S2), rel=1e-7)
     total = np.real(sp.coefficients[:, :, 0] @ sp.weights)  # ∫ p dz = 1
     np.testing.assert_allclose(total, 1.0, rtol=1e-7)
 
@@ -123,8 +123,8 @@ def test_matrix_is_symmetric_with_consistent_poses():
             if i != j:
                 assert D[i, j] == pytest.approx(invariant_distance(sets[i], sets[j], sigma2=S2).value, rel=1e-9, abs=1e-7)
                 xi, yj = normalise_points(sets[i])[0], normalise_points(sets[j])[0]
-                cross = l2_inner(xi, _apply(yj, ang[i, j], ref[i, j]), S2)
-                d = np.sqrt(max(l2_inner(xi, xi, S2) + l2_inner(yj, yj, S2) - 2 * cross, 0))
+                cross = l2_inner(xi, _apply(yj, ang[i, j], ref[i, j]), sigma2=S2)
+                d = np.sqrt(max(l2_inner(xi, xi, sigma2=S2) + l2_inner(yj, yj, sigma2=S2) - 2 * cross, 0))
                 assert d == pytest.approx(D[i, j], rel=1e-9, abs=1e-6)
     rect = invariant_distance_matrix(sets[:2], sets[2:], sigma2=S2, exact=True)
     np.testing.assert_allclose(rect, D[:2, 2:], rtol=1e-9)

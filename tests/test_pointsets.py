@@ -62,13 +62,13 @@ def test_inner_product_and_l2_match_the_landmark_formulas_and_a_direct_integral(
     rng = np.random.default_rng(0)
     x, y = rng.normal(size=(6, 2)), rng.normal(size=(6, 2))
     # equal sizes: the landmark formula of shapelib.geometry.gmm
-    assert np.sqrt(l2_distance_sq(x, y, sigma2=0.3)) == pytest.approx(l2_distance(x, y, 0.3), rel=1e-10)
+    assert np.sqrt(l2_distance_sq(x, y, sigma2=0.3)) == pytest.approx(l2_distance(x, y, sigma2=0.3), rel=1e-10)
     # different sizes: a direct integral of p_x p_y on a fine grid
     y = rng.normal(size=(9, 2))
     g = np.linspace(-7, 7, 281)
     xx, yy = np.meshgrid(g, g, indexing="ij")
     z = np.column_stack([xx.ravel(), yy.ravel()])
-    px, py = sl.gmm_density(z, x, 0.3), sl.gmm_density(z, y, 0.3)
+    px, py = sl.gmm_density(z, x, sigma2=0.3), sl.gmm_density(z, y, sigma2=0.3)
     h2 = (g[1] - g[0]) ** 2
     assert density_inner(x, y, sigma2=0.3) == pytest.approx(np.sum(px * py) * h2, rel=1e-8)
     assert l2_distance_sq(x, y, sigma2=0.3) == pytest.approx(np.sum((px - py) ** 2) * h2, rel=1e-8)

@@ -27,7 +27,7 @@ with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_
         Client(cluster) as client:
     result = sl.pairwise_distances(x, metric="alpha", sigma2=0.5, rtol=1e-2, client=client, store=store,
                                    block_size=8, progress=False, return_result=True)
-print(result.convergence_summary())
+print(result.summary())
 print(result.log)
 
 # %%

@@ -38,7 +38,7 @@ print(specimens[["id", "line", "n_missing"]])
 # Aligned (generalized Procrustes) and brought to the study's scale, where σ² = 0.5 suits
 # outlines of this density; then the α-order distance matrix, certified to 1 %.
 x = sl.to_centroid_size(shapes)
-print(f"sigma = {sl.sigma_ratio(x, 0.5):.2f} landmark spacings at sigma2 = 0.5")
+print(f"sigma = {sl.sigma_ratio(x, sigma2=0.5):.2f} landmark spacings at sigma2 = 0.5")
 D = sl.pairwise_distances(x, metric="alpha", sigma2=0.5, rtol=1e-2, progress=False)
 
 fig, ax = plt.subplots(figsize=(5, 3))

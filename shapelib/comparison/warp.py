@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from scipy.interpolate import RegularGridInterpolator
 from scipy.sparse.linalg import spsolve
 
-from .._validate import as_shape, check_positive, keeps_old_calls
+from .._validate import as_shape, check_positive
 from ..solver.geodesic import GeodesicResult
 
 __all__ = ["likelihood_flow", "extrinsic_warp"]
@@ -51,7 +51,6 @@ def _laplacian(nx, ny, hx, hy):
     return sp.kron(d2(nx, hx), sp.identity(ny)) + sp.kron(sp.identity(nx), d2(ny, hy))
 
 
-@keeps_old_calls(keyword_only=("sigma2", "axes"))
 def likelihood_flow(theta, velocity, *, sigma2, axes, lam: float):
     r"""The flow (u, v) of eq. (26) on a grid for a shape moving with given landmark velocities.
 
@@ -101,7 +100,7 @@ def likelihood_flow(theta, velocity, *, sigma2, axes, lam: float):
     >>> from shapelib.comparison.warp import likelihood_flow
     >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     >>> axes = [np.linspace(-1.0, 2.0, 12)] * 2
-    >>> flow = likelihood_flow(u, np.tile([1.0, 0.0], (4, 1)), 0.5, axes, lam=1e-3)
+    >>> flow = likelihood_flow(u, np.tile([1.0, 0.0], (4, 1)), sigma2=0.5, axes=axes, lam=1e-3)
     >>> flow.shape, bool(np.allclose(flow[6, 6], [1.0, 0.0]))
     ((12, 12, 2), True)
     """

@@ -382,7 +382,7 @@ def alpha_bound_matrix(shapes, *, sigma2, n_threads: int | None = None) -> np.nd
     array([[0.    , 0.0326, 0.0254],
            [0.0326, 0.    , 0.0306],
            [0.0254, 0.0306, 0.    ]])
-    >>> bool(np.isclose(m[0, 1], sl.l2_distance(shapes[0], shapes[1], 0.5)))
+    >>> bool(np.isclose(m[0, 1], sl.l2_distance(shapes[0], shapes[1], sigma2=0.5)))
     True
     """
     x = as_shapes(shapes, name="shapes")

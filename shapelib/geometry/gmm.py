@@ -50,7 +50,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import logsumexp
 
-from .._validate import as_shape, as_shape_pair, check_sigma2, keeps_old_calls
+from .._validate import as_shape, as_shape_pair, check_sigma2
 
 __all__ = [
     "gmm_density",
@@ -83,7 +83,6 @@ def _point_sets(a, b, names):
     return a, b
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def gmm_log_density(x, theta, *, sigma2) -> np.ndarray:
     r"""Log of the GMM shape density of eq. (5), computed stably (log-sum-exp).
 
@@ -131,9 +130,9 @@ def gmm_log_density(x, theta, *, sigma2) -> np.ndarray:
     >>> import numpy as np
     >>> from shapelib.geometry.gmm import gmm_log_density
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0]])
-    >>> bool(np.isfinite(gmm_log_density([[100.0, 100.0]], theta, 0.01)[0]))
+    >>> bool(np.isfinite(gmm_log_density([[100.0, 100.0]], theta, sigma2=0.01)[0]))
     True
-    >>> float(np.round(gmm_log_density([[0.5, 0.0]], theta, 0.5)[0], 4))
+    >>> float(np.round(gmm_log_density([[0.5, 0.0]], theta, sigma2=0.5)[0], 4))
     -1.3947
     """
     x, theta = _point_sets(x, theta, ("x", "theta"))
@@ -143,7 +142,6 @@ def gmm_log_density(x, theta, *, sigma2) -> np.ndarray:
     return logsumexp(log_n, axis=1) - np.log(k)
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def gmm_density(x, theta, *, sigma2) -> np.ndarray:
     r"""The GMM shape density of eq. (5).
 
@@ -192,17 +190,16 @@ def gmm_density(x, theta, *, sigma2) -> np.ndarray:
 
     >>> import numpy as np
     >>> import shapelib as sl
-    >>> p = sl.gmm_density([[0.0, 0.0]], [[0.0, 0.0]], 0.5)
+    >>> p = sl.gmm_density([[0.0, 0.0]], [[0.0, 0.0]], sigma2=0.5)
     >>> bool(np.isclose(p[0], 1 / (2 * np.pi * 0.5)))
     True
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    >>> sl.gmm_density([[0.0, 0.0], [5.0, 5.0]], theta, 0.5).round(4)
+    >>> sl.gmm_density([[0.0, 0.0], [5.0, 5.0]], theta, sigma2=0.5).round(4)
     array([0.1842, 0.    ])
     """
     return np.exp(gmm_log_density(x, theta, sigma2=sigma2))
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def gaussian_overlap(a, b, *, sigma2) -> np.ndarray:
     r"""Matrix of overlaps of two sets of isotropic Gaussians of variance σ².
 
@@ -248,7 +245,7 @@ def gaussian_overlap(a, b, *, sigma2) -> np.ndarray:
     --------
     >>> import numpy as np
     >>> from shapelib.geometry.gmm import gaussian_overlap
-    >>> g = gaussian_overlap([[0.0, 0.0]], [[0.0, 0.0], [1.0, 0.0]], 0.5)
+    >>> g = gaussian_overlap([[0.0, 0.0]], [[0.0, 0.0], [1.0, 0.0]], sigma2=0.5)
     >>> g.shape
     (1, 2)
     >>> bool(np.isclose(g[0, 0], 1 / (4 * np.pi * 0.5)))
@@ -264,7 +261,6 @@ def overlap_matrix(a: np.ndarray, b: np.ndarray, s2: float) -> np.ndarray:
     return np.exp(-_sqdist(a, b) / (4 * s2)) / (4 * np.pi * s2) ** (a.shape[1] / 2)
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def l2_inner(u, v, *, sigma2) -> float:
     r"""Closed-form L² inner product of the GMM densities (eq. 5) of two shapes.
 
@@ -310,13 +306,12 @@ def l2_inner(u, v, *, sigma2) -> float:
     >>> import numpy as np
     >>> from shapelib.geometry.gmm import l2_inner
     >>> u = np.array([[0.0, 0.0], [1.0, 0.0]])
-    >>> round(l2_inner(u, u, 0.5), 4)
+    >>> round(l2_inner(u, u, sigma2=0.5), 4)
     0.1278
     """
     return float(gaussian_overlap(u, v, sigma2=sigma2).mean())
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def l2_distance(u, v, *, sigma2) -> float:
     r"""Closed-form L² distance between the GMM densities (eq. 5) of two shapes.
 
@@ -366,9 +361,9 @@ def l2_distance(u, v, *, sigma2) -> float:
     >>> import shapelib as sl
     >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     >>> v = u + [[0.0, 0.0], [0.1, 0.0], [0.0, 0.0]]
-    >>> sl.l2_distance(u, u, 0.5)
+    >>> sl.l2_distance(u, u, sigma2=0.5)
     0.0
-    >>> round(sl.l2_distance(u, v, 0.5), 5)
+    >>> round(sl.l2_distance(u, v, sigma2=0.5), 5)
     0.01328
     """
     u, v = as_shape_pair(u, v)

@@ -50,7 +50,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _kernels
-from .._validate import as_shape, check_sigma2, keeps_old_calls
+from .._validate import as_shape, check_sigma2
 from .quadrature import DEFAULT_MARGIN, DEFAULT_SPACING, Grid, make_grid
 
 __all__ = [
@@ -90,7 +90,6 @@ def _alpha_metric_blocks(c, delta, s2: float) -> np.ndarray:
     return out
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def alpha_metric(theta, *, sigma2) -> np.ndarray:
     r"""The α-order (α = 2) entropy metric tensor of eq. (22), in closed form.
 
@@ -149,11 +148,11 @@ def alpha_metric(theta, *, sigma2) -> np.ndarray:
 
     >>> import numpy as np
     >>> import shapelib as sl
-    >>> g = sl.alpha_metric([[0.0, 0.0]], 0.5)
+    >>> g = sl.alpha_metric([[0.0, 0.0]], sigma2=0.5)
     >>> bool(np.allclose(g, np.eye(2) / (2 * 0.5 * 4 * np.pi * 0.5)))
     True
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    >>> g = sl.alpha_metric(theta, 0.5)
+    >>> g = sl.alpha_metric(theta, sigma2=0.5)
     >>> g.shape, bool(np.allclose(g, g.T)), bool(np.linalg.eigvalsh(g).min() > -1e-12)
     ((6, 6), True, True)
     """
@@ -179,7 +178,6 @@ def _alpha_qform(theta: np.ndarray, vel: np.ndarray, s2: float) -> np.ndarray:
     return np.einsum("mab,mab->m", c, vv / (2 * s2) - dva * dvb / (4 * s2 * s2))
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def alpha_quadratic_form(theta, velocity, *, sigma2) -> float:
     r"""The α-order metric's quadratic form :math:`\dot\theta^\top g^\alpha(\theta)\, \dot\theta`, without the matrix.
 
@@ -234,8 +232,8 @@ def alpha_quadratic_form(theta, velocity, *, sigma2) -> float:
     >>> import shapelib as sl
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     >>> v = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
-    >>> q = sl.alpha_quadratic_form(theta, v, 0.5)
-    >>> bool(np.isclose(q, v.ravel() @ sl.alpha_metric(theta, 0.5) @ v.ravel()))
+    >>> q = sl.alpha_quadratic_form(theta, v, sigma2=0.5)
+    >>> bool(np.isclose(q, v.ravel() @ sl.alpha_metric(theta, sigma2=0.5) @ v.ravel()))
     True
     """
     theta = as_shape(theta, name="theta")
@@ -302,7 +300,7 @@ def psi_coef(theta: np.ndarray, s2: float, grid: Grid):
     >>> from shapelib.geometry.metrics import psi_coef
     >>> from shapelib.geometry.quadrature import make_grid
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    >>> grid = make_grid(theta, 0.5)
+    >>> grid = make_grid(theta, sigma2=0.5)
     >>> psi, coef = psi_coef(theta, 0.5, grid)
     >>> coef.shape, round(float(grid.integrate(psi ** 2)), 6)
     ((1681, 3), 4.0)
@@ -380,7 +378,6 @@ def _fr_gram(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     return out.reshape(k * d, k * d)
 
 
-@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
 def fisher_rao_metric(theta, *, sigma2, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN) -> np.ndarray:
     r"""The Fisher–Rao metric tensor of eq. (6) for the GMM of eq. (5), by quadrature.
 
@@ -404,10 +401,9 @@ def fisher_rao_metric(theta, *, sigma2, grid_spacing: float = DEFAULT_SPACING, g
     sigma2 : float
         σ² > 0 of eq. (5).
     grid_spacing : float, default 0.35
-        Grid step in units of σ (formerly ``spacing``: still accepted for one release, with a
-        :class:`DeprecationWarning`).
+        Grid step in units of σ.
     grid_margin : float, default 6.0
-        Grid margin beyond the landmarks, in units of σ (formerly ``margin``, likewise).
+        Grid margin beyond the landmarks, in units of σ.
 
     Returns
     -------
@@ -442,11 +438,11 @@ def fisher_rao_metric(theta, *, sigma2, grid_spacing: float = DEFAULT_SPACING, g
 
     >>> import numpy as np
     >>> import shapelib as sl
-    >>> g = sl.fisher_rao_metric([[0.0, 0.0]], 0.5)
+    >>> g = sl.fisher_rao_metric([[0.0, 0.0]], sigma2=0.5)
     >>> bool(np.allclose(g, np.eye(2) / 0.5, rtol=1e-6))
     True
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    >>> g = sl.fisher_rao_metric(theta, 0.5)
+    >>> g = sl.fisher_rao_metric(theta, sigma2=0.5)
     >>> g.shape, bool(np.all(np.linalg.eigvalsh(np.eye(6) / (3 * 0.5) - g) > -1e-9))
     ((6, 6), True)
     """
@@ -470,7 +466,6 @@ def _fr_qform(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.n
     return np.array([grid.integrate(_fr_psidot(t, w, s2, grid)[3] ** 2) for t, w in zip(theta, vel)])
 
 
-@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
 def fisher_rao_quadratic_form(theta, velocity, *, sigma2, grid_spacing: float = DEFAULT_SPACING,
                               grid_margin: float = DEFAULT_MARGIN) -> float:
     r"""The Fisher–Rao quadratic form :math:`\dot\theta^\top g(\theta)\, \dot\theta`, by quadrature, no matrix.
@@ -493,10 +488,9 @@ def fisher_rao_quadratic_form(theta, velocity, *, sigma2, grid_spacing: float = 
     sigma2 : float
         σ² > 0 of eq. (5).
     grid_spacing : float, default 0.35
-        Grid step in units of σ (formerly ``spacing``: still accepted for one release, with a
-        :class:`DeprecationWarning`).
+        Grid step in units of σ.
     grid_margin : float, default 6.0
-        Grid margin beyond the landmarks, in units of σ (formerly ``margin``, likewise).
+        Grid margin beyond the landmarks, in units of σ.
 
     Returns
     -------
@@ -526,8 +520,8 @@ def fisher_rao_quadratic_form(theta, velocity, *, sigma2, grid_spacing: float = 
     >>> import shapelib as sl
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     >>> v = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
-    >>> q = sl.fisher_rao_quadratic_form(theta, v, 0.5)
-    >>> bool(np.isclose(q, v.ravel() @ sl.fisher_rao_metric(theta, 0.5) @ v.ravel()))
+    >>> q = sl.fisher_rao_quadratic_form(theta, v, sigma2=0.5)
+    >>> bool(np.isclose(q, v.ravel() @ sl.fisher_rao_metric(theta, sigma2=0.5) @ v.ravel()))
     True
     """
     theta = as_shape(theta, name="theta")
@@ -625,7 +619,7 @@ def alpha_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float):
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
     >>> q_tt, q_tv, q_vv = alpha_qform_hessian(theta[None], vel[None], 0.5)
-    >>> q_tt.shape, bool(np.allclose(q_vv[0], 2 * sl.alpha_metric(theta, 0.5)))
+    >>> q_tt.shape, bool(np.allclose(q_vv[0], 2 * sl.alpha_metric(theta, sigma2=0.5)))
     ((1, 6, 6), True)
     """
     m, k, d = theta.shape
@@ -702,7 +696,7 @@ def alpha_tensor_batch(theta: np.ndarray, s2: float) -> np.ndarray:
     >>> import shapelib as sl
     >>> from shapelib.geometry.metrics import alpha_tensor_batch
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    >>> bool(np.allclose(alpha_tensor_batch(theta[None], 0.5)[0], sl.alpha_metric(theta, 0.5)))
+    >>> bool(np.allclose(alpha_tensor_batch(theta[None], 0.5)[0], sl.alpha_metric(theta, sigma2=0.5)))
     True
     """
     m, k, d = theta.shape
@@ -857,8 +851,8 @@ def fr_qform_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
     >>> from shapelib.geometry.quadrature import make_grid
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
-    >>> q = fr_qform_compiled(theta[None], vel[None], 0.5, make_grid(theta, 0.5))
-    >>> bool(np.isclose(q[0], sl.fisher_rao_quadratic_form(theta, vel, 0.5)))
+    >>> q = fr_qform_compiled(theta[None], vel[None], 0.5, make_grid(theta, sigma2=0.5))
+    >>> bool(np.isclose(q[0], sl.fisher_rao_quadratic_form(theta, vel, sigma2=0.5)))
     True
     """
     x = grid.nodes
@@ -919,8 +913,8 @@ def fr_qform_grad_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: 
     >>> from shapelib.geometry.quadrature import make_grid
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
-    >>> q, d_theta, d_vel = fr_qform_grad_compiled(theta[None], vel[None], 0.5, make_grid(theta, 0.5))
-    >>> bool(np.allclose(d_vel[0].ravel(), 2 * sl.fisher_rao_metric(theta, 0.5) @ vel.ravel(), rtol=1e-6))
+    >>> q, d_theta, d_vel = fr_qform_grad_compiled(theta[None], vel[None], 0.5, make_grid(theta, sigma2=0.5))
+    >>> bool(np.allclose(d_vel[0].ravel(), 2 * sl.fisher_rao_metric(theta, sigma2=0.5) @ vel.ravel(), rtol=1e-6))
     True
     """
     m = len(theta)
@@ -1001,8 +995,8 @@ def fr_qform_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, gri
     >>> from shapelib.geometry.quadrature import make_grid
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
-    >>> q_tt, q_tv, q_vv = fr_qform_hessian_compiled(theta[None], vel[None], 0.5, make_grid(theta, 0.5))
-    >>> bool(np.allclose(q_vv[0], 2 * sl.fisher_rao_metric(theta, 0.5)))
+    >>> q_tt, q_tv, q_vv = fr_qform_hessian_compiled(theta[None], vel[None], 0.5, make_grid(theta, sigma2=0.5))
+    >>> bool(np.allclose(q_vv[0], 2 * sl.fisher_rao_metric(theta, sigma2=0.5)))
     True
     """
     m, k, d = theta.shape
@@ -1061,7 +1055,7 @@ def fr_qform_grad_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float
     >>> from shapelib.geometry.quadrature import make_grid
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     >>> vel = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
-    >>> grid = make_grid(theta, 0.5)
+    >>> grid = make_grid(theta, sigma2=0.5)
     >>> q, d_theta, d_vel, (q_tt, q_tv, q_vv) = fr_qform_grad_hessian_compiled(theta[None], vel[None], 0.5, grid)
     >>> bool(np.isclose(q[0], fr_qform_compiled(theta[None], vel[None], 0.5, grid)[0])), q_tt.shape
     (True, (1, 6, 6))
@@ -1120,8 +1114,8 @@ def fr_tensor_batch(theta: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     >>> from shapelib.geometry.metrics import fr_tensor_batch
     >>> from shapelib.geometry.quadrature import make_grid
     >>> theta = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    >>> g = fr_tensor_batch(theta[None], 0.5, make_grid(theta, 0.5))
-    >>> bool(np.allclose(g[0], sl.fisher_rao_metric(theta, 0.5)))
+    >>> g = fr_tensor_batch(theta[None], 0.5, make_grid(theta, sigma2=0.5))
+    >>> bool(np.allclose(g[0], sl.fisher_rao_metric(theta, sigma2=0.5)))
     True
     """
     return np.stack([grid.weight * _fr_gram(t, s2, grid) for t in theta])

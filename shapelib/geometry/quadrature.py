@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validate import check_positive, keeps_old_calls
+from .._validate import check_positive
 
 __all__ = ["Grid", "make_grid", "DEFAULT_SPACING", "DEFAULT_MARGIN", "MAX_ENTRIES"]
 
@@ -79,7 +79,7 @@ class Grid:
     --------
     >>> import numpy as np
     >>> from shapelib.geometry.quadrature import make_grid
-    >>> grid = make_grid([[0.0, 0.0]], 1.0)
+    >>> grid = make_grid([[0.0, 0.0]], sigma2=1.0)
     >>> gauss = np.exp(-0.5 * (grid.nodes ** 2).sum(axis=1)) / (2 * np.pi)
     >>> round(float(grid.integrate(gauss)), 6)
     1.0
@@ -113,7 +113,6 @@ def _points(points):
     return pts
 
 
-@keeps_old_calls(renamed={"spacing": "grid_spacing", "margin": "grid_margin"}, keyword_only=("sigma2",))
 def make_grid(points, *, sigma2: float, grid_spacing: float = DEFAULT_SPACING, grid_margin: float = DEFAULT_MARGIN,
               max_entries: int | None = None) -> Grid:
     r"""Regular grid covering ``points`` plus ``grid_margin·σ``, of step ``grid_spacing·σ``.
@@ -135,10 +134,9 @@ def make_grid(points, *, sigma2: float, grid_spacing: float = DEFAULT_SPACING, g
     sigma2 : float
         σ² > 0 of eq. (5).
     grid_spacing : float, default 0.35
-        Grid step in units of σ (formerly ``spacing``: still accepted for one release, with a
-        :class:`DeprecationWarning`).
+        Grid step in units of σ.
     grid_margin : float, default 6.0
-        Margin beyond the points in units of σ (formerly ``margin``, likewise).
+        Margin beyond the points in units of σ.
     max_entries : int, optional
         Refuse (``ValueError``, before allocating anything) a grid whose nodes × landmarks
         (``points.shape[-2]``) exceed this. The node count grows like (extent / σ)^d, so shapes
@@ -170,7 +168,7 @@ def make_grid(points, *, sigma2: float, grid_spacing: float = DEFAULT_SPACING, g
     Examples
     --------
     >>> from shapelib.geometry.quadrature import make_grid
-    >>> grid = make_grid([[0.0, 0.0], [1.0, 0.0]], 0.5)
+    >>> grid = make_grid([[0.0, 0.0], [1.0, 0.0]], sigma2=0.5)
     >>> grid.shape, grid.nodes.shape
     ((41, 37), (1517, 2))
     """

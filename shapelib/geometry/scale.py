@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._validate import as_shape, as_shapes, check_positive, check_sigma2, keeps_old_calls
+from .._validate import as_shape, as_shapes, check_positive, check_sigma2
 from .procrustes import generalized_procrustes, preshape
 from .sigma2 import predictive_sigma2, scatter_sigma2
 
@@ -149,7 +149,6 @@ def landmark_spacing(shapes) -> float:
     return float(np.mean([cKDTree(s).query(s, k=2)[0][:, 1] for s in x]))
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def sigma_ratio(shapes, *, sigma2) -> float:
     r"""σ in units of the mean nearest-landmark spacing.
 
@@ -192,7 +191,7 @@ def sigma_ratio(shapes, *, sigma2) -> float:
     Examples
     --------
     >>> import shapelib as sl
-    >>> sl.sigma_ratio([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.0, 2.0]], 0.25)
+    >>> sl.sigma_ratio([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.0, 2.0]], sigma2=0.25)
     0.5
     """
     s = np.sqrt(check_sigma2(sigma2))
@@ -360,7 +359,6 @@ def check_scale(shapes, sigma2: float, *, stacklevel: int = 3) -> float:
 FISHER_RAO_RATIO_MIN = float(1.0 / np.sqrt(8.0 * np.log(1.0 / np.finfo(np.float64).eps)))
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def check_fisher_rao_scale(shapes, *, sigma2, metric: str = "fisher_rao", ratio: float | None = None) -> None:
     r"""Raise ``ValueError`` before any work when σ is too small for the Fisher–Rao quadrature.
 
@@ -408,10 +406,10 @@ def check_fisher_rao_scale(shapes, *, sigma2, metric: str = "fisher_rao", ratio:
     --------
     >>> from shapelib.geometry.scale import check_fisher_rao_scale
     >>> square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
-    >>> check_fisher_rao_scale(square, 0.25) is None
+    >>> check_fisher_rao_scale(square, sigma2=0.25) is None
     True
     >>> try:
-    ...     check_fisher_rao_scale(square, 1e-4)
+    ...     check_fisher_rao_scale(square, sigma2=1e-4)
     ... except ValueError as exc:
     ...     print(str(exc)[:40])
     fisher_rao: sigma2 = 0.0001 is too small

@@ -181,15 +181,6 @@ class PairwiseResult:
         words = self._nonconverged()
         return f"{n} × {n} {self.metric} matrix: {len(i)} of {total} pairs computed, " + (words or "all converged")
 
-    def convergence_summary(self) -> str:
-        """Deprecated: the non-convergence part of :meth:`summary` (``""`` if every computed pair
-        converged)."""
-        import warnings
-
-        warnings.warn("PairwiseResult.convergence_summary() is deprecated, use PairwiseResult.summary() (the old "
-                      "name goes in the next release)", DeprecationWarning, stacklevel=2)
-        return self._nonconverged()
-
     def _nonconverged(self) -> str:
         """One line on the pairs that did not converge, in :meth:`status`'s words with how wide the
         brackets are; ``""`` if every computed pair converged."""

@@ -80,7 +80,7 @@ def _l2_sq(x, y, s2, *, grad=True, yy=None):
 def _hellinger_sq(x, y, s2, *, grad=True, grid=None, spacing=DEFAULT_SPACING, margin=DEFAULT_MARGIN):
     """``H² = ∫(√p_x − √p_y)²`` by quadrature and ``∂H²/∂x``."""
     if grid is None:
-        grid = make_grid(np.vstack([x, y]), s2, spacing=spacing, margin=margin)
+        grid = make_grid(np.vstack([x, y]), sigma2=s2, grid_spacing=spacing, grid_margin=margin)
     px, coef = psi_coef(x, s2, grid)
     py, _ = psi_coef(y, s2, grid)
     diff = px - py

@@ -160,7 +160,7 @@ def _fr_weight_metric(u, s2):
     from ..geometry.metrics import psi_coef
     from ..geometry.quadrature import make_grid
 
-    grid = make_grid(u, s2)
+    grid = make_grid(u, sigma2=s2)
     psi, coef = psi_coef(u, s2, grid)  # coef = N_a / (K σ² √p)
     f = coef * (len(u) * s2)  # N_a / √p
     return grid.weight * (f.T @ f)
@@ -175,7 +175,7 @@ def _kernel(u, s2g, metric, kernel):
             return overlap_kernel(u, u, s2g)
         g = _fr_weight_metric(u, s2g)
     else:
-        g = alpha_metric(u, s2g) if metric == "alpha" else fisher_rao_metric(u, s2g)
+        g = alpha_metric(u, sigma2=s2g) if metric == "alpha" else fisher_rao_metric(u, sigma2=s2g)
     return g / np.mean(np.diag(g))
 
 

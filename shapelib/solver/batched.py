@@ -147,12 +147,12 @@ def stack_grids(grids, d):
 
 
 def _solve_grid(path, s2, spacing, margin):
-    return make_grid(path, s2, spacing=spacing, margin=margin + GRID_PAD)
+    return make_grid(path, sigma2=s2, grid_spacing=spacing, grid_margin=margin + GRID_PAD)
 
 
 def _covers(grid, path, s2, spacing, margin):
     """Whether ``grid`` contains every node of the CPU grid of ``path``."""
-    need = make_grid(path, s2, spacing=spacing, margin=margin)
+    need = make_grid(path, sigma2=s2, grid_spacing=spacing, grid_margin=margin)
     h = spacing * np.sqrt(s2)
     return all(ax[0] <= nd[0] + 1e-9 * h and ax[-1] >= nd[-1] - 1e-9 * h for ax, nd in zip(grid.axes, need.axes))
 
@@ -344,7 +344,7 @@ def _compiled_length(metric):
 def _cpu_grids(paths, metric, s2, spacing, margin):
     if metric == "alpha":
         return np.zeros((len(paths), 1, 1)), np.zeros((len(paths), 1))
-    return stack_grids([make_grid(p, s2, spacing=spacing, margin=margin) for p in paths], paths.shape[-1])
+    return stack_grids([make_grid(p, sigma2=s2, grid_spacing=spacing, grid_margin=margin) for p in paths], paths.shape[-1])
 
 
 def batched_lengths(paths, *, metric, sigma2, grid_spacing=DEFAULT_SPACING, grid_margin=DEFAULT_MARGIN, device=None):

@@ -226,7 +226,7 @@ def lower_bound(u, v, *, metric: str, sigma2, grid_spacing: float = DEFAULT_SPAC
     >>> from shapelib.solver.bracket import lower_bound
     >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
-    >>> lower_bound(u, v, metric="alpha", sigma2=0.5) == sl.l2_distance(u, v, 0.5)
+    >>> lower_bound(u, v, metric="alpha", sigma2=0.5) == sl.l2_distance(u, v, sigma2=0.5)
     True
     """
     _check_metric(metric)

@@ -296,7 +296,7 @@ def alpha_lower_bound(u, v, *, sigma2) -> float:
     >>> from shapelib.solver.geodesic import alpha_lower_bound
     >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     >>> v = sl.procrustes_align(u, [[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]], scaling=False)
-    >>> alpha_lower_bound(u, v, sigma2=0.5) == sl.l2_distance(u, v, 0.5)
+    >>> alpha_lower_bound(u, v, sigma2=0.5) == sl.l2_distance(u, v, sigma2=0.5)
     True
     """
     u, v = as_shape_pair(u, v)

@@ -386,7 +386,7 @@ def tangent_space(base, *, metric: str = "alpha", sigma2=None, rcond: float = DE
     >>> import shapelib as sl
     >>> square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     >>> ts = sl.tangent_space(square, sigma2=0.5)
-    >>> ts.metric_tensor.shape, ts.rank, bool(np.allclose(ts.metric_tensor, sl.alpha_metric(square, 0.5)))
+    >>> ts.metric_tensor.shape, ts.rank, bool(np.allclose(ts.metric_tensor, sl.alpha_metric(square, sigma2=0.5)))
     ((8, 8), 8, True)
     """
     opts = options if options is not None else GeodesicOptions(metric, sigma2, rcond=rcond, grid_spacing=grid_spacing,

@@ -131,7 +131,7 @@ class PathMetric:
     >>> theta = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]])
     >>> vel = np.array([[[0.0, 0.0], [0.5, 0.0], [0.0, -0.5]]])
     >>> q = metric.qform(theta, vel, metric.prepare(theta))
-    >>> bool(np.isclose(q[0], sl.alpha_quadratic_form(theta[0], vel[0], 0.5)))
+    >>> bool(np.isclose(q[0], sl.alpha_quadratic_form(theta[0], vel[0], sigma2=0.5)))
     True
     """
 
@@ -215,7 +215,7 @@ class AlphaPathMetric(PathMetric):
     >>> import shapelib as sl
     >>> metric = sl.AlphaPathMetric(0.5)
     >>> u = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    >>> bool(np.isclose(metric.lower_bound(u, u + 0.1), sl.l2_distance(u, u + 0.1, 0.5)))
+    >>> bool(np.isclose(metric.lower_bound(u, u + 0.1), sl.l2_distance(u, u + 0.1, sigma2=0.5)))
     True
     """
 

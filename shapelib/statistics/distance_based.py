@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .._validate import check_positive_int, deprecated_alias, keeps_old_calls
+from .._validate import check_positive_int
 
 __all__ = [
     "as_distance_matrix",
@@ -254,7 +254,6 @@ class PermanovaResult:
                           if isinstance(self.table.loc[t, "p_tests"], str))
         return "\n".join([head, body, tests, *[f"note: {n}" for n in self.notes]])
 
-    permutations = deprecated_alias("permutations", "n_permutations", owner="PermanovaResult")
 
 
 def _term_columns(col: pd.Series, term: str) -> np.ndarray:
@@ -299,7 +298,6 @@ def _quadratic_by_column(e: np.ndarray, q: np.ndarray, perms: np.ndarray, chunk:
     return out
 
 
-@keeps_old_calls(renamed={"permutations": "n_permutations"})
 def permanova(distances, covariates, *, terms=None, by: str = "margin", permute: str = "residuals",
               n_permutations: int = 999, seed: int | None = 0) -> PermanovaResult:
     r"""Multi-term PERMANOVA on a distance matrix (McArdle & Anderson 2001; R vegan's ``adonis2``).
@@ -527,10 +525,8 @@ class KnnResult:
     n_neighbors: int
     n_permutations: int
 
-    permutations = deprecated_alias("permutations", "n_permutations", owner="KnnResult")
 
 
-@keeps_old_calls(renamed={"permutations": "n_permutations"})
 def knn_loo_accuracy(distances, labels, *, n_neighbors: int = 5, n_permutations: int = 999,
                      seed: int | None = 0) -> KnnResult:
     r"""Leave-one-out k-nearest-neighbour accuracy on a precomputed distance matrix, with a
@@ -705,7 +701,6 @@ def classical_mds(distances, *, n_components: int = 2):
     return coords, eig / total
 
 
-@keeps_old_calls(renamed={"permutations": "n_permutations"})
 def mantel_test(x, y, *, method: str = "spearman", n_permutations: int = 999, seed: int | None = 0):
     r"""Mantel correlation between two distance matrices over the same objects (scikit-bio).
 

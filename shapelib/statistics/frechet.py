@@ -47,8 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import (as_shape, as_shapes, check_dimension, check_nonnegative_int, check_positive, deprecated_alias,
-                         keeps_old_calls, set_was_checked)
+from .._validate import as_shape, as_shapes, check_dimension, check_nonnegative_int, check_positive, set_was_checked
 from ..geometry.procrustes import centroid_size, check_pose, generalized_procrustes, procrustes_align
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..geometry.scale import check_scale
@@ -75,7 +74,6 @@ def check_population(x, *, metric, sigma2, stacklevel):
     check_pose(x, metric=metric, stacklevel=stacklevel + 1)
 
 
-@keeps_old_calls(keyword_only=("sigma2",))
 def geodesic_options(metric, *, sigma2, n_steps=DEFAULT_LOG_STEPS, log_tol=1e-6, log_max_iter=200,
                      rcond=DEFAULT_RCOND, grid_spacing=DEFAULT_SPACING, grid_margin=DEFAULT_MARGIN,
                      backend="cpu", device=None) -> GeodesicOptions:
@@ -237,8 +235,6 @@ class FrechetMeanResult:
     init: np.ndarray
     tol: float
     log: list = field(default_factory=list, repr=False)
-
-    history = deprecated_alias("history", "log", owner="FrechetMeanResult")
 
     @property
     def stop_reason(self) -> str:

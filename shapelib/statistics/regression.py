@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validate import (as_shapes, check_dimension, check_nonnegative_int, check_positive, check_positive_int,
-                         deprecated_alias, set_checked)
+                         set_checked)
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
 from ..solver.energy import path_energy
 from ..solver.linalg import block_cholesky, block_solve, one_blas_thread
@@ -146,8 +146,6 @@ class GeodesicRegressionResult:
     options: GeodesicOptions
     tol: float
     log: list = field(default_factory=list, repr=False)
-
-    history = deprecated_alias("history", "log", owner="GeodesicRegressionResult")
 
     @property
     def stop_reason(self) -> str:

@@ -23,7 +23,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .._validate import deprecated_alias, keeps_old_calls
 from .distance_based import TIE_RTOL, KnnResult, PermanovaResult, knn_loo_accuracy, permanova
 
 __all__ = ["SweepTest", "permanova_sweep", "knn_sweep", "min_p_adjusted"]
@@ -80,8 +79,6 @@ class SweepTest:
     name: str
     n_permutations: int
     results: list = field(default_factory=list, repr=False)
-
-    permutations = deprecated_alias("permutations", "n_permutations", owner="SweepTest")
 
     def summary(self) -> str:
         b = self.best
@@ -160,7 +157,6 @@ def _best(p, stat):
     return int(order[0])
 
 
-@keeps_old_calls(renamed={"permutations": "n_permutations"})
 def permanova_sweep(distances, covariates, *, term: str, n_permutations: int = 999, seed: int | None = 0,
                     **kw) -> SweepTest:
     """PERMANOVA (:func:`shapelib.statistics.distance_based.permanova`) at every matrix of a sweep.
@@ -215,7 +211,6 @@ def permanova_sweep(distances, covariates, *, term: str, n_permutations: int = 9
     return SweepTest(stat, p, _best(p, stat), p_family, f"PERMANOVA pseudo-F of {term}", int(n_permutations), results)
 
 
-@keeps_old_calls(renamed={"permutations": "n_permutations"})
 def knn_sweep(distances, labels, *, n_neighbors: int = 5, n_permutations: int = 999, seed: int | None = 0) -> SweepTest:
     """Leave-one-out k-NN accuracy (:func:`shapelib.statistics.distance_based.knn_loo_accuracy`) at
     every matrix of a sweep, the same label permutations for all, with the family-wise test.

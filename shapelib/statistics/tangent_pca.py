@@ -278,8 +278,8 @@ class TangentPCA(TransformerMixin, BaseEstimator):
     metric : {"alpha", "fisher_rao"}
     sigma2 : float
         σ² of eq. (5): required, as by :func:`tangent_pca` (unless ``mean`` is a
-        :class:`FrechetMeanResult`, which carries its own). Omitting it still fits with σ² = 1
-        for this release, with a :class:`DeprecationWarning`.
+        :class:`FrechetMeanResult`, which carries its own); :meth:`fit` raises ``ValueError``
+        without it.
     n_components : int, optional
     n_dim : int
         Coordinates per landmark of flattened input (2 or 3).
@@ -355,12 +355,8 @@ class TangentPCA(TransformerMixin, BaseEstimator):
         x = self._shapes(X, fitted=False)
         sigma2 = self.sigma2
         if sigma2 is None and not isinstance(self.mean, FrechetMeanResult):
-            import warnings
-
-            warnings.warn("TangentPCA needs sigma2=..., as tangent_pca does; the former default sigma2=1.0 is used "
-                          "for this release and omitting sigma2 will be an error in the next", DeprecationWarning,
-                          stacklevel=2)
-            sigma2 = 1.0
+            raise ValueError("TangentPCA needs sigma2=..., as tangent_pca does (or mean=, a FrechetMeanResult, "
+                             "which carries its own)")
         self.result_ = tangent_pca(x, metric=self.metric, sigma2=sigma2, mean=self.mean,
                                    n_components=self.n_components, n_steps=self.n_steps, rcond=self.rcond,
                                    executor=self.executor, n_jobs=None if self.executor is not None else 1, modes=(),
