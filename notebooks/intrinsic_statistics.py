@@ -11,7 +11,7 @@
 # stands beside the Procrustes one (GPA mean, PCA of Procrustes tangent coordinates, linear
 # regression). A second data set, the mosquito wings that ktch ships, shows the same tools on
 # anatomical landmarks: genus means and modes. Every sentence with a number is generated from
-# the computed values (`shapelib.statistics`, `shapelib.population`).
+# the computed values (`shapelib.statistics`).
 
 # %% tags=["parameters"]
 from shapelib.study import default_output_dir

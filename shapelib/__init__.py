@@ -61,11 +61,11 @@ from ._version import __version__  # noqa: F401  (the package version)
 
 #: modules above the mathematics, imported on first use (``shapelib.io.read_landmarks(...)`` works
 #: after ``import shapelib``, which itself imports neither pandas' IO nor Dask nor zarr)
-_LAZY_SUBMODULES = ("io", "pairwise", "population", "statistics", "datasets", "study", "plotting", "cli")
+_LAZY_SUBMODULES = ("io", "pairwise", "statistics", "datasets", "study", "plotting", "cli")
 #: earlier names of submodules, still served on first use
 _ALIASES = {"stats": "statistics", "report": "study.report"}
 #: public functions of those modules, served from the package namespace on first use
-_LAZY_FUNCTIONS = {"read_point_sets": "pointset_io", "write_point_set": "pointset_io", "read_sliders": "io_sliders",
+_LAZY_FUNCTIONS = {"read_point_sets": "io", "write_point_set": "io", "read_sliders": "io",
                    "pairwise_distances": "pairwise", "frechet_mean": "statistics", "tangent_pca": "statistics",
                    "geodesic_regression": "statistics", "mean_difference_test": "statistics",
                    "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple",
@@ -93,7 +93,7 @@ __all__ = [
     "slide_semilandmarks",
     "SlideResult",
     "curve_sliders",
-    "read_sliders",  # shapelib.io_sliders, loaded on first use
+    "read_sliders",  # shapelib.io, loaded on first use
     "bending_energy_matrix",
     "estimate_missing",
     "MissingEstimate",
@@ -120,7 +120,7 @@ __all__ = [
     "register",
     "RegistrationResult",
     "RegistrationWarning",
-    "read_point_sets",  # shapelib.pointset_io, loaded on first use
+    "read_point_sets",  # shapelib.io, loaded on first use
     "write_point_set",
     "MetricInfo",
     "metric_info",

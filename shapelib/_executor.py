@@ -240,7 +240,7 @@ def check_where(n_jobs, client, scheduler) -> None:
 @contextlib.contextmanager
 def engine_executor(*, n_jobs=None, client=None, scheduler=None, serial_seconds=None):
     """The engine's workers as a :class:`concurrent.futures.Executor`, for work that is a map over
-    shapes rather than pairs (the intrinsic statistics' log maps, :mod:`shapelib.population`).
+    shapes rather than pairs (the intrinsic statistics' log maps, :mod:`shapelib.statistics`).
 
     Yields ``(executor, n_workers, mode)``; ``executor`` is None for in-process work. ``client=``
     or ``scheduler=`` use that Dask cluster (``client.get_executor()``); ``n_jobs=k > 1`` starts a

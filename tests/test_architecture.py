@@ -20,7 +20,7 @@ RANK = {
     "solver": 2,
     "comparison": 3,
     "distances": 4, "statistics": 4, "pointsets": 4, "retrieval": 5,
-    "io": 5, "pointset_io": 5, "io_sliders": 5, "pairwise": 5, "plotting": 5, "population": 6,
+    "io": 5, "pairwise": 5, "plotting": 5,
     "datasets": 6,
     "study": 7,
     "cli": 8,
@@ -174,9 +174,9 @@ def test_every_module_is_a_small_room():
 
 def test_the_statistics_reach_the_engine_through_the_executor_module_only():
     """The statistics take n_jobs / client / scheduler themselves through :mod:`shapelib._executor`
-    (Dask imported inside its functions), never through the pairwise engine or population."""
+    (Dask imported inside its functions), never through the pairwise engine."""
     for mod, targets in IMPORTS.items():
         if _area(mod) == "statistics":
-            assert not {t for t, _ in targets if t.startswith(("shapelib.pairwise", "shapelib.population"))}, mod
+            assert not {t for t, _ in targets if t.startswith("shapelib.pairwise")}, mod
     executor = {t for t, _ in IMPORTS["shapelib._executor"]}
     assert not {t for t in executor if t.startswith("shapelib.") and t not in ("shapelib._validate",)}, executor

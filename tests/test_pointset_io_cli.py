@@ -6,7 +6,7 @@ import pytest
 
 import shapelib as sl
 from shapelib.cli import main
-from shapelib.pointset_io import read_point_sets, write_point_set
+from shapelib.io import read_point_sets, write_point_set
 
 
 def outline(n=40, angle=0.0):

@@ -1,5 +1,7 @@
-"""The intrinsic statistics on the engine (shapelib.population): a real Dask LocalCluster started by
+"""The intrinsic statistics on the engine (n_jobs=, client=, scheduler=): a real Dask LocalCluster started by
 ``n_jobs=2`` or given as ``client=``, against the in-process answer."""
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,11 +86,14 @@ def test_tangent_pca_through_the_package(shapes, reference):
 
 def test_one_public_function_per_statistic():
     """The statistics take the engine keywords themselves: one object under every name."""
-    import shapelib.population
     import shapelib.statistics
 
     for name in ("frechet_mean", "tangent_pca", "geodesic_regression", "mean_difference_test"):
-        assert getattr(shapelib, name) is getattr(shapelib.statistics, name) is getattr(shapelib.population, name)
+        assert getattr(shapelib, name) is getattr(shapelib.statistics, name)
+    # the alias module shapelib.population is retired: no file, no lazy name
+    assert not (Path(shapelib.__file__).parent / "population.py").exists() and "population" not in dir(shapelib)
+    with pytest.raises(AttributeError):
+        shapelib.population
 
 
 def test_an_executor_and_the_engine_keywords_are_exclusive(shapes):

@@ -133,7 +133,7 @@ AREAS = (
          ("shapelib.solver.logexp", "shapelib.statistics", "shapelib.statistics.frechet",
           "shapelib.statistics.tangent_pca", "shapelib.statistics.regression", "shapelib.statistics.group",
           "shapelib.statistics.distance_based", "shapelib.statistics.sweep", "shapelib.statistics.linear_model",
-          "shapelib.statistics.allometry", "shapelib.population"),
+          "shapelib.statistics.allometry"),
          """
          shapelib.log_map
          shapelib.exp_map
@@ -194,7 +194,7 @@ AREAS = (
          "``p × k × n`` arrays and sliding-semilandmark tables (``curveslide.csv``) — the input errors "
          "every entry point raises, and the study's raw data, fetched and checked against the "
          "registry's checksums or read from ``SHAPELIB_DATA_DIR``.",
-         ("shapelib.io", "shapelib.io_sliders", "shapelib.datasets"),
+         ("shapelib.io", "shapelib.datasets"),
          """
          shapelib.InputError
          shapelib.io.read_landmarks

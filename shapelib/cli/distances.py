@@ -30,7 +30,7 @@ def _point_set_distances(args) -> int:
     import pandas as pd
 
     from ..pairwise import pairwise_distances
-    from ..pointset_io import read_point_sets
+    from ..io import read_point_sets
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     if args.metric not in ("alpha_bound", "fisher_rao_bound"):

@@ -149,7 +149,7 @@ def cmd_align(args) -> int:
         n_landmarks = shapes.shape[1]
         shapes, sliders, layout = _with_curves(shapes, read[2], spec, args.file)
     elif args.slide is not None:
-        from ..io_sliders import read_sliders
+        from ..io import read_sliders
 
         try:
             sliders = read_sliders(args.slide, n_landmarks=shapes.shape[1])

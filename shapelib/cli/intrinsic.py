@@ -1,5 +1,5 @@
 """``shapelib mean`` and ``shapelib pca``: the Fréchet mean and tangent PCA in an information metric
-(:mod:`shapelib.population`)."""
+(:mod:`shapelib.statistics`)."""
 
 from __future__ import annotations
 
@@ -61,7 +61,7 @@ def cmd_mean(args) -> int:
     import pandas as pd
 
     from .. import io
-    from ..population import frechet_mean
+    from ..statistics import frechet_mean
 
     out = _output_path(args.output, suffixes=(".tps", ".csv", ".npy", ".npz"), option="-o")
     plot = _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot") if args.plot else None
@@ -94,7 +94,7 @@ def _plot_mean(shapes, res, path, *, title, links=None):
 def cmd_pca(args) -> int:
     import pandas as pd
 
-    from ..population import tangent_pca
+    from ..statistics import tangent_pca
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
     plot = _output_path(args.plot, suffixes=(".png", ".pdf", ".svg"), option="--plot") if args.plot else None

@@ -15,7 +15,7 @@ EXAMPLES = {
 
 
 def _one_set(path, ident, option):
-    from ..pointset_io import read_point_sets
+    from ..io import read_point_sets
 
     sets, ids = read_point_sets(path)
     if ident is None:
@@ -40,7 +40,7 @@ def _w(text: str):
 
 
 def cmd_register(args) -> int:
-    from ..pointset_io import write_point_set
+    from ..io import write_point_set
     from ..pointsets.registration import register
 
     out = _output_path(args.output, suffixes=(".csv", ".npy"), option="-o")

@@ -49,11 +49,14 @@ from pathlib import Path
 from ._common import FORMATS, NEGATIVE_COORDINATES_COMMENT, _format_of
 from ._csv import read_csv, write_csv
 from ._npy import from_pkn, read_npy, to_pkn, write_npy
+from ._pointsets import read_point_sets, write_point_set
+from ._sliders import read_sliders
 from ._tps import read_tps, write_tps
 
 __all__ = [
     "read_landmarks", "write_landmarks", "read_tps", "write_tps", "read_csv", "write_csv",
     "read_npy", "write_npy", "from_pkn", "to_pkn", "FORMATS", "NEGATIVE_COORDINATES_COMMENT",
+    "read_point_sets", "write_point_set", "read_sliders",
 ]
 
 

@@ -8,9 +8,9 @@ time in log maps, one path solve per shape (:func:`shapelib.solver.logexp.log_ma
 ``client.get_executor()``. The shapes are cut into chunks, one task per chunk, and the results
 come back in order. ``executor=None`` runs them here.
 
-This area does not import the engine: :mod:`shapelib.population` (the engine layer) builds the
+This area does not import the engine: :func:`shapelib._executor.engine_executor` builds the
 executor from ``n_jobs=`` / ``client=`` / ``scheduler=`` the way
-:func:`shapelib.pairwise_distances` does and passes it in.
+:func:`shapelib.pairwise_distances` does, and the statistics pass it in.
 """
 
 from __future__ import annotations

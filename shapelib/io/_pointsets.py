@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import InputError, literal
-from .pointsets.checks import as_point_set, as_point_sets
+from .._validate import InputError, literal
+from ..pointsets.checks import as_point_set, as_point_sets
 
 __all__ = ["read_point_sets", "write_point_set"]
 
@@ -53,7 +53,7 @@ def read_point_sets(path) -> tuple[list[np.ndarray], list[str]]:
     Examples
     --------
     >>> import tempfile, pathlib
-    >>> from shapelib.pointset_io import read_point_sets
+    >>> from shapelib.io import read_point_sets
     >>> f = pathlib.Path(tempfile.mkdtemp()) / "two.csv"
     >>> _ = f.write_text("id,x,y\\na,0,0\\na,1,0\\na,0,1\\nb,0,0\\nb,2,1\\n")
     >>> sets, ids = read_point_sets(f)
@@ -189,7 +189,7 @@ def write_point_set(path, points) -> Path:
     --------
     >>> import tempfile
     >>> from pathlib import Path
-    >>> from shapelib.pointset_io import read_point_sets, write_point_set
+    >>> from shapelib.io import read_point_sets, write_point_set
     >>> tmp = tempfile.TemporaryDirectory()
     >>> f = write_point_set(Path(tmp.name) / "p.csv", [[0.5, 1.0], [2.0, -1.0]])
     >>> print(f.read_text(), end="")
@@ -200,7 +200,7 @@ def write_point_set(path, points) -> Path:
     [[0.5, 1.0], [2.0, -1.0]]
     >>> tmp.cleanup()
     """
-    from ._files import write_text_atomic
+    from .._files import write_text_atomic
 
     p = Path(path)
     x = np.asarray(points, dtype=float)
