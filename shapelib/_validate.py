@@ -13,7 +13,8 @@ import numbers
 import numpy as np
 
 __all__ = ["InputError", "literal", "as_shape", "as_shapes", "as_shape_pair", "as_pair_batch", "check_sigma2", "check_positive", "check_positive_int",
-           "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked"]
+           "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked",
+           "parse_assignment"]
 
 #: landmark dimensions every shape-taking entry point accepts (``dims=`` of :func:`as_shape`)
 LANDMARK_DIMS = (2, 3)
@@ -253,3 +254,25 @@ def set_checked():
 def set_was_checked() -> bool:
     """True inside :func:`set_checked`."""
     return _SET_CHECKED.get()
+
+
+def parse_assignment(text: str, *, flag: str = "--param", example: str = "n_steps=16") -> tuple[str, object]:
+    """``"sigma2=0.5"`` -> ``("sigma2", 0.5)``: ``NAME=VALUE`` with the value read as a Python literal
+    (numbers, True, lists, 'text'), else kept as a string. The one parser of ``shapelib --param``
+    and ``run_all.py -p``; a ValueError names ``flag`` and the text, and shows ``example``.
+
+    Examples
+    --------
+    >>> parse_assignment("sigma2=0.5"), parse_assignment("name=fish-2")
+    (('sigma2', 0.5), ('name', 'fish-2'))
+    """
+    key, sep, raw = text.partition("=")
+    key, raw = key.strip(), raw.strip()
+    if not sep or not key.isidentifier():
+        raise ValueError(f"{flag} {text!r}: expected NAME=VALUE, e.g. {flag} {example}")
+    try:
+        import ast
+
+        return key, ast.literal_eval(raw)
+    except (ValueError, TypeError, SyntaxError, MemoryError, RecursionError):
+        return key, raw

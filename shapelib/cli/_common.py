@@ -4,7 +4,6 @@ paths, the one-line error and the exit statuses."""
 from __future__ import annotations
 
 import argparse
-import ast
 import contextlib
 import logging
 import sys
@@ -13,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validate import InputError
+from .._validate import InputError, parse_assignment  # noqa: F401  (shapelib.cli.parse_assignment)
 
 PROG = "shapelib"
 #: exit status of ``distances --max-blocks`` stopping before the matrix is complete (sysexits' EX_TEMPFAIL)
@@ -124,20 +123,6 @@ def _write_frame(frame, path, **kw):
     from .._files import write_text_atomic
 
     write_text_atomic(Path(path), frame.to_csv(lineterminator="\n", **kw))
-
-
-def parse_assignment(text: str, *, flag: str = "--param", example: str = "n_steps=16") -> tuple[str, object]:
-    """``"sigma2=0.5"`` -> ``("sigma2", 0.5)``: ``NAME=VALUE`` with the value read as a Python literal
-    (numbers, True, lists, 'text'), else kept as a string. The one parser of ``shapelib --param``
-    and ``run_all.py -p``; a ValueError names ``flag`` and the text, and shows ``example``."""
-    key, sep, raw = text.partition("=")
-    key, raw = key.strip(), raw.strip()
-    if not sep or not key.isidentifier():
-        raise ValueError(f"{flag} {text!r}: expected NAME=VALUE, e.g. {flag} {example}")
-    try:
-        return key, ast.literal_eval(raw)
-    except (ValueError, TypeError, SyntaxError, MemoryError, RecursionError):
-        return key, raw
 
 
 def _parse_params(items):
