@@ -743,7 +743,11 @@ def mantel_test(x, y, *, method: str = "spearman", n_permutations: int = 999, se
     >>> round(r, 12), p <= 0.05
     (1.0, True)
     """
-    from skbio.stats.distance import mantel
+    try:
+        from skbio.stats.distance import mantel
+    except ImportError:
+        raise ImportError("mantel_test runs scikit-bio's Mantel test: pip install scikit-bio "
+                          "(it comes with the study extra, pip install 'shapelib[study]')") from None
 
     a = as_distance_matrix(x, name="x")
     b = as_distance_matrix(y, name="y")
