@@ -39,11 +39,11 @@ stage "install the wheel into a clean venv"
 # the dependencies' wheels are kept in a wheelhouse between runs: offline from the second run on
 WHEELHOUSE="${SHAPELIB_WHEELHOUSE:-${XDG_CACHE_HOME:-$HOME/.cache}/shapelib/wheelhouse}"
 mkdir -p "$WHEELHOUSE"
-if ! "$WORK/venv/bin/python" -m pip install --no-index --find-links "$WHEELHOUSE" "$wheel" > "$WORK/cmd.log" 2>&1; then
+if ! "$WORK/venv/bin/python" -m pip install --no-compile --no-index --find-links "$WHEELHOUSE" "$wheel" > "$WORK/cmd.log" 2>&1; then
     echo "(the wheelhouse $WHEELHOUSE lacks some dependencies: downloading them from the package index)"
     quiet "$WORK/venv/bin/python" -m pip download --dest "$WHEELHOUSE" "$wheel"
     rm -f "$WHEELHOUSE"/shapelib-*
-    quiet "$WORK/venv/bin/python" -m pip install --no-index --find-links "$WHEELHOUSE" "$wheel"
+    quiet "$WORK/venv/bin/python" -m pip install --no-compile --no-index --find-links "$WHEELHOUSE" "$wheel"
 fi
 
 # from a folder outside the source tree, with nothing of it on the path
