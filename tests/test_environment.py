@@ -61,8 +61,8 @@ def test_the_dataset_registry_ships_inside_the_package():
 
 
 def test_the_statistics_need_no_optional_extra():
-    """scikit-learn is a core dependency (TangentPCA is a scikit-learn transformer; knn_classify and pcoa are
-    scikit-learn's), so the statistics a wheel installs import with the core dependencies alone."""
+    """scikit-learn is a core dependency (TangentPCA is a scikit-learn transformer; knn_loo_accuracy and
+    classical_mds use its estimators), so the statistics a wheel installs need no extra; build is in dev."""
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     assert "scikit-learn" in {_name(r) for r in project["dependencies"]}
     assert "build" in {_name(r) for r in project["optional-dependencies"]["dev"]}
