@@ -17,7 +17,7 @@ from ..geometry.scale import ScaleWarning
 from ..solver.bracket import distance_brackets
 from ..solver.geodesic import GeodesicWarning, geodesics
 from ..solver.linalg import one_blas_thread
-from ._pointsets import point_set_block
+from ._pointsets import pair_block, point_set_block
 from ._results import PairError
 
 #: seconds one task should take (sets the default block size)
@@ -174,6 +174,9 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
         with _pair_work():
             d = point_set_block(xi, xj, diagonal=diagonal, metric=info.name, params=params)
         return _matrix_block(d, diagonal=diagonal, seconds=time.perf_counter() - t0)
+    if info.point_sets:  # point sets without correspondence (checked once by the driver), pair by pair
+        with _pair_work():
+            return pair_block(xi, xj, diagonal=diagonal, symmetric=symmetric, info=info, params=params)
     check_metric_params(info, params, rtol=rtol)
     xi = as_shapes(xi, name="rows")
     xj = xi if xj is xi else as_shapes(xj, name="cols")
