@@ -131,3 +131,24 @@ def test_bad_input_names_the_parameter():
     with pytest.raises(ValueError, match="rtol"):
         sl.pairwise_distances(SETS, metric="registration", rtol=1e-3, progress=False)
     assert sl.metric_info("registration").point_sets and "registration" in sl.distances.METRICS
+
+
+def test_cli_writes_the_library_matrix_and_says_the_shortlist(tmp_path, capsys, direct):
+    import pandas as pd
+
+    from shapelib.cli import main
+
+    f = tmp_path / "sets.npz"
+    np.savez(f, **{f"s{i}": x for i, x in enumerate(SETS)})
+    out = tmp_path / "reg.csv"
+    assert main(["distances", str(f), "--metric", "registration", "--param", "max_iter=60", "-o", str(out),
+                 "--no-progress", "--jobs", "1"]) == 0
+    d = pd.read_csv(out, index_col=0)
+    assert list(d.index) == [f"s{i}" for i in range(len(SETS))]
+    np.testing.assert_allclose(d.to_numpy(), direct, rtol=1e-12, atol=1e-15)
+    capsys.readouterr()
+    assert main(["distances", str(f), "--metric", "registration", "--param", "max_iter=60", "--param", "shortlist=1",
+                 "-o", str(out), "--no-progress", "--jobs", "1"]) == 0
+    assert "registered only each query's 1 nearest" in capsys.readouterr().err
+    assert main(["distances", str(f), "--metric", "registration", "--sigma2", "0.1", "-o", str(out)]) != 0
+    assert "--sigma2" in capsys.readouterr().err
