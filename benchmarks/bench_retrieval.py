@@ -137,6 +137,7 @@ def main(argv=None) -> int:
 def registration(args) -> int:
     """``--registration``: the rate of the registrations, the projections, the shortlisted matrix."""
     from shapelib.distances import registration_misfits
+    from shapelib.rerank import RERANK_METHODS
     from shapelib.solver.linalg import one_blas_thread
 
     every = mpeg7_classes()
@@ -182,7 +183,7 @@ def registration(args) -> int:
         for name, d in (("rigid fisher_rao_bound", rigid), ("registration", r.matrix)):
             table[name] = {"raw": sl.bullseye(d, labels).value,
                            **{f"re-ranked {m}": sl.bullseye(sl.rerank(d, method=m, **kw), labels).value
-                              for m in sl.RERANK_METHODS}}
+                              for m in RERANK_METHODS}}
         res["bullseye"] = {"table": table, "rerank": kw}
         print(f"bull's-eye ({n} shapes; re-ranking k = {args.rerank_k}, μ = {args.rerank_mu}):")
         for name, row in table.items():

@@ -56,7 +56,7 @@ from .pointsets import (
 from .pointsets.outline import outline_topology, resample_closed, trace_outline
 from .pointsets.invariant import InvariantDistance, invariant_distance, invariant_distance_matrix, normalise_points
 from .retrieval import BullseyeScore, bullseye, nearest_wrong, procrustes_outline_matrix
-from .rerank import RERANK_METHODS, rerank
+from .rerank import rerank
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -194,5 +194,4 @@ __all__ = [
     "nearest_wrong",
     "procrustes_outline_matrix",
     "rerank",  # shapelib.rerank
-    "RERANK_METHODS",
 ]
