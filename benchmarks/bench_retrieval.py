@@ -17,7 +17,7 @@ as wall and CPU seconds of this process (the CPU time is what the machine's load
 * the projection to the full 1,400 × 1,400 matrix (linear spectra + quadratic pairs).
 
 With ``--registration`` it measures instead the registration distance
-(``pairwise_distances(..., metric="registration")``, :func:`shapelib.distances.registration_distance`):
+(``pairwise_distances(..., metric="registration")``, :func:`shapelib.pointsets.registration_distance.registration_distance`):
 
 * the rate of :func:`shapelib.register` on ``--rate-pairs`` random pairs of the outlines (both
   directions each, in this process, one BLAS thread), and the projected core-hours of the full
@@ -136,7 +136,7 @@ def main(argv=None) -> int:
 
 def registration(args) -> int:
     """``--registration``: the rate of the registrations, the projections, the shortlisted matrix."""
-    from shapelib.distances import registration_misfits
+    from shapelib.pointsets.registration_distance import registration_misfits
     from shapelib.rerank import RERANK_METHODS
     from shapelib.solver.linalg import one_blas_thread
 

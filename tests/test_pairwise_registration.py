@@ -1,4 +1,4 @@
-"""The registration distance of point sets (:func:`shapelib.distances.registration_distance`) and its
+"""The registration distance of point sets (:func:`shapelib.pointsets.registration_distance.registration_distance`) and its
 matrix through the pairwise engine (``metric="registration"``): symmetry, invariances, the engine
 in process, in a resumed zarr store and on a LocalCluster against the direct loop, the shortlist."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import shapelib as sl
-from shapelib.distances import registration_distance, registration_misfits
+from shapelib.pointsets.registration_distance import registration_distance, registration_misfits
 from shapelib.pairwise import open_store
 
 T = np.linspace(0, 2 * np.pi, 20, endpoint=False)

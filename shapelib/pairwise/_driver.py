@@ -21,7 +21,7 @@ from ..solver.batched import check_backend
 from ..solver.geodesic import GeodesicWarning
 from . import _pointsets
 from ._blocks import (BOUND_BLOCK_MAX, JAX_BLOCK_SIDE, _batched, _batched_jax, _time_one_pair, block_pairs,
-                      compute_block, default_block_size)
+                      compute_block, default_block_size, time_pair_sets)
 from ._results import BlockProgress, PairwiseResult
 from ._store import (_FORMAT, _Store, _block_n_pairs, _check_same, _full_params, _pairs_left, _result, _rows,
                      _stored_seconds_per_pair, _token, shapes_sha256)
@@ -123,7 +123,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     elif pair_sets:  # point sets without correspondence, each pair by the metric's function (registration)
         if rtol is not None:
             raise ValueError(f"rtol applies to the certified geodesic metrics, not to {metric!r}")
-        sets, params, shortlist, recorded, (sha, sizes) = _pointsets.prepare_pairs(shapes, info, params)
+        sets, params, shortlist, (sha, sizes) = _pointsets.prepare_pairs(shapes, info, params)
+        recorded = {**_full_params(info, None, params), **(shortlist or {"shortlist": None})}
         n, k, d = len(sets), 0, sets[0].shape[1]
         neighbours = None
         if shortlist is not None:  # the rigid bound first (its own store beside this one: resumable too)
@@ -169,7 +170,7 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     seconds_per_pair = None
     if (st is None and block_size is None) or (local and n_jobs in (None, -1)):
         timed = (lambda: _pointsets.time_one_pair(x, metric, params)) if point_sets else (
-            (lambda: _pointsets.time_pair(x, info, params)) if pair_sets else (
+            (lambda: time_pair_sets(x, info, params)) if pair_sets else (
                 lambda: _time_one_pair(x, info, rtol, params)))
         seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
             timed() * pair_fraction if n > 2 else 0.0)  # one pair: in-process whatever it costs
@@ -262,7 +263,7 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
 
     With ``metric="registration"``, ``shapes`` is a list of point sets of any sizes and each pair's
     value the misfit left after registering the sets onto each other
-    (:func:`shapelib.distances.registration_distance`; options ``combine``, ``reflection``, ``lam``,
+    (:func:`shapelib.pointsets.registration_distance.registration_distance`; options ``combine``, ``reflection``, ``lam``,
     ``sigma2_metric``, ``max_iter``, ``tol``); ``lower`` and ``upper`` of the result hold the two
     directed misfits. ``shortlist=k`` registers only the pairs where one set is among the other's
     ``k`` nearest by the rigid bound ``shortlist_metric`` (default ``"fisher_rao_bound"``) modulo

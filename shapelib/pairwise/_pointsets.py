@@ -103,12 +103,11 @@ SHORTLIST_OPTIONS = ("shortlist", "shortlist_metric", "shortlist_sigma2")
 def prepare_pairs(shapes, info, params: dict):
     """Check the sets and the options of a point-set metric once (``info.point_sets``).
 
-    Returns ``(sets, pair_params, shortlist, recorded, fingerprint)``: the float64 sets, the options
-    each pair's function gets, the shortlist options (``None`` without ``shortlist``), what the
-    store records (every option, defaults filled in, and the shortlist's) and ``(sha256, sizes)``.
+    Returns ``(sets, pair_params, shortlist, fingerprint)``: the float64 sets, the options each
+    pair's function gets, the shortlist options (``None`` without ``shortlist``) and
+    ``(sha256, sizes)``.
     """
     from ..distances import check_metric_params
-    from ._store import _full_params
 
     params = dict(params)
     short = {key: params.pop(key) for key in SHORTLIST_OPTIONS if key in params}
@@ -128,12 +127,11 @@ def prepare_pairs(shapes, info, params: dict):
                      "shortlist_sigma2": check_sigma2(short.get("shortlist_sigma2", 0.01))}
     elif set(short) - {"shortlist"}:
         raise ValueError(f"{sorted(set(short) - {'shortlist'})} apply only with shortlist=k")
-    recorded = {**_full_params(info, None, params), **(shortlist or {"shortlist": None})}
     h = hashlib.sha256()
     for x in sets:
         h.update(repr(x.shape).encode())
         h.update(np.ascontiguousarray(x).tobytes())
-    return sets, params, shortlist, recorded, (h.hexdigest(), [len(x) for x in sets])
+    return sets, params, shortlist, (h.hexdigest(), [len(x) for x in sets])
 
 
 def shortlist_neighbours(rigid: np.ndarray, k: int) -> np.ndarray:
@@ -155,64 +153,6 @@ def items_of(sets, neighbours=None) -> list:
     """What the blocks receive: ``(set, its index, its shortlist or None)`` for each set."""
     return [(x, i, None if neighbours is None else frozenset(int(j) for j in neighbours[i]))
             for i, x in enumerate(sets)]
-
-
-def pair_block(xi, xj, *, diagonal: bool, symmetric: bool, info, params: dict) -> dict:
-    """All pairs of one block of a point-set metric, in :func:`~shapelib.pairwise.compute_block`'s
-    format. ``"registration"``: ``matrix`` the distance, ``lower`` / ``upper`` the smaller and larger
-    directed misfit, ``converged`` both EMs, ``n_iter`` their iterations together. A pair off the
-    shortlist (neither set among the other's) is not computed: ``+inf`` in ``matrix``, ``lower`` and
-    ``upper`` (the driver fills it from the rigid bound)."""
-    from ..distances import registration_misfits
-    from ._blocks import ARRAYS
-
-    bi, bj = len(xi), len(xj)
-    out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
-    for a in range(bi):
-        for b in range(bj):
-            if diagonal and (a == b or (symmetric and b < a)):
-                continue
-            (u, i, near_i), (v, j, near_j) = xi[a], xj[b]
-            t0 = time.perf_counter()
-            if near_i is not None and j not in near_i and i not in near_j:
-                rec = (np.inf, np.inf, np.inf, True, 0)
-            elif info.name == "registration" and info.function is _registration_function():
-                combine = params.get("combine", "mean")
-                opts = {k: v for k, v in params.items() if k != "combine"}
-                m_uv, m_vu, converged, n_iter = registration_misfits(u, v, **opts)
-                value = 0.5 * (m_uv + m_vu) if combine == "mean" else max(m_uv, m_vu)
-                rec = (value, min(m_uv, m_vu), max(m_uv, m_vu), converged, n_iter)
-            else:  # any other point-set metric: its function's value
-                value = float((info.core or info.function)(u, v, **params))
-                rec = (value, value, value, True, 0)
-            value, lower, upper, converged, n_iter = rec
-            out["matrix"][a, b], out["lower"][a, b], out["upper"][a, b] = value, lower, upper
-            out["converged"][a, b], out["n_iter"][a, b] = converged, n_iter
-            out["seconds"][a, b] = time.perf_counter() - t0
-    if diagonal:
-        if symmetric:
-            low = np.tril_indices(bi, -1)
-            for arr in out.values():
-                arr[low] = arr.T[low]
-        d = np.diag_indices(bi)
-        for name in ("matrix", "lower", "upper", "seconds", "n_iter"):
-            out[name][d] = 0
-        out["converged"][d] = True
-    return out
-
-
-def _registration_function():
-    from ..distances import registration_distance
-
-    return registration_distance
-
-
-def time_pair(items, info, params: dict) -> float:
-    """Seconds of one pair (the first two sets, whatever the shortlist)."""
-    t0 = time.perf_counter()
-    pair_block([(items[0][0], 0, None)], [(items[1][0], 1, None)], diagonal=False, symmetric=True, info=info,
-               params=params)
-    return time.perf_counter() - t0
 
 
 def fill_off_shortlist(matrix: np.ndarray, rigid: np.ndarray) -> tuple[np.ndarray, float]:
