@@ -9,6 +9,14 @@ searches the rotations on the same grid and a pair's value does not depend on th
 in; each task receives its sets with their spectra. A block is one call of
 :func:`shapelib.pointsets.invariant.distances_from_spectra` (batched FFT angle search, then the α
 value in closed form at the pose found).
+
+A metric whose record says ``point_sets`` (``pairwise_distances(point_sets, metric="registration")``)
+takes the sets as they are (checked once here, :func:`prepare_pairs`) and computes each pair with
+its function (:func:`shapelib.pairwise._blocks.pair_block`). With ``shortlist=k`` the rigid bound
+modulo similarity is computed first and only the pairs where one set is among the other's ``k``
+nearest by it are computed; the blocks receive each set with its shortlist
+(:func:`items_of`), mark the other pairs ``+inf``, and the driver fills them from the rigid bound
+shifted above every computed value (:func:`fill_off_shortlist`).
 """
 
 from __future__ import annotations
