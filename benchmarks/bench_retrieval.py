@@ -16,9 +16,22 @@ as wall and CPU seconds of this process (the CPU time is what the machine's load
   ``--workers`` local worker processes;
 * the projection to the full 1,400 × 1,400 matrix (linear spectra + quadratic pairs).
 
+With ``--registration`` it measures instead the registration distance
+(``pairwise_distances(..., metric="registration")``, :func:`shapelib.pointsets.registration_distance.registration_distance`):
+
+* the rate of :func:`shapelib.register` on ``--rate-pairs`` random pairs of the outlines (both
+  directions each, in this process, one BLAS thread), and the projected core-hours of the full
+  matrix (979,300 pairs, 1.96 M registrations) and of each query's ``--shortlist`` rigid nearest;
+* unless ``--rate-only``: the matrix itself on the rigid shortlist, through the engine (``--workers``
+  local processes, resumable from ``--store``: rerun the same command to continue), with the
+  bull's-eye of the rigid bound and of the registration distance, raw and re-ranked
+  (:func:`shapelib.rerank`, ``--rerank-k``, ``--rerank-mu``), in separate columns.
+
 Not a test: numbers depend on the machine and its load (recorded).
 
     python benchmarks/bench_retrieval.py [--classes 20] [--full] [--sigma2 0.01] [--record]
+    python benchmarks/bench_retrieval.py --registration --rate-only --rate-pairs 150
+    python benchmarks/bench_retrieval.py --registration --full --shortlist 80 --workers 16 --store reg.zarr
 """
 
 from __future__ import annotations
@@ -59,7 +72,18 @@ def main(argv=None) -> int:
     ap.add_argument("--sigma2", type=float, default=0.01)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--record", action="store_true")
+    ap.add_argument("--registration", action="store_true", help="the registration distance instead (see above)")
+    ap.add_argument("--rate-pairs", type=int, default=100, help="pairs timed for the rate (both directions each)")
+    ap.add_argument("--rate-only", action="store_true", help="only the rate and the projections")
+    ap.add_argument("--shortlist", type=int, default=80,
+                    help="rigid nearest registered per query (0: all pairs); the bull's-eye counts the 40 nearest as a "
+                         "set, so a shortlist of 40 or fewer only reorders them and cannot change the raw score")
+    ap.add_argument("--store", default=None, help="zarr store of the registration matrix (resumable)")
+    ap.add_argument("--rerank-k", type=int, default=10)
+    ap.add_argument("--rerank-mu", type=float, default=0.8)
     args = ap.parse_args(argv)
+    if args.registration:
+        return registration(args)
     every = mpeg7_classes()
     classes = every if args.full else [every[i] for i in np.round(np.linspace(0, 69, args.classes)).astype(int)]
     res = {"loadavg_start": loadavg(), "classes": len(classes), "points": args.points, "sigma2": args.sigma2}
@@ -109,6 +133,70 @@ def main(argv=None) -> int:
     print("load average", res["loadavg_start"], "->", res["loadavg_end"])
     if args.record:
         print("recorded", record("bench_retrieval", res))
+    return 0
+
+
+def registration(args) -> int:
+    """``--registration``: the rate of the registrations, the projections, the shortlisted matrix."""
+    from shapelib.pointsets.registration_distance import registration_misfits
+    from shapelib.rerank import RERANK_METHODS
+    from shapelib.solver.linalg import one_blas_thread
+
+    every = mpeg7_classes()
+    classes = every if args.full else [every[i] for i in np.round(np.linspace(0, 69, args.classes)).astype(int)]
+    res = {"loadavg_start": loadavg(), "classes": len(classes), "points": args.points, "mode": "registration"}
+    data = load_mpeg7(classes=classes, n_points=args.points)
+    outlines, labels = list(data.shapes), data.labels
+    n = len(outlines)
+    rng = np.random.default_rng(0)
+    pairs = [tuple(rng.choice(n, size=2, replace=False)) for _ in range(args.rate_pairs)]
+    n_iter, not_converged = [], 0
+    with Clock() as c, one_blas_thread():
+        for i, j in pairs:
+            *_, converged, it = registration_misfits(outlines[i], outlines[j])
+            n_iter.append(it)
+            not_converged += not converged
+    # CPU seconds (one thread: BLAS on one, no other work in this process) are what a loaded machine cannot
+    # inflate; the wall time is recorded beside them
+    per = c.cpu / (2 * len(pairs))
+    rate = {"pairs": len(pairs), "registrations": 2 * len(pairs), "wall": c.wall, "cpu": c.cpu,
+            "cpu_seconds_per_registration": per, "wall_seconds_per_registration": c.wall / (2 * len(pairs)),
+            "registrations_per_cpu_second": 1 / per,
+            "em_iterations_per_pair_median": float(np.median(n_iter)), "pairs_not_converged": not_converged}
+    full_regs = 2 * 1400 * 1399 // 2
+    rate["full_core_hours"] = full_regs * per / 3600
+    if args.shortlist:  # the symmetric shortlist holds between N·K/2 and N·K pairs; N·K is the bound used
+        rate["shortlist_core_hours_at_most"] = 2 * 1400 * args.shortlist * per / 3600
+    res["rate"] = rate
+    print(f"register, {args.points} points: {len(pairs)} pairs × 2 directions in {c.wall:.1f} s wall "
+          f"({c.cpu:.1f} s CPU): {1e3 * per:.0f} ms CPU per registration, {1 / per:.2f} per second on one free core "
+          f"(median {np.median(n_iter):.0f} EM iterations per pair, both directions; {not_converged} pairs with an EM "
+          f"stopped at max_iter); "
+          f"full MPEG-7 both directions ≈ {rate['full_core_hours']:.0f} core-hours"
+          + (f", shortlist {args.shortlist} ≤ {rate['shortlist_core_hours_at_most']:.1f} core-hours" if args.shortlist else ""))
+    if not args.rate_only:
+        with Clock() as c:
+            r = sl.pairwise_distances(outlines, metric="registration", n_jobs=args.workers, store=args.store,
+                                      return_result=True, **({"shortlist": args.shortlist, "shortlist_sigma2": args.sigma2}
+                                                             if args.shortlist else {}))
+        res["matrix"] = {"wall": c.wall, "summary": r.summary(), "log": {k: v for k, v in r.log.items()
+                                                                         if isinstance(v, (int, float, str, dict))}}
+        print(r.summary(), f"({c.wall:.0f} s wall)")
+        rigid = sl.pairwise_distances(outlines, metric="fisher_rao_bound", modulo="similarity", sigma2=args.sigma2,
+                                      store=None if args.store is None else f"{args.store}.shortlist", progress=False)
+        kw = dict(k=args.rerank_k, mu=args.rerank_mu)
+        table = {}
+        for name, d in (("rigid fisher_rao_bound", rigid), ("registration", r.matrix)):
+            table[name] = {"raw": sl.bullseye(d, labels).value,
+                           **{f"re-ranked {m}": sl.bullseye(sl.rerank(d, method=m, **kw), labels).value
+                              for m in RERANK_METHODS}}
+        res["bullseye"] = {"table": table, "rerank": kw}
+        print(f"bull's-eye ({n} shapes; re-ranking k = {args.rerank_k}, μ = {args.rerank_mu}):")
+        for name, row in table.items():
+            print(f"  {name:24s} " + "  ".join(f"{col} {100 * v:.2f} %" for col, v in row.items()))
+    res["loadavg_end"] = loadavg()
+    if args.record:
+        print("recorded", record("bench_retrieval_registration", res))
     return 0
 
 

@@ -56,6 +56,7 @@ from .pointsets import (
 from .pointsets.outline import outline_topology, resample_closed, trace_outline
 from .pointsets.invariant import InvariantDistance, invariant_distance, invariant_distance_matrix, normalise_points
 from .retrieval import BullseyeScore, bullseye, nearest_wrong, procrustes_outline_matrix
+from .rerank import rerank
 
 from ._version import __version__  # noqa: F401  (the package version)
 
@@ -192,4 +193,5 @@ __all__ = [
     "BullseyeScore",
     "nearest_wrong",
     "procrustes_outline_matrix",
+    "rerank",  # shapelib.rerank
 ]

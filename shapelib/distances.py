@@ -26,6 +26,12 @@ metrics (:func:`metric_info`, :func:`register_metric`).
     Thin-plate spline bending energy of the map taking ``u`` onto ``v`` (not symmetric) [``kernel``].
 ``"wendland"``
     Wendland ψ₃,₁ spline bending energy [``support``, ``affine``] (not symmetric).
+``"registration"``
+    Point sets of any sizes, no correspondence: the misfit left after the non-rigid registration
+    of each set onto the other (:func:`shapelib.pointsets.registration_distance.registration_distance`;
+    registered by :mod:`shapelib.retrieval`) [``combine``, ``reflection``,
+    ``lam``, ``sigma2_metric``, ``max_iter``, ``tol``]; through :func:`shapelib.pairwise_distances`
+    also ``shortlist=k``.
 
 Each metric is one :class:`MetricInfo` record (its function, whether it is symmetric, a path
 metric, certifiable to ``rtol``, the function whose keyword options it takes, its lower-bound
@@ -129,6 +135,10 @@ class MetricInfo:
     quadrature : bool
         The metric integrates on a grid of step ``grid_spacing · σ`` (the Fisher–Rao metrics): a σ
         that leaves the grid nothing to resolve is an error before any work, once for a whole set.
+    point_sets : bool
+        The metric compares point sets of any sizes without correspondence (``"registration"``):
+        the pairwise engine takes a list of ``(n_i, d)`` arrays and calls ``core`` (or
+        ``function``) on each pair of them.
 
     See Also
     --------
@@ -163,6 +173,7 @@ class MetricInfo:
     pose_dependent: bool | Callable = False
     core: Callable | None = None
     quadrature: bool = False
+    point_sets: bool = False
 
     def options_of(self, rtol=None) -> Callable:
         """The function whose keyword options the metric takes (the bracket's with ``rtol``)."""
@@ -206,7 +217,7 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
                     bracket: Callable | None = None, accepts: Callable | None = None,
                     lower_bound: str | None = None, description: str = "", block: Callable | None = None,
                     pose_dependent: bool | Callable = False, core: Callable | None = None,
-                    quadrature: bool = False, replace: bool = False) -> MetricInfo:
+                    quadrature: bool = False, point_sets: bool = False, replace: bool = False) -> MetricInfo:
     r"""Add a metric to the registry.
 
     Afterwards :func:`shapelib.distance`, :func:`shapelib.pair_record`,
@@ -241,6 +252,8 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
         A registered metric bounding this one from below.
     description : str
         One line for ``shapelib distances --help``.
+    point_sets : bool, default False
+        The metric compares point sets of any sizes (:attr:`MetricInfo.point_sets`).
     replace : bool, default False
         Replace a metric of that name; without it a taken name is a ``ValueError``.
 
@@ -294,7 +307,7 @@ def register_metric(name: str, function: Callable, *, symmetric: bool = True, pa
     info = MetricInfo(name=name, function=function, symmetric=bool(symmetric), path=bool(path), bracket=bracket,
                       accepts=accepts, lower_bound=lower_bound, description=" ".join(str(description).split()),
                       block=block, pose_dependent=pose_dependent if callable(pose_dependent) else bool(pose_dependent),
-                      core=core, quadrature=bool(quadrature))
+                      core=core, quadrature=bool(quadrature), point_sets=bool(point_sets))
     _REGISTRY[name] = info
     return info
 
@@ -444,6 +457,7 @@ def is_builtin(info) -> bool:
 def _wendland_pose(params) -> bool:
     """``"wendland"`` depends on pose only with ``affine=False`` (its energy then includes the affine part)."""
     return params.get("affine", True) is False
+
 
 
 for _name, _fn, _kw in (

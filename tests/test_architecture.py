@@ -19,7 +19,7 @@ RANK = {
     "geometry": 1,
     "solver": 2,
     "comparison": 3,
-    "distances": 4, "statistics": 4, "pointsets": 4, "retrieval": 5,
+    "distances": 4, "statistics": 4, "pointsets": 4, "retrieval": 5, "rerank": 5,
     "io": 5, "pairwise": 5, "plotting": 5,
     "datasets": 6,
     "study": 7,
@@ -27,7 +27,7 @@ RANK = {
     "__init__": 9, "__main__": 10,
 }
 #: areas that hold the mathematics: they never import the study, IO, Dask, zarr or plotting
-MATH = {"_validate", "geometry", "solver", "comparison", "distances", "statistics", "pointsets", "retrieval"}
+MATH = {"_validate", "geometry", "solver", "comparison", "distances", "statistics", "pointsets", "retrieval", "rerank"}
 FORBIDDEN_IN_MATH = {"dask", "distributed", "zarr", "matplotlib", "tqdm", "pooch", "papermill"}
 
 

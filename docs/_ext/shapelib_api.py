@@ -291,6 +291,7 @@ AREAS = (
          shapelib.BullseyeScore
          shapelib.nearest_wrong
          shapelib.procrustes_outline_matrix
+         shapelib.rerank
          shapelib.pose_align
          shapelib.PoseWarning
          shapelib.centroid_size

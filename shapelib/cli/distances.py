@@ -18,7 +18,9 @@ EXAMPLES = {
                   "  shapelib distances aligned.tps --metric alpha --sigma2 0.5 \\\n"
                   "      --jobs 2 --store alpha.zarr -o alpha.csv        (rerun the same command to resume)\n"
                   "  shapelib distances aligned.tps --metric fisher_rao --sigma2 0.5 --rtol 1e-3 \\\n"
-                  "      --scheduler tcp://127.0.0.1:8786 -o fr.csv"),
+                  "      --scheduler tcp://127.0.0.1:8786 -o fr.csv\n"
+                  "  shapelib distances outlines.csv --metric registration --param shortlist=10 \\\n"
+                  "      --store reg.zarr -o registration.csv      (point sets; only each one's 10 rigid nearest)"),
     "geodesic": ("example:\n  shapelib geodesic aligned.tps --from fish-1 --to Heart-1 \\\n"
                  "      --metric fisher_rao --sigma2 0.5 -o path.csv --plot path.png --links contour --animate path.gif"),
 }
@@ -33,15 +35,19 @@ def _point_set_distances(args) -> int:
     from ..io import read_point_sets
 
     out = _output_path(args.output, suffixes=(".csv",), option="-o")
-    if args.metric not in ("alpha_bound", "fisher_rao_bound"):
+    registration = args.metric == "registration"  # invariant to a similarity by construction: no --modulo needed
+    if not registration and args.metric not in ("alpha_bound", "fisher_rao_bound"):
         raise CLIError(f"--modulo {args.modulo}: point sets are compared by --metric alpha_bound or fisher_rao_bound "
-                       f"(the density distances); got {args.metric}")
-    if args.sigma2 is None or args.sigma2 == "auto":
+                       f"(the density distances; --metric registration needs no --modulo); got {args.metric}")
+    if registration and args.sigma2 is not None:
+        raise CLIError("--metric registration estimates σ² itself (the misfit it reports); drop --sigma2 "
+                       "(the rigid shortlist's σ²: --param shortlist_sigma2=0.01)")
+    if not registration and (args.sigma2 is None or args.sigma2 == "auto"):
         raise CLIError(f"--modulo {args.modulo}: give --sigma2 as a number, in units of each set's RMS radius "
                        "squared (e.g. 0.01)")
     for flag, value in (("--rtol", args.rtol), ("--pairs", args.pairs), ("--max-blocks", args.max_blocks)):
         if value is not None:
-            raise CLIError(f"{flag} does not apply to point sets compared with --modulo")
+            raise CLIError(f"{flag} does not apply to point sets compared with --modulo or --metric registration")
     try:
         sets, ids = read_point_sets(args.file)
     except ValueError as exc:  # InputError: names the file and the set or point
@@ -50,22 +56,31 @@ def _point_set_distances(args) -> int:
         raise CLIError(f"{args.file}: a point-set id occurs more than once; the matrix needs unique ids")
     params = _parse_params(args.param)
     try:
-        d = pairwise_distances(sets, metric=args.metric, modulo=args.modulo, sigma2=float(args.sigma2),
-                               n_jobs=args.jobs, scheduler=args.scheduler, store=args.store,
-                               block_size=args.block_size, progress=not args.no_progress, **params)
+        kw = {} if registration else {"modulo": args.modulo, "sigma2": float(args.sigma2)}
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = pairwise_distances(sets, metric=args.metric, n_jobs=args.jobs, scheduler=args.scheduler,
+                                        store=args.store, block_size=args.block_size, progress=not args.no_progress,
+                                        return_result=True, **kw, **params)
     except ValueError as exc:
         raise CLIError(f"{args.file}: {exc}") from None
+    for w in caught:  # the engine's own words (e.g. EMs that stopped at max_iter), once each
+        print(f"{PROG}: warning: {w.message}", file=sys.stderr)
+    d = result.matrix
     _write_frame(pd.DataFrame(d, index=pd.Index(ids, name="id"), columns=ids), out,
                  float_format=lambda v: repr(float(v)))
-    print(f"{args.metric} modulo {args.modulo}: {len(ids)} x {len(ids)} distance matrix of point sets -> {out}"
+    what = f"{args.metric} modulo {args.modulo}" if not registration else args.metric
+    print(f"{what}: {len(ids)} x {len(ids)} distance matrix of point sets -> {out}"
           + (f" (store {args.store})" if args.store else ""))
+    if registration and result.log.get("shortlist"):
+        print(f"{PROG}: note: {result.summary().split('; ', 1)[1]}", file=sys.stderr)
     return 0
 
 
 def cmd_distances(args) -> int:
     import pandas as pd
 
-    if args.modulo is not None:
+    if args.modulo is not None or args.metric == "registration":
         return _point_set_distances(args)
 
     from ..pairwise import pairwise_distances

@@ -12,6 +12,7 @@ import numpy as np
 from .._executor import in_dask_worker
 from .._validate import as_shapes, set_checked
 from ..distances import check_metric_params, is_builtin, metric_info
+from ..pointsets.registration_distance import registration_distance, registration_misfits
 from ..geometry.procrustes import PoseWarning
 from ..geometry.scale import ScaleWarning
 from ..solver.bracket import distance_brackets
@@ -174,6 +175,9 @@ def compute_block(xi, xj, *, diagonal: bool, symmetric: bool, metric, rtol, para
         with _pair_work():
             d = point_set_block(xi, xj, diagonal=diagonal, metric=info.name, params=params)
         return _matrix_block(d, diagonal=diagonal, seconds=time.perf_counter() - t0)
+    if info.point_sets:  # point sets without correspondence (checked once by the driver), pair by pair
+        with _pair_work():
+            return pair_block(xi, xj, diagonal=diagonal, symmetric=symmetric, info=info, params=params)
     check_metric_params(info, params, rtol=rtol)
     xi = as_shapes(xi, name="rows")
     xj = xi if xj is xi else as_shapes(xj, name="cols")
@@ -380,3 +384,54 @@ def _time_one_pair(x, metric, rtol, params, *, budget: float = 0.5) -> float:
             _pair_record(info, x[0], x[1 % len(x)], 0, 1 % len(x), rtol=rtol, params=params)
             times.append(time.perf_counter() - t0)
     return min(times)
+
+
+# -- point sets without correspondence (``MetricInfo.point_sets``: ``"registration"``) ------------------
+
+def pair_block(xi, xj, *, diagonal: bool, symmetric: bool, info, params: dict) -> dict:
+    """All pairs of one block of a point-set metric, in :func:`~shapelib.pairwise.compute_block`'s
+    format. ``"registration"``: ``matrix`` the distance, ``lower`` / ``upper`` the smaller and larger
+    directed misfit, ``converged`` both EMs, ``n_iter`` their iterations together. A pair off the
+    shortlist (neither set among the other's) is not computed: ``+inf`` in ``matrix``, ``lower`` and
+    ``upper`` (the driver fills it from the rigid bound)."""
+    bi, bj = len(xi), len(xj)
+    out = {name: np.full((bi, bj), fill, dtype=dtype) for name, (dtype, fill) in ARRAYS.items()}
+    for a in range(bi):
+        for b in range(bj):
+            if diagonal and (a == b or (symmetric and b < a)):
+                continue
+            (u, i, near_i), (v, j, near_j) = xi[a], xj[b]
+            t0 = time.perf_counter()
+            if near_i is not None and j not in near_i and i not in near_j:
+                rec = (np.inf, np.inf, np.inf, True, 0)
+            elif info.name == "registration" and info.function is registration_distance:
+                combine = params.get("combine", "mean")
+                opts = {k: v for k, v in params.items() if k != "combine"}
+                m_uv, m_vu, converged, n_iter = registration_misfits(u, v, **opts)
+                value = 0.5 * (m_uv + m_vu) if combine == "mean" else max(m_uv, m_vu)
+                rec = (value, min(m_uv, m_vu), max(m_uv, m_vu), converged, n_iter)
+            else:  # any other point-set metric: its function's value
+                value = float((info.core or info.function)(u, v, **params))
+                rec = (value, value, value, True, 0)
+            value, lower, upper, converged, n_iter = rec
+            out["matrix"][a, b], out["lower"][a, b], out["upper"][a, b] = value, lower, upper
+            out["converged"][a, b], out["n_iter"][a, b] = converged, n_iter
+            out["seconds"][a, b] = time.perf_counter() - t0
+    if diagonal:
+        if symmetric:
+            low = np.tril_indices(bi, -1)
+            for arr in out.values():
+                arr[low] = arr.T[low]
+        d = np.diag_indices(bi)
+        for name in ("matrix", "lower", "upper", "seconds", "n_iter"):
+            out[name][d] = 0
+        out["converged"][d] = True
+    return out
+
+
+def time_pair_sets(items, info, params: dict) -> float:
+    """Seconds of one pair (the first two sets, whatever the shortlist)."""
+    t0 = time.perf_counter()
+    pair_block([(items[0][0], 0, None)], [(items[1][0], 1, None)], diagonal=False, symmetric=True, info=info,
+               params=params)
+    return time.perf_counter() - t0

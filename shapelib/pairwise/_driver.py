@@ -8,6 +8,8 @@ import time
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from .._executor import (CLUSTER_OVERHEAD_SECONDS, POLL_SECONDS, Interrupts, check_where, cluster_size, connect,
                          ignore_sigint, local_cluster, n_cores)
 from .._validate import as_shapes, check_positive_int
@@ -19,7 +21,7 @@ from ..solver.batched import check_backend
 from ..solver.geodesic import GeodesicWarning
 from . import _pointsets
 from ._blocks import (BOUND_BLOCK_MAX, JAX_BLOCK_SIDE, _batched, _batched_jax, _time_one_pair, block_pairs,
-                      compute_block, default_block_size)
+                      compute_block, default_block_size, time_pair_sets)
 from ._results import BlockProgress, PairwiseResult
 from ._store import (_FORMAT, _Store, _block_n_pairs, _check_same, _full_params, _pairs_left, _result, _rows,
                      _stored_seconds_per_pair, _token, shapes_sha256)
@@ -111,11 +113,29 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if callback is not None and not callable(callback):
         raise ValueError(f"callback must be callable; got {callback!r}")
     point_sets = modulo is not None
+    pair_sets = not point_sets and info.point_sets
+    shortlist, pair_fraction = None, 1.0
     if point_sets:  # a list of point sets of any sizes, each normalised once (:mod:`._pointsets`)
         if rtol is not None:
             raise ValueError("rtol applies to the certified geodesic metrics, not to point sets modulo a group")
         x, params, recorded, (sha, sizes) = _pointsets.prepare(shapes, metric, modulo, params)
         n, k, d = len(x), 0, 2  # K: the sizes differ (the fingerprint covers them)
+    elif pair_sets:  # point sets without correspondence, each pair by the metric's function (registration)
+        if rtol is not None:
+            raise ValueError(f"rtol applies to the certified geodesic metrics, not to {metric!r}")
+        sets, params, shortlist, (sha, sizes) = _pointsets.prepare_pairs(shapes, info, params)
+        recorded = {**_full_params(info, None, params), **(shortlist or {"shortlist": None})}
+        n, k, d = len(sets), 0, sets[0].shape[1]
+        neighbours = None
+        if shortlist is not None:  # the rigid bound first (its own store beside this one: resumable too)
+            rigid = compute_pairwise(sets, metric=shortlist["shortlist_metric"], modulo="similarity",
+                                     sigma2=shortlist["shortlist_sigma2"], n_jobs=n_jobs, client=client,
+                                     scheduler=scheduler, store=None if store is None else f"{store}.shortlist",
+                                     progress=progress).matrix
+            neighbours = _pointsets.shortlist_neighbours(rigid, shortlist["shortlist"])
+            # the pairs off the shortlist cost nothing: the mean pair costs this fraction of a registered one
+            pair_fraction = float(_pointsets.shortlist_mask(neighbours)[np.triu_indices(n, 1)].mean())
+        x = _pointsets.items_of(sets, neighbours)
     else:
         check_metric_params(info, params, rtol=rtol)
         x = as_shapes(shapes, name="shapes")
@@ -131,8 +151,9 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if block_size is not None:
         block_size = check_positive_int(block_size, name="block_size")
     want = {"format": _FORMAT, "metric": metric,
-            "params": recorded if point_sets else _full_params(info, rtol, params),
-            "rtol": None if rtol is None else float(rtol), "shapes_sha256": sha if point_sets else shapes_sha256(x),
+            "params": recorded if point_sets or pair_sets else _full_params(info, rtol, params),
+            "rtol": None if rtol is None else float(rtol),
+            "shapes_sha256": sha if point_sets or pair_sets else shapes_sha256(x),
             "N": int(n), "K": int(k), "d": int(d), "symmetric": symmetric, "shapelib_version": __version__}
 
     st, found = None, None
@@ -149,9 +170,10 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     seconds_per_pair = None
     if (st is None and block_size is None) or (local and n_jobs in (None, -1)):
         timed = (lambda: _pointsets.time_one_pair(x, metric, params)) if point_sets else (
-            lambda: _time_one_pair(x, info, rtol, params))
+            (lambda: time_pair_sets(x, info, params)) if pair_sets else (
+                lambda: _time_one_pair(x, info, rtol, params)))
         seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
-            timed() if n > 2 else 0.0)  # one pair: in-process whatever it costs
+            timed() * pair_fraction if n > 2 else 0.0)  # one pair: in-process whatever it costs
     jax_batches = not point_sets and _batched_jax(info, params)
     if jax_batches:  # JAX installed and the device there, before any block (one-line errors)
         check_backend(params["backend"], params.get("device"))
@@ -222,6 +244,11 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
     if not computed.all() and not log["stopped"]:
         raise RuntimeError(f"{st.where}: {int((~computed).sum())} pairs missing after the run")
     result = _result(st, data, computed, log)
+    if shortlist is not None:  # the pairs off the shortlist: the rigid bound, ranked after the registered ones
+        registered = np.isfinite(result.matrix) & ~np.eye(n, dtype=bool)
+        result.matrix, shift = _pointsets.fill_off_shortlist(result.matrix, rigid)
+        result.log["shortlist"] = {**shortlist, "pairs_registered": int(registered.sum()) // (2 if symmetric else 1),
+                                   "shift": shift}
     words = result._nonconverged()
     if words:
         warnings.warn(f"{words}; see PairwiseResult.to_frame() (status, rel_gap)", GeodesicWarning, stacklevel=3)
@@ -233,6 +260,17 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
                        rtol: float | None = None, return_result: bool = False, callback=None,
                        modulo: str | None = None, **params):
     """Matrix of distances between every pair of ``shapes`` (N, K, d), on Dask, with a resumable store.
+
+    With ``metric="registration"``, ``shapes`` is a list of point sets of any sizes and each pair's
+    value the misfit left after registering the sets onto each other
+    (:func:`shapelib.pointsets.registration_distance.registration_distance`; options ``combine``, ``reflection``, ``lam``,
+    ``sigma2_metric``, ``max_iter``, ``tol``); ``lower`` and ``upper`` of the result hold the two
+    directed misfits. ``shortlist=k`` registers only the pairs where one set is among the other's
+    ``k`` nearest by the rigid bound ``shortlist_metric`` (default ``"fisher_rao_bound"``) modulo
+    similarity at ``shortlist_sigma2`` (default 0.01; computed first, in ``store + ".shortlist"``
+    when there is a store); the returned matrix holds that bound shifted above every registered
+    value for the other pairs (each row ranks its shortlist first; ``log["shortlist"]`` and
+    :meth:`PairwiseResult.summary` say so), the store ``+inf`` for them.
 
     With ``modulo="similarity"``, ``shapes`` is a list of planar point sets of any sizes (e.g.
     outlines, :func:`shapelib.trace_outline`) and ``metric`` ``"alpha_bound"`` or

@@ -179,7 +179,13 @@ class PairwiseResult:
         n = len(self.matrix)
         total = n * (n - 1) // 2 if (self.metric in SYMMETRIC if self.symmetric is None else self.symmetric) else n * (n - 1)
         words = self._nonconverged()
-        return f"{n} × {n} {self.metric} matrix: {len(i)} of {total} pairs computed, " + (words or "all converged")
+        line = f"{n} × {n} {self.metric} matrix: {len(i)} of {total} pairs computed, " + (words or "all converged")
+        short = (self.log or {}).get("shortlist")
+        if short:
+            line += (f"; registered only each query's {short['shortlist']} nearest by the rigid {short['shortlist_metric']} "
+                     f"(σ² = {short['shortlist_sigma2']:g}): {short['pairs_registered']} pairs, the others are the rigid "
+                     f"bound + {short['shift']:.4g}, ranked after them")
+        return line
 
     def _nonconverged(self) -> str:
         """One line on the pairs that did not converge, in :meth:`status`'s words with how wide the
@@ -191,6 +197,9 @@ class PairwiseResult:
         n, total = int(bad.sum()), len(bad)
         first = [(int(a), int(b)) for a, b in zip(i[bad][:3], j[bad][:3])]
         rtol = self.params.get("rtol")
+        if self.metric == "registration":
+            return (f"{n} of {total} {self.metric} pairs: an EM stopped at max_iter before its tolerance (each value is "
+                    f"the misfit it had), first {first}")
         if rtol is None:
             return (f"{n} of {total} {self.metric} pairs: solver failed (the geodesic solver stopped before its "
                     f"tolerance; each value is the length of the path it had, an upper bound), first {first}")

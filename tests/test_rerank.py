@@ -1,0 +1,126 @@
+"""Re-ranking a dissimilarity matrix (:func:`shapelib.rerank`): shape, symmetry, fixed points, gain, bad input."""
+
+import numpy as np
+import pytest
+
+import shapelib as sl
+from shapelib.rerank import RERANK_METHODS, rerank
+
+
+def noisy_classes(seed=0, n_classes=6, per_class=10, noise=0.35):
+    """Dissimilarities 1 within a class and 1.5 between, blurred by symmetric Gaussian noise."""
+    rng = np.random.default_rng(seed)
+    labels = np.repeat(np.arange(n_classes), per_class)
+    e = rng.normal(scale=noise, size=(len(labels), len(labels)))
+    d = np.abs(np.where(labels[:, None] == labels[None, :], 1.0, 1.5) + (e + e.T) / 2)
+    np.fill_diagonal(d, 0.0)
+    return d, labels
+
+
+@pytest.mark.parametrize("method", RERANK_METHODS)
+def test_shape_range_and_zero_diagonal(method):
+    d, _ = noisy_classes()
+    r = rerank(d, method=method, k=5)
+    assert r.shape == d.shape
+    assert np.all(np.diag(r) == 0)
+    assert r.min() >= 0 and r.max() <= 1
+
+
+def test_tpg_is_symmetric_even_for_an_asymmetric_input():
+    d, _ = noisy_classes(seed=3)
+    d = d * (1 + 0.2 * np.random.default_rng(1).random(d.shape))  # asymmetric
+    r = rerank(d, method="tpg", k=6)
+    assert np.array_equal(r, r.T)
+
+
+@pytest.mark.parametrize("method", RERANK_METHODS)
+def test_perfect_block_diagonal_stays_perfect(method):
+    # every class-mate nearer than every stranger, and the graph's neighbourhoods inside the classes:
+    # the diffusion never leaves a class, so the re-ranked matrix separates them completely
+    labels = np.repeat(np.arange(4), 5)
+    rng = np.random.default_rng(2)
+    d = np.where(labels[:, None] == labels[None, :], rng.uniform(0.1, 0.3, (20, 20)), rng.uniform(2, 3, (20, 20)))
+    d = (d + d.T) / 2
+    np.fill_diagonal(d, 0)
+    assert sl.bullseye(d, labels, top=5).value == 1.0
+    r = rerank(d, method=method, k=5)
+    assert sl.bullseye(r, labels, top=5).value == 1.0
+    same = labels[:, None] == labels[None, :]
+    off = ~np.eye(20, dtype=bool)
+    # every stranger at the largest dissimilarity: no walk inside the kNN graph reaches it
+    assert r[same & off].max() < r[~same].min()
+
+
+@pytest.mark.parametrize("method", RERANK_METHODS)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_improves_bullseye_on_noisy_clusters(method, seed):
+    d, labels = noisy_classes(seed=seed)
+    raw = sl.bullseye(d, labels).value
+    new = sl.bullseye(rerank(d, method=method, k=6), labels).value
+    assert raw < 0.95  # the noise costs the raw matrix retrievals
+    assert new > raw + 0.03
+
+
+@pytest.mark.parametrize("method", RERANK_METHODS)
+def test_invariant_to_a_common_scale(method):
+    # the kernel's width is the neighbours' mean distance: D and c·D give the same re-ranking
+    d, _ = noisy_classes(seed=4)
+    np.testing.assert_allclose(rerank(7.5 * d, method=method, k=5), rerank(d, method=method, k=5), atol=1e-12)
+
+
+def test_tpg_agrees_with_the_truncated_series_computed_densely():
+    # independent: the sum Σ_{s≤T} P^s (Pᵀ)^s with dense matrix powers, P built here from the definition
+    d, _ = noisy_classes(seed=5, n_classes=3, per_class=6)
+    k, mu, t = 4, 0.5, 6
+    n = len(d)
+    order = np.argsort(d + np.diag(np.full(n, -np.inf)), axis=1, kind="stable")[:, :k]
+    kappa = np.array([d[i, order[i, 1:]].mean() for i in range(n)])
+    a = np.exp(-(d / (mu * (kappa[:, None] + kappa[None, :]) / 2)) ** 2)
+    p = np.zeros((n, n))
+    for i in range(n):
+        p[i, order[i]] = a[i, order[i]] / a[i, order[i]].sum()
+    q = sum(np.linalg.matrix_power(p, s) @ np.linalg.matrix_power(p.T, s) for s in range(t + 1))
+    expect = 1 - q / q.max()
+    np.fill_diagonal(expect, 0)
+    np.testing.assert_allclose(rerank(d, method="tpg", k=k, mu=mu, n_iter=t), expect, atol=1e-12)
+
+
+def test_lcdp_rows_rank_like_the_dense_recursion():
+    d, _ = noisy_classes(seed=6, n_classes=3, per_class=6)
+    k, mu, t = 4, 0.5, 3
+    n = len(d)
+    order = np.argsort(d + np.diag(np.full(n, -np.inf)), axis=1, kind="stable")[:, :k]
+    kappa = np.array([d[i, order[i, 1:]].mean() for i in range(n)])
+    a = np.exp(-(d / (mu * (kappa[:, None] + kappa[None, :]) / 2)) ** 2)
+    pk = np.zeros((n, n))
+    for i in range(n):
+        pk[i, order[i]] = a[i, order[i]] / a[i, order[i]].sum()
+    w = a / a.sum(axis=1, keepdims=True)
+    for _ in range(t):
+        w = pk @ w @ pk.T
+    expect = 1 - w / w.max()
+    np.fill_diagonal(expect, 0)
+    np.testing.assert_allclose(rerank(d, method="lcdp", k=k, mu=mu, n_iter=t), expect, atol=1e-12)
+
+
+@pytest.mark.parametrize("bad, name", [
+    (dict(D=np.ones((3, 4))), "D"),
+    (dict(D=np.array([[0.0, np.nan], [1.0, 0.0]])), "D"),
+    (dict(D=np.array([[0.0, -1.0], [1.0, 0.0]])), "D"),
+    (dict(method="pagerank"), "method"),
+    (dict(k=1), "k"),
+    (dict(k=99), "k"),
+    (dict(k=2.5), "k"),
+    (dict(mu=0.0), "mu"),
+    (dict(mu=np.inf), "mu"),
+    (dict(n_iter=0), "n_iter"),
+])
+def test_bad_input_names_the_parameter(bad, name):
+    d, _ = noisy_classes(n_classes=2, per_class=4)
+    kw = {"D": d, "k": 3, **bad}
+    with pytest.raises(ValueError, match=rf"^{name} "):
+        rerank(kw.pop("D"), **kw)
+
+
+def test_public():
+    assert sl.rerank is rerank and set(RERANK_METHODS) >= {"tpg", "lcdp"}
