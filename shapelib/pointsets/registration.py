@@ -50,6 +50,7 @@ import numpy as np
 from .._validate import check_nonnegative_int, check_positive, check_positive_int, check_sigma2
 from ..geometry.metrics import alpha_metric, fisher_rao_metric
 from ..solver.linalg import one_blas_thread
+from ._coherent_em import box_volume, posteriors, sq_dist
 from .checks import as_point_set, check_same_dimension
 from .density import DENSITY_METRICS
 from .em import fit_mixture
@@ -58,21 +59,10 @@ from .pose import Pose, align
 __all__ = ["register", "RegistrationResult", "RegistrationWarning", "REGISTRATION_TRANSFORMS"]
 
 REGISTRATION_TRANSFORMS = ("rigid", "similarity", "affine", "nonrigid")
-#: the last σ² of the pose search before a non-rigid fit, in units of the target's squared RMS radius
-NONRIGID_POSE_SIGMA2 = 0.025
-#: non-rigid: the pose search's best few distinct poses are each followed by SCREEN_ITER EM
-#: iterations and the one with the smallest negative log-posterior is carried on (a deformed
-#: shape can overlap the target best in a wrong pose; the deformation it then needs costs more)
-N_CANDIDATES = 3
-#: the pose group searched before a non-rigid fit
-NONRIGID_POSE = "affine"
-SCREEN_ITER = 150
-#: EM iterations of the outlier weight at the pose (``w="auto"``, non-rigid)
-W_ITER = 50
-#: the largest outlier weight ``w="auto"`` estimates
+#: the largest outlier weight ``w="auto"`` estimates (rigid, similarity, affine)
 W_MAX = 0.9
 #: EM's σ² stays above this fraction of the target's leave-one-out σ²: an exact fit of some points
-#: at σ² → 0 has an unbounded likelihood, which would otherwise decide between candidate poses
+#: at σ² → 0 has an unbounded likelihood, which would otherwise decide between fits
 SIGMA2_FLOOR = 1e-4
 #: the deformation kernels: the metric in the mixture's weight coordinates, or on its means
 KERNELS = ("weights", "means")
@@ -114,28 +104,14 @@ def _rms(x):
     return float(np.sqrt(np.mean(np.sum(x * x, axis=1))))
 
 
-def _sq(x, y):
-    """Squared distances (n, m) by the expansion |x|² + |y|² − 2 x·y (clipped at 0)."""
-    out = np.einsum("id,id->i", x, x)[:, None] + np.einsum("jd,jd->j", y, y)[None, :] - 2.0 * (x @ y.T)
-    return np.maximum(out, 0.0, out=out)
-
-
-def _volume(y):
-    """Volume of the target's bounding box: the support of the uniform (outlier) component."""
-    return float(np.prod(np.maximum(np.ptp(y, axis=0), 1e-12)))
+_sq = sq_dist
+_volume = box_volume
 
 
 def _posteriors(theta, y, s2, w):
-    """P (n, m), the uniform component's constant included; and Σ_ij P_ij |y_j − θ_i|²."""
-    n, d = theta.shape
-    m = _volume(y)
-    sq = _sq(theta, y)
-    e = np.exp(-sq / (2 * s2))
-    c = (2 * np.pi * s2) ** (d / 2) * w / (1 - w) * n / m if w > 0 else 0.0
-    den = e.sum(axis=0) + c
-    den[den == 0] = np.finfo(float).tiny
-    p = e / den
-    return p, float(np.sum(p * sq))
+    """P (n, m) with the uniform component over the target's bounding box; and Σ_ij P_ij |y_j − θ_i|²."""
+    p = posteriors(theta, y, s2, w, box_volume(y))
+    return p, float(np.sum(p * sq_dist(theta, y)))
 
 
 def alpha_kernel(a, b, sigma2):
@@ -199,7 +175,22 @@ class RegistrationResult:
     sigma2 : float
         The final σ² of the EM (in the target's units); ``w``: the final outlier weight.
     converged, stop_reason, n_iter
-        EM: ``"tolerance"`` (converged), ``"max_iter"`` (not).
+        EM: ``"tolerance"`` (converged), ``"max_iter"`` (not). Convergence says that EM stopped
+        at a fixed point, not that the fixed point is the right one: see ``reliable``.
+    reliable : bool
+        False when something says that the registration probably failed (non-rigid): another pose
+        explains the target about as well with a different fit (objectives within 0.2 per target
+        point: a near-symmetric shape, or a target that no pose explains), the fit leaves σ above
+        2 target point spacings, or more than half of the source points match no target point.
+        (The thresholds were chosen on samples 1–5 of the Chui–Rangarajan benchmark.) ``register`` then warns (:class:`RegistrationWarning`) and ``summary()`` says so.
+    reasons : tuple of str
+        Why ``reliable`` is False (empty when it is True).
+    diagnostics : dict
+        What ``reliable`` was decided from: σ in target point spacings, the share of unmatched source
+        points, and every final fit of the search as ``(objective, start, w)``, best first.
+    target_correspondence : ndarray of int, shape (m,)
+        For each target point the index of its source point (largest posterior), −1 where the
+        outlier component explains more than half of it (clutter, a part the source lacks).
     transform, metric : str
 
     See Also
@@ -247,6 +238,10 @@ class RegistrationResult:
     metric: str
     sigma2_metric: float | None
     sigma2_objective: float = None
+    reliable: bool = True
+    reasons: tuple = ()
+    diagnostics: dict = field(repr=False, default_factory=dict)
+    target_correspondence: np.ndarray = field(repr=False, default=None)
     _source: np.ndarray = field(repr=False, default=None)
     _target: np.ndarray = field(repr=False, default=None)
     _u: np.ndarray = field(repr=False, default=None)
@@ -256,6 +251,7 @@ class RegistrationResult:
     _n_steps: int = field(repr=False, default=16)
     _kernel: str = field(repr=False, default="weights")
     _geodesic: object = field(repr=False, default=None)
+    _start: tuple = field(repr=False, default=None)
 
     @property
     def probabilities(self) -> np.ndarray:
@@ -309,9 +305,8 @@ class RegistrationResult:
         x = as_point_set(x, name="x", min_points=1)
         if x.shape[1] != self.points.shape[1]:
             raise ValueError(f"x must have d = {self.points.shape[1]} coordinates per point; got {x.shape[1]}")
-        z = self.pose(x)
         if self.transform != "nonrigid":
-            return z
+            return self.pose(x)
         d = x.shape[1]
         if method == "extrinsic":
             if d != 2:
@@ -319,13 +314,14 @@ class RegistrationResult:
             from ..comparison.warp import extrinsic_warp
 
             lam = 1e-3 * self._frame[1] ** 2 if lam is None else lam
-            return extrinsic_warp(z, self.geodesic, lam=lam, grid_size=grid_size)[-1]
+            return extrinsic_warp(self.pose(x), self.geodesic, lam=lam, grid_size=grid_size)[-1]
         if method != "kernel":
             raise ValueError(f"method must be 'extrinsic' or 'kernel'; got {method!r}")
         if self.metric != "alpha":
             raise ValueError("method='kernel' needs the closed-form alpha kernel; register with metric='alpha'")
         mean, size = self._frame
-        zn = (z - mean) / size
+        rot, mx, sx = self._start
+        zn = ((x - mx) / sx) @ rot.T  # the source's normalised frame, turned as the fit's start
         s2g = self.sigma2_metric / size ** 2
         if self._kernel == "weights":
             return (zn + overlap_kernel(zn, self._u, s2g) @ self._coef) * size + mean
@@ -339,42 +335,55 @@ class RegistrationResult:
                 f"{self.pose.summary()}\n"
                 f"EM: sigma2 = {self.sigma2:.4g}, outlier weight w = {self.w:.3g}, {self.n_iter} iterations, "
                 f"{'converged' if self.converged else 'NOT converged'} ({self.stop_reason})\n"
-                f"bound between moved source and target {self.objective:.6g}; {matched} of {n} source points matched")
+                f"bound between moved source and target {self.objective:.6g}; {matched} of {n} source points matched, "
+                f"{int(np.sum(self.target_correspondence >= 0))} of {len(self._target)} target points\n"
+                + ("reliable: nothing says the registration failed" if self.reliable else
+                   "NOT RELIABLE (the registration probably failed): " + "; ".join(self.reasons)))
 
 
-def register(source, target, *, transform: str = "nonrigid", metric: str = "alpha", sigma2=None, w=0.0,
-             reflection: bool = False, lam: float = 2.0, sigma2_metric: float = 1.0, kernel: str = "weights", n_angles: int = 36,
-             max_iter: int = 150, tol: float = 1e-5, n_steps: int = 16, warn: bool = True) -> RegistrationResult:
+def register(source, target, *, transform: str = "nonrigid", metric: str = "alpha", sigma2="auto", w="auto",
+             reflection: bool = False, lam: float = 2.0, sigma2_metric: float = 2.0, kernel: str = "weights",
+             n_angles: int = 36, max_iter: int = 150, tol: float = 1e-5, n_steps: int = 16,
+             warn: bool = True) -> RegistrationResult:
     """Register the point set ``source`` onto ``target`` by the information geometry.
 
-    The pose (rigid, similarity or affine) minimises a density distance over every rotation;
-    σ², the outlier weight and the correspondences come from EM; a non-rigid deformation moves the
-    source mixture's means ``θ = u + G W`` with ``G`` the α-order (or Fisher–Rao) metric tensor of
-    the posed source mixture, and is the geodesic of that metric from ``u`` to ``θ`` (the module
-    docstring has the equations). The sets may have different sizes, need no correspondence, and
-    the target may hold outliers and miss parts of the source.
+    Rigid, similarity or affine: the pose minimises a density distance over every rotation, then
+    EM estimates σ² (and the outlier weight). Non-rigid: EM starts from the source turned by every
+    rotation of a fixed set, the best starts are carried to convergence at each of a few outlier
+    weights, and the fit of least negative log-posterior is the answer
+    (:mod:`shapelib.pointsets._nonrigid`); the source mixture's means move as ``θ = u + G W`` with
+    ``G`` the α-order (or Fisher–Rao) metric of the source mixture in its weight coordinates
+    (:mod:`shapelib.pointsets._coherent_em` has the equations), and the deformation is the geodesic of
+    that metric from the posed source to ``θ``. σ², the outlier weight and the stiffness are chosen
+    from the data with no switch to set. The sets may have different sizes and need no
+    correspondence; the target may hold outliers and miss parts of the source, and the source parts
+    of the target. The result says when it probably failed (``reliable``, ``reasons``).
 
     Parameters
     ----------
     source, target : array_like, shapes (n, d) and (m, d)
         Point sets, d = 2 or 3.
     transform : {"rigid", "similarity", "affine", "nonrigid"}
-        ``"nonrigid"``: a similarity pose, then the deformation.
+        ``"nonrigid"``: a smooth deformation, whose similarity part is reported as ``pose``.
     metric : {"alpha", "fisher_rao"}
         The density distance of the pose search and the metric of the deformation.
-    sigma2 : float, optional
-        σ² of the mixtures, in the target's units: fixed if given, estimated by EM if None.
+    sigma2 : float or "auto"
+        σ² of the mixtures, in the target's units: fixed if a number; ``"auto"`` (default; ``None``
+        too): estimated by EM.
     w : float or "auto"
-        Weight of the uniform (outlier) component in ``[0, 1)``; ``"auto"``: estimated by EM.
+        Weight of the uniform (outlier) component in ``[0, 1)``. ``"auto"`` (default): non-rigid,
+        the weight of least negative log-posterior among 0.05, 0.2 and 0.5 (each fit at its own
+        fixed weight); rigid, similarity and affine, estimated by EM with the pose held.
     reflection : bool
         Also search mirror images of the source.
     lam : float
         λ, the weight of the deformation's squared dual-metric length (non-rigid).
     sigma2_metric : float
         σ_g² of the metric that regularises and carries the deformation, in units of the target's
-        squared RMS radius (default 1: the metric sees the whole shape).
+        squared RMS radius (default 2: the kernel ``exp(−|Δ|²/4σ_g²)`` is CPD's Gaussian of width
+        β = 2).
     n_angles : int
-        2-D start angles of the pose search (:func:`shapelib.align`).
+        2-D start angles of the pose search of the rigid transforms (:func:`shapelib.align`).
     max_iter : int
         EM iterations.
     tol : float
@@ -382,13 +391,15 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     n_steps : int
         Time steps of the deformation path.
     warn : bool
-        Warn (:class:`RegistrationWarning`) when EM stops without converging.
+        Warn (:class:`RegistrationWarning`) when EM stops without converging or the result is not
+        ``reliable``.
 
     Returns
     -------
     RegistrationResult
         ``points``, ``correspondence``, ``probabilities``, ``warp(x)``, ``pose``, ``path``,
-        ``objective``, ``sigma2``, ``w``, ``converged``, ``stop_reason``, ``summary()``.
+        ``objective``, ``sigma2``, ``w``, ``converged``, ``stop_reason``, ``reliable``, ``reasons``,
+        ``summary()``.
 
     See Also
     --------
@@ -436,7 +447,9 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         raise ValueError(f"transform must be one of {REGISTRATION_TRANSFORMS}; got {transform!r}")
     if metric not in DENSITY_METRICS:
         raise ValueError(f"metric must be one of {DENSITY_METRICS}; got {metric!r}")
-    fixed_s2 = None if sigma2 is None else check_sigma2(sigma2)
+    if isinstance(sigma2, str) and sigma2 != "auto":
+        raise ValueError(f"sigma2 must be a positive number or 'auto'; got {sigma2!r}")
+    fixed_s2 = None if sigma2 is None or isinstance(sigma2, str) else check_sigma2(sigma2)
     auto_w = isinstance(w, str)
     if auto_w and w != "auto":
         raise ValueError(f"w must be a number in [0, 1) or 'auto'; got {w!r}")
@@ -452,6 +465,9 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         raise ValueError(f"kernel must be one of {KERNELS}; got {kernel!r}")
     tol = check_positive(tol, name="tol")
     with one_blas_thread():
+        if transform == "nonrigid":
+            return _register_nonrigid(x, y, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, max_iter,
+                                      tol, n_steps, warn)
         return _register(x, y, transform, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, n_angles,
                          max_iter, tol, n_steps, warn)
 
@@ -459,8 +475,8 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
 @dataclass
 class _EMState:
     u: np.ndarray
-    g: np.ndarray | None
-    coef: np.ndarray
+    g: None
+    coef: None
     s2: float
     w: float
     it: int = 0
@@ -469,34 +485,22 @@ class _EMState:
 
     @property
     def theta(self):
-        if self.g is None:
-            return self.u
-        if len(self.g) == len(self.u):
-            return self.u + self.g @ self.coef
-        return self.u + (self.g @ self.coef.ravel()).reshape(self.u.shape)
+        return self.u
 
 
 def _em(st, yn, *, lam, fixed_s2, auto_w, max_iter, tol, s2_floor=1e-12):
-    """Continue the EM of the module docstring for up to ``max_iter`` more iterations."""
-    u, g = st.u, st.g
-    n, d = u.shape
-    if g is None and fixed_s2 is not None and not auto_w:
+    """EM on σ² (and w) with the means held at the pose (the rigid transforms)."""
+    n, d = st.u.shape
+    if fixed_s2 is not None and not auto_w:
         st.ok, st.why = True, "tolerance"  # nothing to estimate: pose and σ² given
         return st
     for _ in range(max_iter):
         st.it += 1
-        p, _ = _posteriors(st.theta, yn, st.s2, st.w)
-        p1 = p.sum(axis=1)
-        np_ = float(p1.sum())
-        if g is not None:
-            if len(g) == n:  # one kernel for every coordinate: an (n, n) solve with d right-hand sides
-                st.coef = np.linalg.solve(p1[:, None] * g + lam * st.s2 * np.eye(n), p @ yn - p1[:, None] * u)
-            else:
-                a = p1.repeat(d)[:, None] * g + lam * st.s2 * np.eye(n * d)
-                st.coef = np.linalg.solve(a, (p @ yn - p1[:, None] * u).ravel()).reshape(n, d)
+        p, sse = _posteriors(st.u, yn, st.s2, st.w)
+        np_ = float(p.sum())
         s2_old, w_old = st.s2, st.w
         if fixed_s2 is None:
-            st.s2 = max(float(np.sum(p * _sq(st.theta, yn))) / (np_ * d), s2_floor)
+            st.s2 = max(sse / (np_ * d), s2_floor)
         if auto_w:
             st.w = float(np.clip(1.0 - np_ / len(yn), 1e-6, W_MAX))
         if abs(st.s2 - s2_old) <= tol * s2_old and abs(st.w - w_old) <= tol:
@@ -505,94 +509,104 @@ def _em(st, yn, *, lam, fixed_s2, auto_w, max_iter, tol, s2_floor=1e-12):
     return st
 
 
-def _neg_log_posterior(st, yn, lam):
-    """``−Σ_j log[(1 − w)(1/n) Σ_i N(y_j; θ_i, σ²I) + w/m] + (λ/2) tr(Wᵀ G W)``: the objective EM
-    decreases, comparable between starts."""
-    n, d = st.u.shape
-    m = len(yn)
-    logn = -_sq(st.theta, yn) / (2 * st.s2) - 0.5 * d * np.log(2 * np.pi * st.s2)
-    from scipy.special import logsumexp
+def _objective_at(theta, yn, s2_eval, metric, sy):
+    """The density bound between the moved source and the target at ``s2_eval`` (in the target's units)."""
+    from .density import _hellinger_sq, _l2_sq
 
-    mix = logsumexp(logn, axis=0) + np.log((1 - st.w) / n)
-    ll = np.logaddexp(mix, np.log(st.w / _volume(yn))) if st.w > 0 else mix
-    prior = 0.0
-    if st.g is not None:
-        c = st.coef.reshape(n, -1)
-        gc = st.g @ c if len(st.g) == n else (st.g @ c.ravel()).reshape(c.shape)
-        prior = 0.5 * lam * float(np.sum(c * gc))
-    return float(-ll.sum() + prior)
+    d = yn.shape[1]
+    if metric == "alpha":
+        return float(np.sqrt(max(_l2_sq(theta, yn, s2_eval, grad=False)[0], 0.0)) / sy ** (d / 2))
+    h2 = _hellinger_sq(theta, yn, s2_eval, grad=False)[0]
+    return float(4.0 * np.arcsin(min(np.sqrt(max(h2, 0.0)) / 2, 1.0)))
 
 
-def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, n_angles, max_iter, tol,
-              n_steps, warn, n_candidates=N_CANDIDATES):
-    d = x.shape[1]
+def _frames(x, y, transform):
     my, sy = y.mean(axis=0), _rms(y - y.mean(axis=0))
     mx = x.mean(axis=0)
     sx = sy if transform == "rigid" else _rms(x - mx)
-    xn, yn = (x - mx) / sx, (y - my) / sy
+    return (x - mx) / sx, (y - my) / sy, mx, sx, my, sy
+
+
+def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, n_angles, max_iter, tol,
+              n_steps, warn):
+    """Rigid, similarity or affine: the pose search, then EM on σ² (and w) with the means held."""
+    xn, yn, mx, sx, my, sy = _frames(x, y, transform)
     # pose: σ² of the search's last level from the target's own spread (leave-one-out), or the given one
     s2_pose = fixed_s2 / sy ** 2 if fixed_s2 is not None else fit_mixture(yn, warn=False).sigma2
-    s2_eval = s2_pose  # the σ² at which the objective is reported
-    if transform == "nonrigid":  # the pose need not resolve what the deformation will fit
-        s2_pose = max(s2_pose, NONRIGID_POSE_SIGMA2)
-    pose_t = NONRIGID_POSE if transform == "nonrigid" else transform
-    pn = align(xn, yn, sigma2=s2_pose, transform=pose_t, metric=metric, reflection=reflection,
+    pn = align(xn, yn, sigma2=s2_pose, transform=transform, metric=metric, reflection=reflection,
                n_angles=max(n_angles, 1), warn=warn)
-    poses = [(pn.matrix, pn.translation)]
-    if transform == "nonrigid":  # the distinct poses of the search, each followed by a short EM
-        poses += [(a, t) for _, a, t in pn.candidates[:n_candidates]]
-        poses.append((np.eye(d), np.zeros(d)))  # and the pose as given (centred, scaled), as CPD starts
-
-    def start(a, t):
-        u = xn @ a.T + t
-        s2 = fixed_s2 / sy ** 2 if fixed_s2 is not None else float(np.mean(_sq(u, yn)) / d)
-        w_start = w
-        if auto_w and transform == "nonrigid":
-            # w from the pose alone (EM on σ² ≥ the target's leave-one-out σ² and w, the means held):
-            # a deformation free to choose which target points to explain would call inliers outliers
-            rigid = _em(_EMState(u=u, g=None, coef=None, s2=s2, w=w), yn, lam=lam, fixed_s2=fixed_s2, auto_w=True,
-                        max_iter=W_ITER, tol=tol, s2_floor=s2_eval)
-            w_start = rigid.w
-        g = _kernel(u, s2g, metric, kernel) if transform == "nonrigid" else None
-        return _EMState(u=u, g=g, coef=np.zeros((len(u), d)), s2=s2, w=w_start)
-
-    opts = dict(lam=lam, fixed_s2=fixed_s2, auto_w=auto_w and transform != "nonrigid", tol=tol,
-                s2_floor=SIGMA2_FLOOR * s2_eval)
-    if len(poses) > 1:
-        trials = []
-        for k, (a, t) in enumerate(poses):
-            st = _em(start(a, t), yn, max_iter=min(SCREEN_ITER, max_iter), **opts)
-            trials.append((_neg_log_posterior(st, yn, lam), k, st))
-        _, k, st = min(trials, key=lambda c: c[0])
-        chosen = poses[k]
-    else:
-        st, chosen = start(*poses[0]), poses[0]
-    if not st.ok:
-        st = _em(st, yn, max_iter=max_iter - st.it, **opts)
-    theta, coef, s2, w, it, ok, why, u = st.theta, st.coef, st.s2, st.w, st.it, st.ok, st.why, st.u
-    p, _ = _posteriors(theta, yn, s2, w)
-    if warn and not ok:
+    u = xn @ pn.matrix.T + pn.translation
+    s2 = fixed_s2 / sy ** 2 if fixed_s2 is not None else float(np.mean(_sq(u, yn)) / x.shape[1])
+    st = _em(_EMState(u=u, g=None, coef=None, s2=s2, w=w), yn, lam=lam, fixed_s2=fixed_s2, auto_w=auto_w,
+             tol=tol, s2_floor=SIGMA2_FLOOR * s2_pose, max_iter=max_iter)
+    if warn and not st.ok:
         warnings.warn(f"register: EM stopped after {max_iter} iterations without converging (sigma2 = "
-                      f"{s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning, stacklevel=3)
-    p1 = p.sum(axis=1)
-    corr = np.where(p1 >= 0.5, np.argmax(p, axis=1), -1)
-    from .density import _hellinger_sq, _l2_sq
-
-    if metric == "alpha":
-        obj = float(np.sqrt(max(_l2_sq(theta, yn, s2_eval, grad=False)[0], 0.0)) / sy ** (d / 2))
-    else:
-        h2 = _hellinger_sq(theta, yn, s2_eval, grad=False)[0]
-        obj = float(4.0 * np.arcsin(min(np.sqrt(max(h2, 0.0)) / 2, 1.0)))
-    # the pose in the input units: x -> A (x − m_x)/s_x · s_y + t̃ s_y + m_y
-    a = chosen[0] * (sy / sx)
-    t = my + sy * chosen[1] - a @ mx
+                      f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning, stacklevel=3)
+    a = pn.matrix * (sy / sx)  # the pose in the input units: x -> A (x − m_x)/s_x · s_y + t̃ s_y + m_y
+    t = my + sy * pn.translation - a @ mx
     pose = Pose(matrix=a, translation=t, points=x @ a.T + t, value=pn.value, objective=pn.objective,
                 converged=pn.converged, stop_reason=pn.stop_reason, transform=pn.transform, metric=metric,
                 sigma2=s2_pose * sy ** 2, n_starts=pn.n_starts, n_iter=pn.n_iter)
-    return RegistrationResult(points=theta * sy + my, correspondence=corr, pose=pose, objective=obj,
-                              sigma2=s2 * sy ** 2, w=float(w), converged=ok, stop_reason=why, n_iter=it,
-                              transform=transform, metric=metric,
-                              sigma2_metric=(s2g * sy ** 2) if transform == "nonrigid" else None,
-                              sigma2_objective=s2_eval * sy ** 2,
-                              _source=x, _target=y, _u=u, _coef=coef, _p=p, _frame=(my, sy), _n_steps=n_steps,
-                              _kernel=kernel)
+    p, _ = _posteriors(st.theta, yn, st.s2, st.w)
+    return _result(x, y, st.theta, p, pose, yn, my, sy, s2_pose, st, transform, metric, None, kernel, n_steps,
+                   reasons=[], diagnostics={})
+
+
+def _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, transform, metric, s2g, kernel, n_steps, *, reasons,
+            diagnostics, start=None):
+    p1 = p.sum(axis=1)
+    corr = np.where(p1 >= 0.5, np.argmax(p, axis=1), -1)
+    outlier = 1.0 - p.sum(axis=0)
+    tcorr = np.where(outlier < 0.5, np.argmax(p, axis=0), -1)
+    return RegistrationResult(points=theta * sy + my, correspondence=corr, pose=pose,
+                              objective=_objective_at(theta, yn, s2_eval, metric, sy),
+                              sigma2=st.s2 * sy ** 2, w=float(st.w), converged=st.ok, stop_reason=st.why,
+                              n_iter=st.it, transform=transform, metric=metric,
+                              sigma2_metric=None if s2g is None else s2g * sy ** 2,
+                              sigma2_objective=s2_eval * sy ** 2, reliable=not reasons, reasons=tuple(reasons),
+                              diagnostics=diagnostics, target_correspondence=tcorr,
+                              _source=x, _target=y, _u=st.u, _coef=st.coef, _p=p, _frame=(my, sy),
+                              _n_steps=n_steps, _kernel=kernel, _start=start)
+
+
+def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, max_iter, tol, n_steps,
+                       warn):
+    """Non-rigid: the search of :mod:`shapelib.pointsets._nonrigid` over starts and outlier weights."""
+    from . import _nonrigid
+
+    xn, yn, mx, sx, my, sy = _frames(x, y, "nonrigid")
+    fs2 = None if fixed_s2 is None else fixed_s2 / sy ** 2
+    spacing2 = _spacing2(yn)
+    s2_eval = fs2 if fs2 is not None else fit_mixture(yn, warn=False).sigma2
+    kernel_of = _nonrigid.with_kernel(lambda u: _kernel(u, s2g, metric, kernel), invariant=kernel == "weights")
+    fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=kernel_of, lam=lam, w=None if auto_w else w, fixed_s2=fs2,
+                                      reflection=reflection, max_iter=max_iter, tol=tol,
+                                      s2_floor=SIGMA2_FLOOR * s2_eval)
+    f0, k, st = fits[0]
+    theta = st.theta
+    reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2)
+    diagnostics.update(objective=f0, candidates=[(f, int(kk), float(s.w)) for f, kk, s in fits])
+    p = posteriors(theta, yn, st.s2, st.w, box_volume(yn))
+    # the similarity part of the deformation, as the pose (the posed source: the geodesic's start)
+    a, t = _nonrigid.similarity_of(xn, theta)
+    a_in = a * (sy / sx)
+    t_in = my + sy * t - a_in @ mx
+    pose = Pose(matrix=a_in, translation=t_in, points=x @ a_in.T + t_in, value=float("nan"), objective=f0,
+                converged=st.ok, stop_reason=st.why, transform="similarity", metric=metric,
+                sigma2=st.s2 * sy ** 2, n_starts=len(rots), n_iter=st.it)
+    if warn and not st.ok:
+        warnings.warn(f"register: EM stopped after {max_iter} iterations without converging (sigma2 = "
+                      f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning, stacklevel=3)
+    if warn and reasons:
+        warnings.warn("register: the registration is probably wrong: " + "; ".join(reasons), RegistrationWarning,
+                      stacklevel=3)
+    return _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, "nonrigid", metric, s2g, kernel, n_steps,
+                   reasons=reasons, diagnostics=diagnostics, start=(rots[k], mx, sx))
+
+
+def _spacing2(yn):
+    """The squared median nearest-neighbour distance of the target: its point spacing."""
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(yn).query(yn, k=2)
+    return float(max(np.median(dist[:, 1]), 1e-12) ** 2)

@@ -1,0 +1,182 @@
+"""The EM of a registration: the moved source mixture explains the target beside a uniform outlier
+component, and the source's means move by the metric's kernel.
+
+The one place where the registration's equations live (:func:`shapelib.register` calls them).
+Both sets are in normalised units (zero mean, unit RMS radius). The source ``u`` (n, d) is the mean
+set of a mixture whose component ``i`` has weight ``(1 − w)/n``; the target ``y`` (m, d) is a sample
+of that mixture plus a uniform density ``1/V`` of weight ``w`` over the target's bounding box of
+volume ``V`` (Coherent Point Drift's model [1]_, with the uniform density in place of CPD's
+``1/m``). E-step, the posterior that target point j came from source point i:
+
+.. math::
+
+    P_{ij} = \\frac{\\exp(-|y_j - θ_i|^2 / 2σ^2)}
+                  {\\sum_k \\exp(-|y_j - θ_k|^2 / 2σ^2) + (2πσ^2)^{d/2} \\frac{w}{1 - w} \\frac{n}{V}} .
+
+M-step: the means move as ``θ = u + G W`` with ``G`` the kernel of the metric (the α-order metric of
+the source mixture in its weight coordinates, ``G_ab = exp(−|u_a − u_b|²/4σ_g²)``, or another kernel
+of :mod:`shapelib.pointsets.registration`), and ``W`` solves
+
+.. math::
+
+    (\\operatorname{diag}(P\\mathbf 1)\\, G + λσ^2 I)\\, W = P y - \\operatorname{diag}(P\\mathbf 1)\\, u ,
+
+the minimiser of ``Σ_ij P_ij |y_j − θ_i|²/2σ² + (λ/2) tr(Wᵀ G W)``; then
+``σ² = Σ_ij P_ij |y_j − θ_i|² / (d Σ_ij P_ij)``. The objective that EM decreases, and by which
+:func:`shapelib.register` compares fits from different starts and outlier weights, is the
+negative log-posterior
+
+.. math::
+
+    F = -\\sum_j \\log\\Big[\\frac{1 - w}{n} \\sum_i N(y_j; θ_i, σ^2 I) + \\frac{w}{V}\\Big]
+        + \\frac{λ}{2} \\operatorname{tr}(W^T G W) .
+
+A kernel of the weight coordinates (the same (n, n) matrix for every coordinate) is used through its
+eigendecomposition ``G = Q Λ Qᵀ`` (eigenvalues below ``EIG_RTOL`` of the largest dropped, as CPD's
+low-rank variant does), which is the same for every rotation of the source; the M-step is then
+``W = (B − D Q (λσ² Λ⁻¹ + Qᵀ D Q)⁻¹ Qᵀ B) / λσ²`` (Woodbury, ``D = diag(P1)``,
+``B = P y − D u``): O(n k²) instead of O(n³).
+
+References
+----------
+.. [1] A. Myronenko and X. Song, "Point set registration: coherent point drift", *IEEE Transactions on
+   Pattern Analysis and Machine Intelligence* 32(12), 2262–2275, 2010.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import logsumexp
+
+#: eigenvalues of the weight kernel below this fraction of the largest are dropped
+EIG_RTOL = 1e-10
+
+
+def sq_dist(x, y):
+    """Squared distances (n, m) by the expansion |x|² + |y|² − 2 x·y (clipped at 0)."""
+    out = np.einsum("id,id->i", x, x)[:, None] + np.einsum("jd,jd->j", y, y)[None, :] - 2.0 * (x @ y.T)
+    return np.maximum(out, 0.0, out=out)
+
+
+def box_volume(y):
+    """Volume of the target's bounding box: the support of the uniform (outlier) component."""
+    return float(np.prod(np.maximum(np.ptp(y, axis=0), 1e-12)))
+
+
+def posteriors(theta, y, s2, w, volume):
+    """``P`` (n, m) of the module docstring (the outlier component's share is ``1 − Σ_i P_ij``)."""
+    n, d = theta.shape
+    e = np.exp(-sq_dist(theta, y) / (2 * s2))
+    c = (2 * np.pi * s2) ** (d / 2) * w / (1 - w) * n / volume if w > 0 else 0.0
+    den = e.sum(axis=0) + c
+    den[den == 0] = np.finfo(float).tiny
+    return e / den
+
+
+@dataclass
+class Kernel:
+    """The deformation's kernel: ``G = Q diag(ev) Qᵀ`` (weight coordinates, shared by the coordinates),
+    or a dense (n d, n d) matrix ``full`` (the metric on the means)."""
+
+    q: np.ndarray | None = None
+    ev: np.ndarray | None = None
+    full: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, g):
+        """From a kernel matrix: (n, n) is factored once, (n d, n d) is kept dense."""
+        if g.shape[0] != g.shape[1]:
+            raise ValueError("a kernel matrix is square")
+        return cls._factor(g)
+
+    @classmethod
+    def _factor(cls, g):
+        ev, q = np.linalg.eigh(0.5 * (g + g.T))
+        keep = ev > EIG_RTOL * max(ev[-1], 0.0)
+        return cls(q=q[:, keep], ev=ev[keep])
+
+    def apply(self, coef):
+        """``G W`` as (n, d)."""
+        if self.full is not None:
+            return (self.full @ coef.ravel()).reshape(coef.shape)
+        return self.q @ (self.ev[:, None] * (self.q.T @ coef))
+
+    def energy(self, coef):
+        """``tr(Wᵀ G W)``."""
+        return float(np.sum(coef * self.apply(coef)))
+
+    def solve(self, p1, b, lam_s2):
+        """``W`` with ``(diag(p1) G + lam_s2 I) W = b``."""
+        n, d = b.shape
+        if self.full is not None:
+            a = p1.repeat(d)[:, None] * self.full + lam_s2 * np.eye(n * d)
+            return np.linalg.solve(a, b.ravel()).reshape(n, d)
+        dq = p1[:, None] * self.q
+        inner = self.q.T @ dq + np.diag(lam_s2 / self.ev)
+        return (b - dq @ np.linalg.solve(inner, self.q.T @ b)) / lam_s2
+
+
+@dataclass
+class EMState:
+    """One fit: the posed source ``u``, the coefficients ``coef`` (``θ = u + G W``), σ², w."""
+
+    u: np.ndarray
+    kernel: Kernel | None
+    coef: np.ndarray
+    s2: float
+    w: float
+    it: int = 0
+    ok: bool = False
+    why: str = "max_iter"
+
+    @property
+    def theta(self):
+        return self.u if self.kernel is None else self.u + self.kernel.apply(self.coef)
+
+
+def initial_sigma2(u, y):
+    """``Σ_ij |y_j − u_i|² / (d n m)``: CPD's start, wide enough to see the whole target."""
+    return float(np.mean(sq_dist(u, y)) / u.shape[1])
+
+
+def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12):
+    """Continue the EM of the module docstring for up to ``max_iter`` more iterations (w fixed).
+
+    Stops (``ok``, ``why="tolerance"``) when σ² changes by less than ``tol`` (relative).
+    """
+    d = st.u.shape[1]
+    yy = np.einsum("jd,jd->j", y, y)
+    for _ in range(max_iter):
+        st.it += 1
+        theta = st.theta
+        p = posteriors(theta, y, st.s2, st.w, volume)
+        p1, pt1 = p.sum(axis=1), p.sum(axis=0)
+        np_ = float(p1.sum())
+        py = p @ y
+        if st.kernel is not None:
+            st.coef = st.kernel.solve(p1, py - p1[:, None] * st.u, lam * st.s2)
+            theta = st.theta
+        if fixed_s2 is not None:
+            continue
+        s2_old = st.s2
+        num = pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.einsum("id,id->i", theta, theta)
+        st.s2 = max(num / (max(np_, 1e-300) * d), s2_floor)
+        if abs(st.s2 - s2_old) <= tol * s2_old:
+            st.ok, st.why = True, "tolerance"
+            break
+    if fixed_s2 is not None:
+        st.ok, st.why = True, "tolerance"
+    return st
+
+
+def objective(st, y, *, lam, volume):
+    """``F`` of the module docstring: the negative log-posterior, comparable between starts and w."""
+    n, d = st.u.shape
+    theta = st.theta
+    logn = -sq_dist(theta, y) / (2 * st.s2) - 0.5 * d * np.log(2 * np.pi * st.s2)
+    mix = logsumexp(logn, axis=0) + np.log((1 - st.w) / n)
+    ll = np.logaddexp(mix, np.log(st.w / volume)) if st.w > 0 else mix
+    prior = 0.0 if st.kernel is None else 0.5 * lam * st.kernel.energy(st.coef)
+    return float(-ll.sum() + prior)

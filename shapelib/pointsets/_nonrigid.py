@@ -1,0 +1,171 @@
+"""The non-rigid registration's search: starts over every rotation, a short EM from each, the best
+few carried to convergence at each candidate outlier weight, the fit of least negative log-posterior
+kept, and what the other fits say about it.
+
+The equations are in :mod:`shapelib.pointsets._coherent_em`; this module decides where EM starts
+and which of its fits is the answer. Both sets come in normalised units (zero mean, unit RMS radius).
+
+1. **Starts.** The source turned by every rotation of a fixed set (2-D: every 45°; 3-D: the 24
+   rotations of the cube), and their mirror images when reflections are allowed. EM's basin of
+   attraction reaches further than half the step (CPD recovers rotations up to about 70° on its
+   own), so one start lies in the right basin whatever the target's orientation.
+2. **Screening.** ``SCREEN_ITER`` EM iterations from each start at the screening outlier weight;
+   the ``N_KEEP`` starts of least objective go on.
+3. **Outlier weight.** With ``w="auto"``, each kept start is continued to convergence at every
+   weight of ``W_GRID`` and the fit of least objective ``F`` (the negative log-posterior, a
+   likelihood of the same target data under each fit) is kept: the profile likelihood of ``w``
+   over a grid. Each fit runs at its own fixed ``w`` — EM that also updates ``w`` feeds back (what
+   the deformation has not reached yet is called an outlier and then never reached), which is
+   what a fixed weight per fit avoids.
+4. **The comparison after the fit** (:func:`assess`): every final fit is kept with its objective, so
+   that two distinct fits of nearly equal objective (a near-symmetric shape) are seen.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from ._coherent_em import EMState, Kernel, box_volume, initial_sigma2, objective, posteriors, run_em
+
+#: rotation starts in 2-D (every 360/N degrees)
+N_ROT_2D = 8
+#: EM iterations from every start before the best are kept
+SCREEN_ITER = 40
+#: starts carried to convergence
+N_KEEP = 2
+#: the outlier weight of the screening
+W_SCREEN = 0.2
+#: the outlier weights compared when ``w="auto"``
+W_GRID = (0.05, 0.2, 0.5)
+
+
+def cube_rotations():
+    """The 24 proper rotations of the cube: signed permutation matrices of determinant +1."""
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            r = np.zeros((3, 3))
+            r[np.arange(3), perm] = signs
+            if np.linalg.det(r) > 0:
+                out.append(r)
+    return out
+
+
+def start_rotations(d, reflection):
+    """The start rotations (d, d) of step 1 (with the mirror images after them if asked)."""
+    if d == 2:
+        a = 2 * np.pi * np.arange(N_ROT_2D) / N_ROT_2D
+        rots = [np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]]) for t in a]
+    else:
+        rots = cube_rotations()
+    if reflection:
+        mirror = np.diag([1.0] * (d - 1) + [-1.0])
+        rots = rots + [r @ mirror for r in rots]
+    return rots
+
+
+def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s2_floor):
+    """Steps 1–3: every final fit as ``(objective, start index, EMState)``, best first, and the starts.
+
+    ``kernel_of(u)`` gives the :class:`~shapelib.pointsets._coherent_em.Kernel` at a posed source (a
+    weight-coordinate kernel is the same for every rotation: ``kernel_of`` may return a cached one);
+    ``w`` is a number, or None for the grid of step 3.
+    """
+    d = xn.shape[1]
+    volume = box_volume(yn)
+    rots = start_rotations(d, reflection)
+    screen_w = W_SCREEN if w is None else w
+    grid = W_GRID if w is None else (w,)
+    opts = dict(lam=lam, volume=volume, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
+    screened = []
+    for k, r in enumerate(rots):
+        u = xn @ r.T
+        s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(u, yn)
+        st = EMState(u=u, kernel=kernel_of(u), coef=np.zeros_like(u), s2=s2, w=screen_w)
+        run_em(st, yn, max_iter=min(SCREEN_ITER, max_iter), **opts)
+        screened.append((objective(st, yn, lam=lam, volume=volume), k, st))
+    screened.sort(key=lambda c: c[0])
+    fits = []
+    for f0, k, st0 in screened[:N_KEEP]:
+        for wk in grid:
+            if wk == screen_w and st0.ok:
+                fits.append((f0, k, st0))
+                continue
+            st = EMState(u=st0.u, kernel=st0.kernel, coef=st0.coef.copy(), s2=st0.s2, w=wk, it=st0.it)
+            run_em(st, yn, max_iter=max(max_iter - st.it, 1), **opts)
+            fits.append((objective(st, yn, lam=lam, volume=volume), k, st))
+    fits.sort(key=lambda c: c[0])
+    return fits, rots, screened
+
+
+#: two fits are distinct when their points differ by more than this (mean distance, normalised units)
+DISTINCT = 0.1
+#: …and nearly equal when their objectives differ by less than this per target point
+AMBIGUOUS_PER_POINT = 0.2
+#: the fit leaves the target unexplained when σ exceeds this many target point spacings
+RESIDUAL_SPACINGS = 2.0
+#: the fit misses a part when more than this share of the source points explains no target point
+UNMATCHED_SHARE = 0.5
+
+
+def assess(fits, yn, *, spacing2):
+    """Step 4: why the best fit probably failed (an empty list when nothing says so).
+
+    * another start's fit, distinct from the best (``DISTINCT``), reaches an objective within
+      ``AMBIGUOUS_PER_POINT`` per target point: two poses explain the target about equally well;
+    * σ of the fit above ``RESIDUAL_SPACINGS`` target point spacings: the deformation leaves most
+      of the target unexplained;
+    * more than ``UNMATCHED_SHARE`` of the source points with less than half a target point each.
+    """
+    f0, k0, best = fits[0]
+    m = len(yn)
+    theta = best.theta
+    reasons = []
+    for f, k, st in fits[1:]:
+        if k == k0:
+            continue
+        gap = (f - f0) / m
+        if gap < AMBIGUOUS_PER_POINT and np.mean(np.linalg.norm(st.theta - theta, axis=1)) > DISTINCT:
+            reasons.append(f"another pose explains the target almost as well (objective {gap:.3f} per target "
+                           f"point higher) with a different fit")
+            break
+    ratio = float(np.sqrt(best.s2 / spacing2))
+    if ratio > RESIDUAL_SPACINGS:
+        reasons.append(f"the fit leaves sigma = {ratio:.2f} target point spacings")
+    p1 = posteriors(theta, yn, best.s2, best.w, box_volume(yn)).sum(axis=1)
+    share = float(np.mean(p1 < 0.5))
+    if share > UNMATCHED_SHARE:
+        reasons.append(f"{100 * share:.0f} % of the source points match no target point")
+    return reasons, {"sigma_over_spacing": ratio, "unmatched_source_share": share}
+
+
+def similarity_of(x, y):
+    """The similarity ``y ≈ s R x + t`` of least squares (Umeyama): (A = s R, t)."""
+    mx, my = x.mean(axis=0), y.mean(axis=0)
+    xc, yc = x - mx, y - my
+    u, sv, vt = np.linalg.svd(yc.T @ xc)
+    c = np.ones(len(sv))
+    c[-1] = np.sign(np.linalg.det(u @ vt)) or 1.0
+    r = (u * c) @ vt
+    s = float(np.sum(sv * c) / max(np.sum(xc * xc), 1e-300))
+    return s * r, my - s * r @ mx
+
+
+def with_kernel(kernel_matrix_of, *, invariant):
+    """``kernel_of(u)`` for :func:`fit_all`: factored once when the kernel does not change with a
+    rotation of ``u`` (the weight-coordinate kernels), else per start (the metric on the means)."""
+    cache = {}
+
+    def kernel_of(u):
+        if invariant:
+            if "k" not in cache:
+                cache["k"] = Kernel.of(kernel_matrix_of(u))
+            return cache["k"]
+        return Kernel(full=kernel_matrix_of(u))
+
+    return kernel_of
+
+
+__all__ = ["fit_all", "assess", "start_rotations", "similarity_of", "with_kernel", "W_GRID", "N_KEEP"]
