@@ -4,7 +4,8 @@ Three smooth surfaces — a bumpy sphere, a torus and a superquadric — are eac
 points (seeded). A sample's source ``x`` is that set; its ground truth is ``R φ(x)``, where ``φ`` is a
 smooth warp ``φ(x) = x + Σ_k a_k exp(−|x − c_k|² / (2 s²))`` (four Gaussian RBF displacements, centres
 ``c_k`` on the surface, ``s = 0.5``, directions random, amplitude ``|a_k| = A``) and ``R`` a rotation.
-The target is the truth, degraded as in the Chui–Rangarajan benchmark, then shuffled:
+The set and the warp's centres and directions are drawn once per surface and sample (the levels of
+a sample differ only in their degradation). The target is the truth, degraded as in the Chui–Rangarajan benchmark, then shuffled:
 
 * ``def_1..3``: warp amplitude A = 0.1, 0.2, 0.3 (the surfaces have unit RMS radius);
 * ``noise_1..3``: A = 0.1 and Gaussian jitter of standard deviation 0.01, 0.03, 0.05 per coordinate;
@@ -85,11 +86,12 @@ def make_case(name: str, sample: int, points: int = 300) -> dict:
     if surface not in SURFACES or kind not in FAMILIES or not 1 <= int(level) <= len(LEVELS_3D[kind]):
         raise ValueError(f"name: unknown level {name!r}")
     value = LEVELS_3D[kind][int(level) - 1]
-    rng = np.random.default_rng([SURFACES.index(surface), FAMILIES.index(kind), int(level), sample])
-    x = sample_surface(surface, points, rng)
+    base = np.random.default_rng([SURFACES.index(surface), sample])  # the set and the warp: one per surface × sample
+    rng = np.random.default_rng([SURFACES.index(surface), FAMILIES.index(kind), int(level), sample])  # the degradation
+    x = sample_surface(surface, points, base)
     amp = value if kind == "def" else BASE_AMPLITUDE
-    centres = x[rng.choice(len(x), 4, replace=False)]
-    dirs = rng.normal(size=(4, 3))
+    centres = x[base.choice(len(x), 4, replace=False)]
+    dirs = base.normal(size=(4, 3))
     dirs *= amp / np.linalg.norm(dirs, axis=1, keepdims=True)
     d2 = np.sum((x[:, None, :] - centres[None]) ** 2, axis=2)
     truth = x + np.exp(-d2 / (2 * 0.5**2)) @ dirs
