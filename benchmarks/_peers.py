@@ -23,12 +23,16 @@ What runs in which dimension (probreg 0.3.8, read from its source):
 
 A method that raises, or returns a non-finite point, is a failure of that registration: its error
 is the error of not moving the source (the source as given), and the exception's class is recorded.
+With a time limit, a registration still running after it is stopped (``TimeoutError``, checked
+between the method's Python steps) and counted the same way; the limit is the same for every method.
 """
 
 from __future__ import annotations
 
+import signal
 import time
 import warnings
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -100,18 +104,38 @@ _PEER_FUNCTIONS = {"cpd": _pycpd, "probreg_cpd": _probreg_cpd, "probreg_filterre
                    "probreg_gmmtree": _gmmtree, "probreg_bcpd": _bcpd}
 
 
-def run(method: str, source, target):
+@contextmanager
+def _time_limit(seconds):
+    """Raise ``TimeoutError`` in the main thread after ``seconds`` (no limit when ``seconds`` is falsy)."""
+    if not seconds:
+        yield
+        return
+
+    def _stop(signum, frame):
+        raise TimeoutError(f"stopped after {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, _stop)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def run(method: str, source, target, time_limit: float | None = None):
     """Register ``source`` onto ``target`` with ``method``.
 
     Returns ``(moved, seconds, info)``; ``info`` has ``exception`` (the class name, or None) and,
     for shapelib, ``reliable`` (the result's flag, None where the result has none) and ``converged``.
+    ``time_limit`` (seconds, None: none) stops a registration that runs longer, as a failure.
     """
     source = np.asarray(source, dtype=float)
     target = np.asarray(target, dtype=float)
     info = {"exception": None}
     t0 = time.perf_counter()
     try:
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
+        with _time_limit(time_limit), warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")  # every method is judged by its error, not its warnings
             if method == "shapelib":
                 res = sl.register(source, target)

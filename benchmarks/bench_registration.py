@@ -162,6 +162,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--levels", default="", help="comma-separated substrings of the levels to run (default all)")
     ap.add_argument("--methods", default="", help="comma-separated methods to run (default all: "
                     + ", ".join(METHODS) + ")")
+    ap.add_argument("--time-limit", type=float, default=0,
+                    help="seconds after which a registration is stopped and counted as a failure (0: none; "
+                         "default 0)")
     ap.add_argument("--json", type=Path, help="write the report here")
     ap.add_argument("--record", action="store_true",
                     help="write docs/_data/benchmarks/bench_registration.json (all levels and methods only)")
@@ -181,7 +184,7 @@ def main(argv=None) -> dict:
     from threadpoolctl import threadpool_limits
 
     report = {"samples": samples, "methods": methods, "settings": {m: DESCRIPTIONS[m] for m in methods},
-              "failure_threshold": FAILURE,
+              "failure_threshold": FAILURE, "time_limit_s": args.time_limit or None,
               "normalisation": "peers: each set to zero mean and unit RMS radius, the result mapped back with the "
                                "target's mean and scale; shapelib: raw inputs",
               "on_exception": "a failure; its error is that of the unmoved source; the exception's class is recorded",
@@ -196,7 +199,7 @@ def main(argv=None) -> dict:
                 case = load_tps_rpm_case(name, sample=sample)
                 n = len(case["y2"])
                 for m in methods:
-                    moved, seconds, info = run(m, case["x1"], case["y2a"])
+                    moved, seconds, info = run(m, case["x1"], case["y2a"], args.time_limit or None)
                     cell = row[m]
                     cell["samples"].append(sample)
                     cell["errors"].append(float(np.mean(np.linalg.norm(moved[:n] - case["y2"], axis=1))))

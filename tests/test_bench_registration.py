@@ -87,3 +87,16 @@ def test_3d_cases_carry_their_ground_truth():
     assert np.array_equal(b3.make_case("sphere_noise_1", 3)["y"], b3.make_case("sphere_noise_1", 3)["y"])  # seeded
     with pytest.raises(ValueError, match="name"):
         b3.make_case("cube_def_1", 1)
+
+
+def test_a_peer_that_raises_is_a_failure_scored_as_the_unmoved_source():
+    pytest.importorskip("probreg")
+    peers = _load("_peers")
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(40, 2))
+    # probreg's GMMTree takes 3-D points only: a planar set (z = 0) makes its tree's covariances singular
+    moved, seconds, info = peers.run("probreg_gmmtree", x, 1.1 * x + 0.2)
+    assert info["exception"] is not None and moved is not None and np.array_equal(moved, x) and seconds >= 0
+    # probreg's non-rigid CPD runs in 2-D and recovers a small similarity of the same points
+    moved, _, info = peers.run("probreg_cpd", x, 1.1 * x + 0.2)
+    assert info["exception"] is None and np.mean(np.linalg.norm(moved - (1.1 * x + 0.2), axis=1)) < 0.05

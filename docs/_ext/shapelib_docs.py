@@ -388,7 +388,8 @@ def _registration_peers(r: dict, title: str, cases: str) -> list[Table]:
     settings = "; ".join(f"{_REG_LABELS.get(m, m)}: {r['settings'][m]}" for m in methods)
     tables = [Table(f"{title}: every level", ["level", *header], lv_rows,
                     f"Each cell: mean error |moved − truth| over {cases} · registrations that failed (error > "
-                    f"{r.get('failure_threshold', 0.05)} or the method raised) of {len(samples)} · median time per "
+                    f"{r.get('failure_threshold', 0.05)}, or the method raised or ran past the time limit, when it scores the "
+                    f"error of the unmoved source) of {len(samples)} · median time per "
                     f"registration; samples {min(samples)}–{max(samples)}, the same inputs in the same run, BLAS on one "
                     f"thread. {settings}.", key="levels")]
     summary = r.get("summary", {})
