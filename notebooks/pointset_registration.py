@@ -45,6 +45,8 @@ names = list(TPS_RPM_LEVELS) if levels == "all" else [k.strip() for k in levels.
 LABELS = {"shapelib": "shapelib", "cpd": "pycpd CPD", "probreg_cpd": "probreg CPD", "probreg_filterreg": "FilterReg",
           "probreg_gmmtree": "GMMTree", "probreg_bcpd": "BCPD"}
 used = list(LABELS) if methods == "all" else [m.strip() for m in methods.split(",") if m.strip()]
+if not used or set(used) - set(LABELS):
+    raise ValueError(f"methods: expected 'all' or some of {', '.join(LABELS)}, got {methods!r}")
 FAILURE = 0.05
 
 
