@@ -56,7 +56,8 @@ bench: setup
 	$(PY) benchmarks/bench_geodesic.py --record
 	$(PY) benchmarks/bench_bracket.py --record
 	$(PY) benchmarks/bench_pairwise.py --record
-	$(PY) benchmarks/bench_registration.py --record
+	$(PY) benchmarks/bench_registration.py --samples 10 --record
+	$(PY) benchmarks/bench_registration_3d.py --record
 
 clean:
 	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/api/reference docs/auto_examples \

@@ -1,24 +1,29 @@
-"""Point-set registration on the Chui–Rangarajan (TPS-RPM) benchmark: shapelib beside Coherent Point Drift.
+"""Point-set registration on the Chui–Rangarajan (TPS-RPM) benchmark: shapelib beside every peer that runs here.
 
 For each of the 56 levels (fish and Chinese character × deformation 1–5, noise 1–6, outlier 1–5,
 occlusion 1–6, rotation 1–6) and each sample, the template ``x1`` is registered onto the target
 ``y2a`` by
 
-* ``shapelib.register(x1, y2a, w="auto")`` (non-rigid: pose over every rotation, EM, the metric's
-  kernel; defaults otherwise), and
-* ``pycpd.DeformableRegistration`` (Coherent Point Drift, pycpd's defaults: λ = 2, β = 2, w = 0),
-  with the inputs normalised as MATLAB CPD does (each set to zero mean and unit RMS radius; the
-  result mapped back with the target's mean and scale),
+* ``shapelib.register(x1, y2a)`` with its defaults (no settings: what a user runs is reported), and
+* the peers, each with its documented defaults on the same normalised inputs (zero mean, unit RMS
+  radius; the result mapped back with the target's mean and scale): pycpd's
+  ``DeformableRegistration`` and probreg's non-rigid CPD, FilterReg, GMMTree and BCPD
+  (``benchmarks/_peers.py`` says which of them are rigid only and which needed a z = 0 embedding),
 
-on the same inputs in the same run, BLAS on one thread for both. The error of a method is
+on the same inputs in the same run, BLAS on one thread. The error of a method is
 ``mean_i |moved_i − y2_i|`` over the first ``len(y2)`` points of ``x1``, whose ground-truth
-positions ``y2`` the benchmark gives; the wall time is that of the registration call.
+positions ``y2`` the benchmark gives; a registration is a failure when its error exceeds 0.05 or
+the method raised (its error is then that of the unmoved source, and the exception's class is
+recorded); the wall time is that of the registration call. Where shapelib's result has a
+``reliable`` flag it is recorded, with its catch rate (of the errors > 0.05, the share flagged
+unreliable) and its false-alarm rate (of the errors < 0.02, the share flagged).
 
-    python benchmarks/bench_registration.py [--samples N] [--levels fish_rot,chinese_def_3] [--json out.json] [--record]
+    python benchmarks/bench_registration.py [--samples 1-10] [--levels fish_rot,chinese_def_3] [--json out.json] [--record]
 
-``--samples 1`` (default) registers sample 1 of each level (about 5 minutes on a 2-core machine);
-``--samples 10`` is the whole benchmark. ``--record`` writes
-``docs/_data/benchmarks/bench_registration.json`` (machine, date and command included).
+``--samples`` takes a count ``N`` (samples 1 to N) or a range ``A-B``; the default is sample 1.
+Run on all ten, the summary reports samples 1–5 (where defaults are chosen), 6–10 (draws they
+were not chosen on) and 1–10. ``--record`` writes ``docs/_data/benchmarks/bench_registration.json``
+(machine, date and command included).
 """
 
 from __future__ import annotations
@@ -26,111 +31,195 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._machine import loadavg, record  # noqa: E402
+from benchmarks._peers import DESCRIPTIONS, METHODS, run, warm_up  # noqa: E402
 
-import shapelib as sl  # noqa: E402
 from shapelib.datasets import TPS_RPM_LEVELS, load_tps_rpm_case  # noqa: E402
 
-#: the settings of shapelib's run (recorded with the results)
-SHAPELIB_SETTINGS = {"transform": "nonrigid", "metric": "alpha", "w": "auto"}
+#: an error above this is a failed registration
+FAILURE = 0.05
+#: an error below this is a good registration (for the flag's false-alarm rate)
+GOOD = 0.02
+#: the degradations, as the level names spell them
+FAMILIES = ("def", "noise", "outlier", "occlusion", "rot")
 
 
-def _normalise(a):
-    m = a.mean(axis=0)
-    s = float(np.sqrt(np.sum((a - m) ** 2) / len(a)))
-    return (a - m) / s, m, s
+def parse_samples(text: str) -> list[int]:
+    """``"N"`` -> samples 1..N, ``"A-B"`` -> samples A..B, each within 1..10."""
+    try:
+        a, b = (text.split("-", 1) if "-" in text else ("1", text))
+        a, b = int(a), int(b)
+    except ValueError:
+        raise ValueError(f"samples: expected N or A-B, got {text!r}") from None
+    if not 1 <= a <= b <= 10:
+        raise ValueError(f"samples: need 1 <= A <= B <= 10, got {text!r}")
+    return list(range(a, b + 1))
 
 
-def run_shapelib(x1, y2a):
-    t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # an EM that stops at max_iter is counted by its error
-        res = sl.register(x1, y2a, **SHAPELIB_SETTINGS)
-    return res.points, time.perf_counter() - t0, {"converged": bool(res.converged), "w": res.w}
+def _level_stats(cell: dict, keep: list[int]) -> dict:
+    errors = [cell["errors"][i] for i in keep]
+    raised = [cell["exceptions"][i] for i in keep]
+    return {"error": float(np.mean(errors)),
+            "failures": int(sum(e > FAILURE or x is not None for e, x in zip(errors, raised))),
+            "raised": int(sum(x is not None for x in raised)),
+            "time_median_s": float(np.median([cell["times"][i] for i in keep]))}
 
 
-def run_cpd(x1, y2a):
-    from pycpd import DeformableRegistration
+def summarise_range(levels: dict, samples: list[int], methods=METHODS, families=FAMILIES,
+                    shapes=("fish", "chinese")) -> dict:
+    """Per method and per family × shape: mean error, failures, median time; shapelib against the peers.
 
-    yn, my, sy = _normalise(y2a)
-    xn, _, _ = _normalise(x1)
-    t0 = time.perf_counter()
-    moved, _ = DeformableRegistration(X=yn, Y=xn).register()
-    return moved * sy + my, time.perf_counter() - t0, {}
+    ``levels[name][method]`` holds per-sample lists ``samples``, ``errors``, ``times``,
+    ``exceptions`` (and ``reliable`` for shapelib); only the samples in ``samples`` are counted.
+    """
+    names = list(levels)
+    methods = [m for m in methods if all(m in levels[n] for n in names)]
+    peers = [m for m in methods if m != "shapelib"]
+    st = {}
+    for n in names:
+        st[n] = {}
+        for m in methods:
+            cell = levels[n][m]
+            keep = [i for i, s in enumerate(cell["samples"]) if s in samples]
+            if not keep:
+                return {}
+            st[n][m] = _level_stats(cell, keep)
+    out = {"samples": f"{min(samples)}-{max(samples)}", "levels": len(names), "methods": {}}
+    for m in methods:
+        times = [t for n in names for s, t in zip(levels[n][m]["samples"], levels[n][m]["times"]) if s in samples]
+        out["methods"][m] = {"mean_error": float(np.mean([st[n][m]["error"] for n in names])),
+                             "failures": sum(st[n][m]["failures"] for n in names),
+                             "raised": sum(st[n][m]["raised"] for n in names),
+                             "registrations": len(times),
+                             "median_time_s": float(np.median(times))}
+    if "shapelib" in methods and peers:
+        best = {n: min(st[n][p]["error"] for p in peers) for n in names}
+        out["shapelib_le_peer"] = {p: sum(st[n]["shapelib"]["error"] <= st[n][p]["error"] for n in names)
+                                   for p in peers}
+        out["shapelib_le_every_peer"] = sum(st[n]["shapelib"]["error"] <= best[n] for n in names)
+        out["shapelib_above_best_peer_plus_0.01"] = [n for n in names if st[n]["shapelib"]["error"] > best[n] + 0.01]
+        t_sl = out["methods"]["shapelib"]["median_time_s"]
+        out["shapelib_time_over_cpd"] = (t_sl / out["methods"]["cpd"]["median_time_s"]
+                                         if "cpd" in methods else None)
+    fam = {}
+    for shape in shapes:
+        for kind in families:
+            group = [n for n in names if n.startswith(f"{shape}_{kind}_")]
+            if not group:
+                continue
+            row = {m: float(np.mean([st[n][m]["error"] for n in group])) for m in methods}
+            entry = {"levels": len(group), "mean_error": row,
+                     "failures": {m: sum(st[n][m]["failures"] for n in group) for m in methods}}
+            if peers:
+                bp = min(peers, key=lambda p: row[p])
+                entry["best_peer"], entry["best_peer_error"] = bp, row[bp]
+            fam[f"{shape}_{kind}"] = entry
+    out["families"] = fam
+    if "shapelib" in methods:
+        flags, errs = [], []
+        for n in names:
+            cell = levels[n]["shapelib"]
+            for s, e, r in zip(cell["samples"], cell["errors"], cell.get("reliable", [None] * len(cell["errors"]))):
+                if s in samples and r is not None:
+                    flags.append(bool(r))
+                    errs.append(e)
+        if flags:
+            bad = [not r for r, e in zip(flags, errs) if e > FAILURE]
+            good = [not r for r, e in zip(flags, errs) if e < GOOD]
+            out["reliable_flag"] = {"registrations": len(flags), "errors_above_0.05": len(bad),
+                                    "catch_rate": float(np.mean(bad)) if bad else None,
+                                    "errors_below_0.02": len(good),
+                                    "false_alarm_rate": float(np.mean(good)) if good else None}
+        for shape in shapes:
+            base = f"{shape}_rot_1"
+            if base in st:
+                out[f"{shape}_rotation_error_over_level_1"] = {
+                    n: st[n]["shapelib"]["error"] / max(st[base]["shapelib"]["error"], 1e-12)
+                    for n in names if n.startswith(f"{shape}_rot_")}
+    return out
 
 
-METHODS = {"shapelib": run_shapelib, "cpd": run_cpd}
+def summarise(levels: dict, samples: list[int] | None = None, **kw) -> dict:
+    """The summary of every range: 1–5, 6–10 and 1–10 when all ten samples ran, else the range that ran."""
+    if samples is None:
+        samples = sorted({s for n in levels for s in levels[n]["shapelib"]["samples"]}) if levels else []
+    if not samples:
+        return {}
+    ranges = [samples]
+    if set(range(1, 11)) <= set(samples):
+        ranges = [list(range(1, 6)), list(range(6, 11)), list(range(1, 11))]
+    return {f"{min(r)}-{max(r)}": summarise_range(levels, r, **kw) for r in ranges}
 
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--samples", type=int, default=1, help="samples per level, 1 to 10 (default 1)")
+    ap.add_argument("--samples", default="1", help="N (samples 1 to N) or A-B, within 1 to 10 (default 1)")
     ap.add_argument("--levels", default="", help="comma-separated substrings of the levels to run (default all)")
+    ap.add_argument("--methods", default="", help="comma-separated methods to run (default all: "
+                    + ", ".join(METHODS) + ")")
+    ap.add_argument("--time-limit", type=float, default=0,
+                    help="seconds after which a registration is stopped and counted as a failure (0: none; "
+                         "default 0)")
     ap.add_argument("--json", type=Path, help="write the report here")
     ap.add_argument("--record", action="store_true",
-                    help="write docs/_data/benchmarks/bench_registration.json (all levels only)")
+                    help="write docs/_data/benchmarks/bench_registration.json (all levels and methods only)")
     args = ap.parse_args(argv)
-    if not 1 <= args.samples <= 10:
-        ap.error("--samples must be 1 to 10")
+    try:
+        samples = parse_samples(args.samples)
+    except ValueError as exc:
+        ap.error(str(exc))
     wanted = [w for w in args.levels.split(",") if w]
-    if args.record and wanted:
+    methods = [m for m in args.methods.split(",") if m] or list(METHODS)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        ap.error(f"--methods: unknown {', '.join(unknown)}; known: {', '.join(METHODS)}")
+    if args.record and (wanted or args.methods):
         ap.error("--record: a partial run is not the benchmark")
     levels = [lv for lv in TPS_RPM_LEVELS if not wanted or any(w in lv for w in wanted)]
     from threadpoolctl import threadpool_limits
 
-    report = {"samples": args.samples, "settings": {"shapelib": SHAPELIB_SETTINGS,
-                                                     "cpd": "pycpd DeformableRegistration defaults, MATLAB-CPD normalisation"},
+    report = {"samples": samples, "methods": methods, "settings": {m: DESCRIPTIONS[m] for m in methods},
+              "failure_threshold": FAILURE, "time_limit_s": args.time_limit or None,
+              "normalisation": "peers: each set to zero mean and unit RMS radius, the result mapped back with the "
+                               "target's mean and scale; shapelib: raw inputs",
+              "on_exception": "a failure; its error is that of the unmoved source; the exception's class is recorded",
               "loadavg_before": loadavg(), "levels": {}}
     with threadpool_limits(limits=1, user_api="blas"):
+        warm_up(methods)
         for name in levels:
-            row = {m: {"errors": [], "times": []} for m in METHODS}
-            for sample in range(1, args.samples + 1):
+            row = {m: {"samples": [], "errors": [], "times": [], "exceptions": []} for m in methods}
+            if "shapelib" in row:
+                row["shapelib"]["reliable"] = []
+            for sample in samples:
                 case = load_tps_rpm_case(name, sample=sample)
                 n = len(case["y2"])
-                for m, fn in METHODS.items():
-                    moved, seconds, _ = fn(case["x1"], case["y2a"])
-                    row[m]["errors"].append(float(np.mean(np.linalg.norm(moved[:n] - case["y2"], axis=1))))
-                    row[m]["times"].append(seconds)
-            for m in METHODS:
-                row[m]["error"] = float(np.mean(row[m]["errors"]))
-                row[m]["time_median_s"] = float(np.median(row[m]["times"]))
+                for m in methods:
+                    moved, seconds, info = run(m, case["x1"], case["y2a"], args.time_limit or None)
+                    cell = row[m]
+                    cell["samples"].append(sample)
+                    cell["errors"].append(float(np.mean(np.linalg.norm(moved[:n] - case["y2"], axis=1))))
+                    cell["times"].append(seconds)
+                    cell["exceptions"].append(info["exception"])
+                    if m == "shapelib":
+                        cell["reliable"].append(info.get("reliable"))
+            for m in methods:
+                row[m].update(_level_stats(row[m], list(range(len(samples)))))
             report["levels"][name] = row
-            print(f"{name:22s} shapelib {row['shapelib']['error']:.4f} ({row['shapelib']['time_median_s']:.2f} s)   "
-                  f"cpd {row['cpd']['error']:.4f} ({row['cpd']['time_median_s']:.2f} s)", flush=True)
+            print(f"{name:20s} " + "  ".join(f"{m} {row[m]['error']:.4f}/{row[m]['failures']}f/"
+                                              f"{row[m]['time_median_s']:.3f}s" for m in methods), flush=True)
     report["loadavg_after"] = loadavg()
-    report["summary"] = summarise(report["levels"])
+    report["summary"] = summarise(report["levels"], samples, methods=methods)
     print(json.dumps(report["summary"], indent=1))
     if args.json:
         args.json.write_text(json.dumps(report, indent=1) + "\n")
     if args.record:
         print(f"recorded {record('bench_registration', report, argv=argv)}")
     return report
-
-
-def summarise(levels: dict) -> dict:
-    """Levels where shapelib's error is below CPD's, rotation robustness, median times."""
-    names = list(levels)
-    below = [n for n in names if levels[n]["shapelib"]["error"] < levels[n]["cpd"]["error"]]
-    out = {"levels": len(names), "shapelib_below_cpd": len(below),
-           "shapelib_not_below_cpd": [n for n in names if n not in below]}
-    for m in METHODS:
-        times = [t for n in names for t in levels[n][m]["times"]]
-        out[f"{m}_median_time_s"] = float(np.median(times)) if times else None
-        out[f"{m}_mean_error"] = float(np.mean([levels[n][m]["error"] for n in names])) if names else None
-    for shape in ("fish", "chinese"):
-        rot = {n: levels[n] for n in names if n.startswith(f"{shape}_rot_")}
-        if f"{shape}_rot_1" in rot:
-            base = {m: rot[f"{shape}_rot_1"][m]["error"] for m in METHODS}
-            out[f"{shape}_rotation_error_over_level_1"] = {
-                m: {n: levels[n][m]["error"] / max(base[m], 1e-12) for n in rot} for m in METHODS}
-    return out
 
 
 if __name__ == "__main__":

@@ -46,7 +46,7 @@ NOTEBOOKS: dict[str, dict] = {
         "data": [f"tps-rpm/save_{shape}_{kind}_{level}_{sample}.mat" for shape in ("fish", "chinese")
                  for kind, top in (("def", 5), ("noise", 6), ("outlier", 5), ("occlusion", 6), ("rot", 6))
                  for level in range(1, top + 1) for sample in range(1, 11)],
-        "expects": {"registration/summary/": 6},
+        "expects": {"registration/summary/": 20},
     },
     "alpha_discretisation": {
         "params": {}, "quick": {"n_pairs": 2, "n_steps_list": [2, 4, 8], "max_iter": 20},

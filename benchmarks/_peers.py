@@ -1,0 +1,165 @@
+"""The registration methods the registration benchmarks run beside shapelib, each with its defaults.
+
+Every peer gets the same normalised inputs (each set to zero mean and unit RMS radius, as MATLAB CPD
+does) and its result is mapped back with the target's mean and scale. shapelib gets the raw inputs
+and its defaults (``sl.register(source, target)``): what a user runs is what is reported.
+
+What runs in which dimension (probreg 0.3.8, read from its source):
+
+* ``cpd`` — pycpd ``DeformableRegistration`` (λ = 2, β = 2, w = 0), 2-D and 3-D.
+* ``probreg_cpd`` — ``probreg.cpd.registration_cpd(tf_type_name="nonrigid")`` (β = 2, λ = 2, w = 0),
+  any dimension up to 3.
+* ``probreg_filterreg`` — ``probreg.filterreg.registration_filterreg``: rigid only (the function
+  builds ``RigidFilterReg``; the deformable variant needs skinning nodes and 3-D). Its rigid motion
+  is a 3-D rotation, so a 2-D set is embedded with z = 0 and z is dropped from the result; the
+  motion found stays in the plane up to round-off. It is scored on the non-rigid benchmark as what
+  it is, a rigid fit.
+* ``probreg_gmmtree`` — ``probreg.gmmtree.registration_gmmtree``: rigid only and 3-D only (its
+  compiled tree takes ``N × 3`` points). A 2-D set is embedded with z = 0; the tree's covariances
+  are then singular and it raises on every planar input, which is counted as a failure — the
+  embedding is an unfair input for it, and the record says so.
+* ``probreg_bcpd`` — ``probreg.bcpd.registration_bcpd`` (combined similarity + non-rigid with
+  priors, w = 0), any dimension.
+
+A method that raises, or returns a non-finite point, is a failure of that registration: its error
+is the error of not moving the source (the source as given), and the exception's class is recorded.
+With a time limit, a registration still running after it is stopped (``TimeoutError``, checked
+between the method's Python steps) and counted the same way; the limit is the same for every method.
+"""
+
+from __future__ import annotations
+
+import signal
+import time
+import warnings
+from contextlib import contextmanager
+
+import numpy as np
+
+import shapelib as sl
+
+#: the peers in the order the reports list them
+PEERS = ("cpd", "probreg_cpd", "probreg_filterreg", "probreg_gmmtree", "probreg_bcpd")
+METHODS = ("shapelib", *PEERS)
+
+#: one line per method for the record and the performance page
+DESCRIPTIONS = {
+    "shapelib": "shapelib.register(source, target), its defaults, raw inputs",
+    "cpd": "pycpd DeformableRegistration, its defaults (λ = 2, β = 2, w = 0)",
+    "probreg_cpd": "probreg registration_cpd(tf_type_name='nonrigid'), its defaults",
+    "probreg_filterreg": "probreg registration_filterreg, its defaults; rigid only (2-D embedded with z = 0)",
+    "probreg_gmmtree": "probreg registration_gmmtree, its defaults; rigid only, 3-D only (2-D embedded with z = 0)",
+    "probreg_bcpd": "probreg registration_bcpd, its defaults (similarity + non-rigid, priors)",
+}
+
+#: the labels the tables use
+LABELS = {"shapelib": "shapelib", "cpd": "pycpd CPD", "probreg_cpd": "probreg CPD", "probreg_filterreg": "FilterReg",
+          "probreg_gmmtree": "GMMTree", "probreg_bcpd": "BCPD"}
+
+
+def normalise(a):
+    """Zero mean and unit RMS radius: ``(a − mean) / s``, ``s = sqrt(Σ|a_i − mean|² / n)``."""
+    m = a.mean(axis=0)
+    s = float(np.sqrt(np.sum((a - m) ** 2) / len(a)))
+    return (a - m) / s, m, s
+
+
+def _embed(a):
+    return a if a.shape[1] == 3 else np.c_[a, np.zeros(len(a))]
+
+
+def _pycpd(xn, yn):
+    from pycpd import DeformableRegistration
+
+    return DeformableRegistration(X=yn, Y=xn).register()[0]
+
+
+def _probreg_cpd(xn, yn):
+    from probreg import cpd
+
+    return cpd.registration_cpd(xn, yn, tf_type_name="nonrigid").transformation.transform(xn)
+
+
+def _filterreg(xn, yn):
+    from probreg import filterreg
+
+    x3 = _embed(xn)
+    return np.asarray(filterreg.registration_filterreg(x3, _embed(yn)).transformation.transform(x3))[:, : xn.shape[1]]
+
+
+def _gmmtree(xn, yn):
+    from probreg import gmmtree
+
+    x3 = _embed(xn)
+    return np.asarray(gmmtree.registration_gmmtree(x3, _embed(yn)).transformation.transform(x3))[:, : xn.shape[1]]
+
+
+def _bcpd(xn, yn):
+    from probreg import bcpd
+
+    return bcpd.registration_bcpd(xn, yn).transform(xn)
+
+
+_PEER_FUNCTIONS = {"cpd": _pycpd, "probreg_cpd": _probreg_cpd, "probreg_filterreg": _filterreg,
+                   "probreg_gmmtree": _gmmtree, "probreg_bcpd": _bcpd}
+
+
+@contextmanager
+def _time_limit(seconds):
+    """Raise ``TimeoutError`` in the main thread after ``seconds`` (no limit when ``seconds`` is falsy)."""
+    if not seconds:
+        yield
+        return
+
+    def _stop(signum, frame):
+        raise TimeoutError(f"stopped after {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, _stop)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def run(method: str, source, target, time_limit: float | None = None):
+    """Register ``source`` onto ``target`` with ``method``.
+
+    Returns ``(moved, seconds, info)``; ``info`` has ``exception`` (the class name, or None) and,
+    for shapelib, ``reliable`` (the result's flag, None where the result has none) and ``converged``.
+    ``time_limit`` (seconds, None: none) stops a registration that runs longer, as a failure.
+    """
+    source = np.asarray(source, dtype=float)
+    target = np.asarray(target, dtype=float)
+    info = {"exception": None}
+    t0 = time.perf_counter()
+    try:
+        with _time_limit(time_limit), warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")  # every method is judged by its error, not its warnings
+            if method == "shapelib":
+                res = sl.register(source, target)
+                moved = np.asarray(res.points, dtype=float)
+                rel = getattr(res, "reliable", None)
+                info["reliable"] = None if rel is None else bool(rel)
+                info["converged"] = bool(getattr(res, "converged", True))
+            else:
+                xn, _, _ = normalise(source)
+                yn, my, sy = normalise(target)
+                moved = np.asarray(_PEER_FUNCTIONS[method](xn, yn), dtype=float) * sy + my
+        seconds = time.perf_counter() - t0
+        if moved.shape != source.shape or not np.all(np.isfinite(moved)):
+            raise FloatingPointError("non-finite or misshapen result")
+    except Exception as exc:  # noqa: BLE001 - a peer's failure is a result of the benchmark
+        seconds = time.perf_counter() - t0
+        info["exception"] = type(exc).__name__
+        moved = source
+    return moved, seconds, info
+
+
+def warm_up(methods=METHODS, dim: int = 2) -> None:
+    """One untimed registration per method on a small set, so imports and first-call costs stay out of the timings."""
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(30, dim))
+    for m in methods:
+        run(m, x, 1.1 * x + 0.1)

@@ -1,0 +1,102 @@
+"""The registration benchmarks' bookkeeping: summaries of a hand-made record, the 3-D cases' ground truth."""
+
+import importlib.util
+import sys
+
+import numpy as np
+import pytest
+
+from tests.conftest import ROOT
+
+
+def _load(name):
+    sys.path.insert(0, str(ROOT))
+    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _cell(errors, times, exceptions=None, reliable=None):
+    n = len(errors)
+    c = {"samples": list(range(1, n + 1)), "errors": list(errors), "times": list(times),
+         "exceptions": list(exceptions or [None] * n)}
+    if reliable is not None:
+        c["reliable"] = list(reliable)
+    return c
+
+
+def test_summarise_counts_failures_flags_and_ranges_of_a_hand_made_record():
+    bench = _load("bench_registration")
+    # shapelib: samples 1-5 good (0.01), 6-10 bad (0.1); flagged unreliable on samples 5, 6, 7, 8
+    sl_err = [0.01] * 5 + [0.1] * 5
+    sl_rel = [True] * 4 + [False] * 4 + [True] * 2
+    levels = {
+        "fish_def_1": {"shapelib": _cell(sl_err, [1.0] * 10, reliable=sl_rel),
+                       "cpd": _cell([0.02] * 10, [0.1] * 10, exceptions=[None] * 9 + ["LinAlgError"])},
+        "chinese_rot_1": {"shapelib": _cell([0.0] * 10, [3.0] * 10, reliable=[True] * 10),
+                          "cpd": _cell([0.2] * 10, [0.3] * 10)},
+    }
+    s = bench.summarise(levels, list(range(1, 11)), methods=("shapelib", "cpd"))
+    assert list(s) == ["1-5", "6-10", "1-10"]
+    whole, first, second = s["1-10"], s["1-5"], s["6-10"]
+    # the raised registration counts as a failure though its error is small
+    assert whole["methods"]["cpd"]["failures"] == 1 + 10 and whole["methods"]["cpd"]["raised"] == 1
+    assert first["methods"]["shapelib"]["failures"] == 0 and second["methods"]["shapelib"]["failures"] == 5
+    assert whole["methods"]["shapelib"]["median_time_s"] == pytest.approx(2.0)
+    assert whole["shapelib_time_over_cpd"] == pytest.approx(2.0 / 0.2)
+    # level means: fish 0.055 (shapelib) vs 0.02, chinese 0 vs 0.2
+    assert whole["shapelib_le_every_peer"] == 1 and whole["shapelib_above_best_peer_plus_0.01"] == ["fish_def_1"]
+    assert first["shapelib_le_every_peer"] == 2 and first["shapelib_above_best_peer_plus_0.01"] == []
+    # of the 5 errors > 0.05, samples 6-8 are flagged; of the 15 below 0.02, sample 5 is flagged
+    flag = whole["reliable_flag"]
+    assert flag["errors_above_0.05"] == 5 and flag["catch_rate"] == pytest.approx(3 / 5)
+    assert flag["errors_below_0.02"] == 15 and flag["false_alarm_rate"] == pytest.approx(1 / 15)
+    fam = whole["families"]["fish_def"]
+    assert fam["best_peer"] == "cpd" and fam["mean_error"]["shapelib"] == pytest.approx(0.055)
+    assert set(whole["families"]) == {"fish_def", "chinese_rot"}
+    # only the range that ran when not all ten did
+    assert list(bench.summarise(levels, [1, 2, 3], methods=("shapelib", "cpd"))) == ["1-3"]
+    assert bench.parse_samples("6-10") == [6, 7, 8, 9, 10] and bench.parse_samples("3") == [1, 2, 3]
+    with pytest.raises(ValueError, match="samples"):
+        bench.parse_samples("0-4")
+
+
+def test_3d_cases_carry_their_ground_truth():
+    b3 = _load("bench_registration_3d")
+    assert len(b3.LEVEL_NAMES) == 3 * 16
+    for surface in b3.SURFACES:
+        x = b3.sample_surface(surface, 200, np.random.default_rng(1))
+        assert np.allclose(x.mean(axis=0), 0, atol=1e-12) and np.sum(x**2) / len(x) == pytest.approx(1)
+    # rotation 0: the target is the truth, shuffled; the warp moves no point further than its amplitude sum
+    c = b3.make_case("torus_rot_1", 1, points=150)
+    assert np.allclose(np.sort(c["y"], axis=0), np.sort(c["truth"], axis=0))
+    assert np.max(np.linalg.norm(c["truth"] - c["x"], axis=1)) <= 4 * b3.BASE_AMPLITUDE + 1e-12
+    # the levels of a sample share the set and the warp: deformation scales the displacement, rotation
+    # moves the warped set rigidly (its pairwise distances kept), and level 1 of each is the base warp
+    def1, def3 = (b3.make_case(f"torus_def_{i}", 1, points=150) for i in (1, 3))
+    np.testing.assert_allclose(def3["truth"] - def3["x"], 3 * (def1["truth"] - def1["x"]), atol=1e-12)
+    np.testing.assert_allclose(def1["truth"], c["truth"], atol=1e-12)
+    r4 = b3.make_case("torus_rot_4", 1, points=150)["truth"]
+    d = lambda a: np.linalg.norm(a[:, None] - a[None], axis=2)  # noqa: E731
+    np.testing.assert_allclose(d(r4), d(c["truth"]), atol=1e-10)
+    assert np.max(np.linalg.norm(r4 - c["truth"], axis=1)) > 0.5
+    # occlusion and outliers change the number of target points by their level's fraction
+    assert len(b3.make_case("sphere_occlusion_3", 2, points=200)["y"]) == 200 - 60
+    assert len(b3.make_case("sphere_outlier_2", 2, points=200)["y"]) == 300
+    assert np.array_equal(b3.make_case("sphere_noise_1", 3)["y"], b3.make_case("sphere_noise_1", 3)["y"])  # seeded
+    with pytest.raises(ValueError, match="name"):
+        b3.make_case("cube_def_1", 1)
+
+
+def test_a_peer_that_raises_is_a_failure_scored_as_the_unmoved_source():
+    pytest.importorskip("probreg")
+    peers = _load("_peers")
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(40, 2))
+    # probreg's GMMTree takes 3-D points only: a planar set (z = 0) makes its tree's covariances singular
+    moved, seconds, info = peers.run("probreg_gmmtree", x, 1.1 * x + 0.2)
+    assert info["exception"] is not None and moved is not None and np.array_equal(moved, x) and seconds >= 0
+    # probreg's non-rigid CPD runs in 2-D and recovers a small similarity of the same points
+    moved, _, info = peers.run("probreg_cpd", x, 1.1 * x + 0.2)
+    assert info["exception"] is None and np.mean(np.linalg.norm(moved - (1.1 * x + 0.2), axis=1)) < 0.05
