@@ -47,7 +47,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
+from numba import njit
 from scipy.special import logsumexp
 
 #: eigenvalues of the weight kernel below this fraction of the largest are dropped
@@ -69,10 +72,54 @@ def posteriors(theta, y, s2, w, volume):
     """``P`` (n, m) of the module docstring (the outlier component's share is ``1 − Σ_i P_ij``)."""
     n, d = theta.shape
     e = np.exp(-sq_dist(theta, y) / (2 * s2))
-    c = (2 * np.pi * s2) ** (d / 2) * w / (1 - w) * n / volume if w > 0 else 0.0
+    c = outlier_term(n, d, s2, w, volume)
     den = e.sum(axis=0) + c
     den[den == 0] = np.finfo(float).tiny
     return e / den
+
+
+@njit(cache=True, fastmath=False)
+def _estep(theta, y, s2, c):
+    """The sums the M-step needs, without the (n, m) matrix: ``P1 = Σ_j P_ij`` (n,), ``Pᵀ1`` (m,),
+    ``P y`` (n, d) and ``Σ_ij P_ij |y_j − θ_i|²``, with ``c`` the outlier term of ``P``'s
+    denominator."""
+    n, d = theta.shape
+    m = y.shape[0]
+    p1 = np.zeros(n)
+    pt1 = np.zeros(m)
+    py = np.zeros((n, d))
+    e = np.empty(n)
+    dist = np.empty(n)
+    sse = 0.0
+    for j in range(m):
+        den = c
+        for i in range(n):
+            r = 0.0
+            for k in range(d):
+                t = y[j, k] - theta[i, k]
+                r += t * t
+            dist[i] = r
+            e[i] = math.exp(-r / (2.0 * s2))
+            den += e[i]
+        if den <= 0.0:
+            continue
+        tot = 0.0
+        for i in range(n):
+            q = e[i] / den
+            if q == 0.0:
+                continue
+            p1[i] += q
+            tot += q
+            sse += q * dist[i]
+            for k in range(d):
+                py[i, k] += q * y[j, k]
+        pt1[j] = tot
+    return p1, pt1, py, sse
+
+
+def outlier_term(n, d, s2, w, volume):
+    """``(2πσ²)^{d/2} w/(1 − w) · n/V``: the uniform component's term in ``P``'s denominator."""
+    return (2 * np.pi * s2) ** (d / 2) * w / (1 - w) * n / volume if w > 0 else 0.0
 
 
 @dataclass
@@ -86,13 +133,7 @@ class Kernel:
 
     @classmethod
     def of(cls, g):
-        """From a kernel matrix: (n, n) is factored once, (n d, n d) is kept dense."""
-        if g.shape[0] != g.shape[1]:
-            raise ValueError("a kernel matrix is square")
-        return cls._factor(g)
-
-    @classmethod
-    def _factor(cls, g):
+        """From an (n, n) kernel matrix of the weight coordinates, factored once."""
         ev, q = np.linalg.eigh(0.5 * (g + g.T))
         keep = ev > EIG_RTOL * max(ev[-1], 0.0)
         return cls(q=q[:, keep], ev=ev[keep])
@@ -146,23 +187,21 @@ def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12):
 
     Stops (``ok``, ``why="tolerance"``) when σ² changes by less than ``tol`` (relative).
     """
-    d = st.u.shape[1]
-    yy = np.einsum("jd,jd->j", y, y)
+    n, d = st.u.shape
+    y = np.ascontiguousarray(y, dtype=float)
     for _ in range(max_iter):
         st.it += 1
-        theta = st.theta
-        p = posteriors(theta, y, st.s2, st.w, volume)
-        p1, pt1 = p.sum(axis=1), p.sum(axis=0)
+        p1, pt1, py, sse = _estep(np.ascontiguousarray(st.theta), y, st.s2, outlier_term(n, d, st.s2, st.w, volume))
         np_ = float(p1.sum())
-        py = p @ y
         if st.kernel is not None:
             st.coef = st.kernel.solve(p1, py - p1[:, None] * st.u, lam * st.s2)
             theta = st.theta
+            yy = np.einsum("jd,jd->j", y, y)
+            sse = float(pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.einsum("id,id->i", theta, theta))
         if fixed_s2 is not None:
             continue
         s2_old = st.s2
-        num = pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.einsum("id,id->i", theta, theta)
-        st.s2 = max(num / (max(np_, 1e-300) * d), s2_floor)
+        st.s2 = max(sse / (max(np_, 1e-300) * d), s2_floor)
         if abs(st.s2 - s2_old) <= tol * s2_old:
             st.ok, st.why = True, "tolerance"
             break

@@ -141,6 +141,13 @@ def assess(fits, yn, *, spacing2):
     return reasons, {"sigma_over_spacing": ratio, "unmatched_source_share": share}
 
 
+def refit(u, yn, w, kernel_of, *, volume, lam, fixed_s2, max_iter, tol, s2_floor):
+    """EM from the posed source ``u`` with another kernel, at the outlier weight ``w`` of the search."""
+    s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(u, yn)
+    st = EMState(u=u, kernel=kernel_of(u), coef=np.zeros_like(u), s2=s2, w=w)
+    return run_em(st, yn, lam=lam, volume=volume, max_iter=max_iter, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
+
+
 def similarity_of(x, y):
     """The similarity ``y ≈ s R x + t`` of least squares (Umeyama): (A = s R, t)."""
     mx, my = x.mean(axis=0), y.mean(axis=0)
@@ -154,18 +161,19 @@ def similarity_of(x, y):
 
 
 def with_kernel(kernel_matrix_of, *, invariant):
-    """``kernel_of(u)`` for :func:`fit_all`: factored once when the kernel does not change with a
-    rotation of ``u`` (the weight-coordinate kernels), else per start (the metric on the means)."""
+    """``kernel_of(u)`` for :func:`fit_all`: an (n, n) kernel of the weight coordinates is factored
+    (once, when ``invariant``: it does not change with a rotation of ``u``), an (n d, n d) kernel on
+    the means is kept dense."""
     cache = {}
 
     def kernel_of(u):
-        if invariant:
-            if "k" not in cache:
-                cache["k"] = Kernel.of(kernel_matrix_of(u))
+        if invariant and "k" in cache:
             return cache["k"]
-        return Kernel(full=kernel_matrix_of(u))
+        g = kernel_matrix_of(u)
+        cache["k"] = Kernel.of(g) if len(g) == len(u) else Kernel(full=g)
+        return cache["k"]
 
     return kernel_of
 
 
-__all__ = ["fit_all", "assess", "start_rotations", "similarity_of", "with_kernel", "W_GRID", "N_KEEP"]
+__all__ = ["fit_all", "assess", "refit", "start_rotations", "similarity_of", "with_kernel", "W_GRID", "N_KEEP"]

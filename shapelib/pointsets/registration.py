@@ -320,8 +320,8 @@ class RegistrationResult:
         if self.metric != "alpha":
             raise ValueError("method='kernel' needs the closed-form alpha kernel; register with metric='alpha'")
         mean, size = self._frame
-        rot, mx, sx = self._start
-        zn = ((x - mx) / sx) @ rot.T  # the source's normalised frame, turned as the fit's start
+        rot, mx, sx, *shift = self._start
+        zn = ((x - mx) / sx) @ rot.T + (shift[0] if shift else 0.0)  # the frame of the fit's start
         s2g = self.sigma2_metric / size ** 2
         if self._kernel == "weights":
             return (zn + overlap_kernel(zn, self._u, s2g) @ self._coef) * size + mean
@@ -578,17 +578,26 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
     fs2 = None if fixed_s2 is None else fixed_s2 / sy ** 2
     spacing2 = _spacing2(yn)
     s2_eval = fs2 if fs2 is not None else fit_mixture(yn, warn=False).sigma2
-    kernel_of = _nonrigid.with_kernel(lambda u: _kernel(u, s2g, metric, kernel), invariant=kernel == "weights")
-    fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=kernel_of, lam=lam, w=None if auto_w else w, fixed_s2=fs2,
-                                      reflection=reflection, max_iter=max_iter, tol=tol,
-                                      s2_floor=SIGMA2_FLOOR * s2_eval)
+    # the search runs with the α-order metric's weight kernel (a smooth Gaussian kernel that carries a
+    # rotation, a scale and a bend coherently); another metric or kernel deforms from the pose it finds
+    search_kernel = _nonrigid.with_kernel(lambda u: _kernel(u, s2g, "alpha", "weights"), invariant=True)
+    em_opts = dict(lam=lam, fixed_s2=fs2, max_iter=max_iter, tol=tol, s2_floor=SIGMA2_FLOOR * s2_eval)
+    fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=search_kernel, w=None if auto_w else w,
+                                      reflection=reflection, **em_opts)
     f0, k, st = fits[0]
-    theta = st.theta
+    # the similarity part of the deformation, as the pose (the posed source: the geodesic's start)
+    a, t = _nonrigid.similarity_of(xn, st.theta)
+    frame = (rots[k], mx, sx)
     reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2)
+    if (metric, kernel) != ("alpha", "weights"):
+        st = _nonrigid.refit(xn @ a.T + t, yn, st.w, _nonrigid.with_kernel(
+            lambda u: _kernel(u, s2g, metric, kernel), invariant=False), volume=box_volume(yn), **em_opts)
+        f0, frame = None, (a, mx, sx, t)
+        a, t = _nonrigid.similarity_of(xn, st.theta)
+        reasons = reasons + _nonrigid.assess([(0.0, 0, st)], yn, spacing2=spacing2)[0]
+    theta = st.theta
     diagnostics.update(objective=f0, candidates=[(f, int(kk), float(s.w)) for f, kk, s in fits])
     p = posteriors(theta, yn, st.s2, st.w, box_volume(yn))
-    # the similarity part of the deformation, as the pose (the posed source: the geodesic's start)
-    a, t = _nonrigid.similarity_of(xn, theta)
     a_in = a * (sy / sx)
     t_in = my + sy * t - a_in @ mx
     pose = Pose(matrix=a_in, translation=t_in, points=x @ a_in.T + t_in, value=float("nan"), objective=f0,
@@ -601,7 +610,7 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
         warnings.warn("register: the registration is probably wrong: " + "; ".join(reasons), RegistrationWarning,
                       stacklevel=3)
     return _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, "nonrigid", metric, s2g, kernel, n_steps,
-                   reasons=reasons, diagnostics=diagnostics, start=(rots[k], mx, sx))
+                   reasons=reasons, diagnostics=diagnostics, start=frame)
 
 
 def _spacing2(yn):
