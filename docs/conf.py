@@ -33,6 +33,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax 3 (tex-chtml and its fonts) copied into the built site's _static/mathjax, and the pages
+    # load it from there: the site is read from a local build, without a network
+    "sphinx-mathjax-offline",
     "sphinx.ext.intersphinx",
     "numpydoc",
     "myst_nb",

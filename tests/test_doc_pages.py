@@ -1,0 +1,138 @@
+"""Every code block of the hand-written documentation pages runs, as a reader would run it.
+
+Each page's ```python blocks are executed in order in one namespace, in an empty folder, with the
+datasets of ``SHAPELIB_DATA_DIR``; the ``shapelib ...`` and ``python ...`` lines of its shell
+blocks (```bash, ```console) run in the same folder, after the Python blocks above them. A page
+therefore has to make the files its commands read (from a dataset loader, or with the writers of
+:mod:`shapelib.io`), as the reader would. A Python block whose first line is ``# name.py`` is a file
+the reader saves: it is written to the folder as well as executed.
+
+A block that cannot run here (a Dask scheduler at an example address, ``make results``) is marked
+in the page by a MyST comment on the line just above its fence, which the site does not show::
+
+    % doc: skip-run (needs a Dask scheduler at that address)
+
+The marks are counted below (``SKIPPED``), so that skipping stays rare and visible.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+
+import matplotlib
+import pytest
+
+from tests.conftest import ROOT, requires_data
+
+matplotlib.use("Agg")
+
+DOCS = ROOT / "docs"
+#: the hand-written pages (the gallery is executed by the docs build, the notebooks by run_all.py)
+PAGES = sorted([*DOCS.glob("*.md"), *(DOCS / "guide").glob("*.md")])
+
+FENCE = re.compile(r"^(?:% doc: (?P<mark>[^\n]*)\n)?```(?P<lang>python|bash|console|shell|sh)[ \t]*\n"
+                   r"(?P<code>.*?)^```[ \t]*$", flags=re.M | re.S)
+SKIP = re.compile(r"skip-run \((?P<reason>[^)]+)\)$")
+
+#: blocks marked ``% doc: skip-run (...)``, page by page: a new mark must be added here too
+SKIPPED = {
+    "getting-started.md": 2,  # make setup; SHAPELIB_DATA_DIR (the test suite runs in that environment)
+    "performance.md": 1,  # the benchmarks themselves (a quarter of an hour and more)
+    "guide/population.md": 3,  # a Dask scheduler and workers on other machines
+    "guide/study.md": 1,  # make results, make test, make docs
+}
+
+
+def code_blocks(text: str) -> list[tuple[int, str, str, str | None]]:
+    """``[(line, language, code, skip reason or None)]`` of a page's Python and shell blocks."""
+    blocks = []
+    for m in FENCE.finditer(text):
+        reason = None
+        if m.group("mark") is not None:
+            skip = SKIP.fullmatch(m.group("mark").strip())
+            if not skip:
+                raise ValueError(f"unknown mark '% doc: {m.group('mark')}' (use '% doc: skip-run (reason)')")
+            reason = skip.group("reason")
+        line = text.count("\n", 0, m.start("lang")) + 1
+        blocks.append((line, m.group("lang"), m.group("code"), reason))
+    return blocks
+
+
+def shell_commands(code: str) -> list[list[str]]:
+    """The commands of a shell block: continuation lines joined, ``$ `` prompts and comments removed."""
+    commands = []
+    for line in code.replace("\\\n", " ").splitlines():
+        line = line.strip()
+        if line.startswith("$ "):
+            line = line[2:]
+        argv = shlex.split(line, comments=True)
+        if argv:
+            commands.append(argv)
+    return commands
+
+
+def run_shell(argv: list[str], where: str) -> None:
+    """Run one documented command in the current folder: ``shapelib`` in this process, ``python`` in a child."""
+    from shapelib.cli import main
+
+    if argv[0] == "shapelib":
+        status = main(argv[1:])
+        assert status == 0, f"{where}: `{shlex.join(argv)}` exited with {status}"
+    elif argv[0] == "python":
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([os.getcwd(), str(ROOT), os.environ.get("PYTHONPATH", "")])}
+        proc = subprocess.run([sys.executable, *argv[1:]], capture_output=True, text=True, env=env)
+        assert proc.returncode == 0, f"{where}: `{shlex.join(argv)}` failed:\n{proc.stdout}\n{proc.stderr}"
+    else:
+        raise AssertionError(f"{where}: `{shlex.join(argv)}` is neither a shapelib nor a python command; "
+                             "mark the block '% doc: skip-run (reason)' if it cannot run in the tests")
+
+
+def test_the_page_reader_finds_blocks_marks_and_commands():
+    text = ("Text\n\n```python\nx = 1\n```\n\n% doc: skip-run (needs a cluster)\n```bash\ndask worker a\n```\n"
+            "```console\n$ shapelib info a.tps \\\n    --json  # a comment\n\n```\n```text\nnot code\n```\n")
+    blocks = code_blocks(text)
+    assert [(line, lang, reason) for line, lang, _, reason in blocks] == [
+        (3, "python", None), (8, "bash", "needs a cluster"), (11, "console", None)]
+    assert shell_commands(blocks[2][2]) == [["shapelib", "info", "a.tps", "--json"]]
+    with pytest.raises(ValueError, match="unknown mark"):
+        code_blocks("% doc: skip this\n```python\nx\n```\n")
+
+
+def test_every_page_with_code_is_executed_and_skips_are_counted():
+    marked = {}
+    for page in PAGES:
+        n = sum(reason is not None for *_, reason in code_blocks(page.read_text()))
+        if n:
+            marked[str(page.relative_to(DOCS))] = n
+    assert marked == SKIPPED
+
+
+@requires_data
+@pytest.mark.parametrize("page", [p for p in PAGES if code_blocks(p.read_text())],
+                         ids=lambda p: str(p.relative_to(DOCS)))
+def test_every_code_block_of_the_page_runs(page, tmp_path, monkeypatch):
+    import matplotlib.pyplot as plt
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    monkeypatch.syspath_prepend(str(tmp_path))  # a module the page writes (mymetrics.py) imports
+    namespace: dict = {"__name__": "__main__"}
+    name = str(page.relative_to(DOCS))
+    try:
+        for line, lang, code, reason in code_blocks(page.read_text()):
+            if reason is not None:
+                continue
+            where = f"docs/{name}, line {line}"
+            if lang == "python":
+                module = re.match(r"# (\w+\.py)\n", code)  # a file the reader saves ("# mymetrics.py")
+                if module:
+                    (tmp_path / module.group(1)).write_text(code)
+                exec(compile(code, where, "exec"), namespace)
+            else:
+                for argv in shell_commands(code):
+                    run_shell(argv, where)
+    finally:
+        plt.close("all")
