@@ -47,7 +47,8 @@ extensions = [
 root_doc = "index"
 exclude_patterns = ["_build", "_data", "_scripts", "_templates", "_intersphinx", "**.ipynb_checkpoints",
                     "notebooks/.runs", "examples/*.py", "examples/*.md", "examples/README.txt", "auto_examples/*.ipynb",
-                    "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json"]
+                    "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json",
+                    "sg_execution_times.rst", "auto_examples/sg_execution_times.rst"]
 templates_path = ["_templates"]
 html_static_path = ["_static"]
 
@@ -118,6 +119,8 @@ sphinx_gallery_conf = {
     "show_memory": False,
     "only_warn_on_example_error": False,
     "abort_on_example_error": False,
+    # no page of run times: sphinx-gallery renders it with scripts from a CDN, and the site is read offline
+    "write_computation_times": False,
 }
 
 # -- HTML ----------------------------------------------------------------------------------------
