@@ -116,6 +116,9 @@ def test_every_page_with_code_is_executed_and_skips_are_counted():
 def test_every_code_block_of_the_page_runs(page, tmp_path, monkeypatch):
     import matplotlib.pyplot as plt
 
+    from shapelib.distances import _REGISTRY
+
+    registered = set(_REGISTRY)  # a page may register a metric (docs/guide/long-runs.md)
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MPLBACKEND", "Agg")
     monkeypatch.syspath_prepend(str(tmp_path))  # a module the page writes (mymetrics.py) imports
@@ -136,3 +139,5 @@ def test_every_code_block_of_the_page_runs(page, tmp_path, monkeypatch):
                     run_shell(argv, where)
     finally:
         plt.close("all")
+        for metric in set(_REGISTRY) - registered:
+            del _REGISTRY[metric]
