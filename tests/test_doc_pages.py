@@ -12,7 +12,8 @@ in the page by a MyST comment on the line just above its fence, which the site d
 
     % doc: skip-run (needs a Dask scheduler at that address)
 
-The marks are counted below (``SKIPPED``), so that skipping stays rare and visible.
+The marks are counted below (``SKIPPED``), so that skipping stays rare and visible. A block that
+shows an error on purpose is marked ``% doc: raises (InputError)``: it must raise that error.
 """
 from __future__ import annotations
 
@@ -36,6 +37,7 @@ PAGES = sorted([*DOCS.glob("*.md"), *(DOCS / "guide").glob("*.md")])
 FENCE = re.compile(r"^(?:% doc: (?P<mark>[^\n]*)\n)?```(?P<lang>python|bash|console|shell|sh)[ \t]*\n"
                    r"(?P<code>.*?)^```[ \t]*$", flags=re.M | re.S)
 SKIP = re.compile(r"skip-run \((?P<reason>[^)]+)\)$")
+RAISES = re.compile(r"raises \((?P<error>\w+)\)$")
 
 #: blocks marked ``% doc: skip-run (...)``, page by page: a new mark must be added here too
 SKIPPED = {
@@ -48,16 +50,24 @@ SKIPPED = {
 
 def code_blocks(text: str) -> list[tuple[int, str, str, str | None]]:
     """``[(line, language, code, skip reason or None)]`` of a page's Python and shell blocks."""
+    return [(line, lang, code, reason) for line, lang, code, reason, _ in _blocks(text)]
+
+
+def _blocks(text: str) -> list[tuple[int, str, str, str | None, str | None]]:
+    """``[(line, language, code, skip reason, expected error)]``, the last two None when unmarked."""
     blocks = []
     for m in FENCE.finditer(text):
-        reason = None
+        reason = error = None
         if m.group("mark") is not None:
-            skip = SKIP.fullmatch(m.group("mark").strip())
-            if not skip:
-                raise ValueError(f"unknown mark '% doc: {m.group('mark')}' (use '% doc: skip-run (reason)')")
-            reason = skip.group("reason")
+            mark = m.group("mark").strip()
+            skip, raises = SKIP.fullmatch(mark), RAISES.fullmatch(mark)
+            if not (skip or raises):
+                raise ValueError(f"unknown mark '% doc: {mark}' (use '% doc: skip-run (reason)' or "
+                                 "'% doc: raises (ErrorName)')")
+            reason = skip.group("reason") if skip else None
+            error = raises.group("error") if raises else None
         line = text.count("\n", 0, m.start("lang")) + 1
-        blocks.append((line, m.group("lang"), m.group("code"), reason))
+        blocks.append((line, m.group("lang"), m.group("code"), reason, error))
     return blocks
 
 
@@ -99,6 +109,7 @@ def test_the_page_reader_finds_blocks_marks_and_commands():
     assert shell_commands(blocks[2][2]) == [["shapelib", "info", "a.tps", "--json"]]
     with pytest.raises(ValueError, match="unknown mark"):
         code_blocks("% doc: skip this\n```python\nx\n```\n")
+    assert _blocks("% doc: raises (InputError)\n```python\nx\n```\n") == [(2, "python", "x\n", None, "InputError")]
 
 
 def test_every_page_with_code_is_executed_and_skips_are_counted():
@@ -125,10 +136,15 @@ def test_every_code_block_of_the_page_runs(page, tmp_path, monkeypatch):
     namespace: dict = {"__name__": "__main__"}
     name = str(page.relative_to(DOCS))
     try:
-        for line, lang, code, reason in code_blocks(page.read_text()):
+        for line, lang, code, reason, error in _blocks(page.read_text()):
             if reason is not None:
                 continue
             where = f"docs/{name}, line {line}"
+            if error is not None:
+                with pytest.raises(Exception) as raised:
+                    exec(compile(code, where, "exec"), namespace)
+                assert type(raised.value).__name__ == error, f"{where}: raised {raised.value!r}, not {error}"
+                continue
             if lang == "python":
                 module = re.match(r"# (\w+\.py)\n", code)  # a file the reader saves ("# mymetrics.py")
                 if module:
