@@ -130,7 +130,7 @@ html_logo = None
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
-    "header_links_before_dropdown": 8,
+    "header_links_before_dropdown": 5,  # the top menu on one line; the other pages under "More"
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
     "icon_links": [

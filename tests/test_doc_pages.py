@@ -42,6 +42,7 @@ RAISES = re.compile(r"raises \((?P<error>\w+)\)$")
 #: blocks marked ``% doc: skip-run (...)``, page by page: a new mark must be added here too
 SKIPPED = {
     "getting-started.md": 2,  # make setup; SHAPELIB_DATA_DIR (the test suite runs in that environment)
+    "installation.md": 2,  # pip install into the environment; python -m build
     "performance.md": 1,  # the benchmarks themselves (a quarter of an hour and more)
     "guide/population.md": 3,  # a Dask scheduler and workers on other machines
     "guide/study.md": 1,  # make results, make test, make docs
@@ -90,7 +91,10 @@ def run_shell(argv: list[str], where: str) -> None:
     from shapelib.cli import main
 
     if argv[0] == "shapelib":
-        status = main(argv[1:])
+        try:
+            status = main(argv[1:])
+        except SystemExit as stop:  # --help
+            status = stop.code
         assert status == 0, f"{where}: `{shlex.join(argv)}` exited with {status}"
     elif argv[0] == "python":
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([os.getcwd(), str(ROOT), os.environ.get("PYTHONPATH", "")])}
