@@ -162,3 +162,40 @@ def test_every_code_block_of_the_page_runs(page, tmp_path, monkeypatch):
         plt.close("all")
         for metric in set(_REGISTRY) - registered:
             del _REGISTRY[metric]
+
+
+# ---------------------------------------------------------------------------------------------
+# one number per fact: figures quoted in the prose are those of their source
+
+
+def test_the_quoted_iteration_costs_are_the_benchmark_records():
+    """docs/performance.md quotes the cost of a solver iteration: the record's seconds over its iterations."""
+    import json
+
+    rows = json.loads((DOCS / "_data" / "benchmarks" / "bench_geodesic.json").read_text())["results"]["rows"]
+    alpha_ms = 1000 * rows["alpha-default"]["seconds"] / rows["alpha-default"]["iterations"]
+    fr_s = rows["fr-default"]["seconds"] / rows["fr-default"]["iterations"]
+    text = " ".join((DOCS / "performance.md").read_text().split())
+    assert f"an α iteration costs about {alpha_ms:.0f} ms" in text
+    assert f"a Fisher–Rao iteration about {fr_s:.1f} s" in text
+    solver = (ROOT / "shapelib" / "solver" / "geodesic.py").read_text()
+    assert not re.search(r"~?\d(\.\d+)? s against", solver)  # no second figure for the same cost
+
+
+@requires_data
+def test_the_quoted_landmark_spacings_of_sigma2_are_computed_ones():
+    """σ² = 0.1, 0.5, 1.5 at the corpus callosum's centroid size 20 are σ = 1.1, 2.6 and 4.5
+    spacings (and σ² = 1.2 for the ADHD-200 outlines 2.6), wherever a page says so."""
+    import shapelib as sl
+    from shapelib.datasets import load_adhd200, load_corpus_callosum
+
+    cc = sl.to_centroid_size(load_corpus_callosum()[0])
+    ratios = [f"{sl.sigma_ratio(cc, sigma2=s):.1f}" for s in (0.1, 0.5, 1.5)]
+    assert ratios == ["1.1", "2.6", "4.5"]
+    one_line = {p: " ".join(p.read_text().split()) for p in (DOCS / "getting-started.md", DOCS / "guide" / "scale.md")}
+    assert "σ² = 0.1, 0.5 and 1.5 are 1.1, 2.6 and 4.5 landmark spacings" in one_line[DOCS / "getting-started.md"]
+    assert "σ is 1.1, 2.6 and 4.5 times the mean nearest-landmark spacing" in one_line[DOCS / "guide" / "scale.md"]
+    assert "σ² = 0.5 is about 2.6 landmark spacings" in (DOCS / "examples" / "plot_first_geodesic.py").read_text()
+    adhd = sl.to_centroid_size(load_adhd200()[0])
+    assert f"{sl.sigma_ratio(adhd, sigma2=1.2):.1f}" == "2.6"
+    assert "At σ² = 1.2 (σ = 2.6 landmark spacings" in (DOCS / "reproduction.md").read_text()
