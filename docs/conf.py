@@ -141,5 +141,8 @@ html_theme_options = {
     ],
 }
 html_context = {"default_mode": "light"}
+# pages that stand alone: no left sidebar (it would be empty), the page's own contents on the right
+html_sidebars = {page: [] for page in ("index", "installation", "getting-started", "reproduction",
+                                        "performance", "changelog", "citing", "license")}
 html_show_sourcelink = False
 html_copy_source = False
