@@ -318,3 +318,19 @@ def test_pages_with_math_load_mathjax_from_the_site():
     assert with_math >= 50  # the guide, the theory pages and the API reference
     fonts = HTML / "_static" / "mathjax" / "output" / "chtml" / "fonts" / "woff-v2"
     assert len(list(fonts.glob("MathJax_*.woff"))) >= 20  # the CHTML output's fonts come with it
+
+
+def test_the_reference_has_no_page_for_a_private_module(docs_ext):
+    modules = docs_ext._api_table().all_modules()
+    assert not [m for m in modules if any(part.startswith("_") for part in m.split("."))]
+    pages = docs_ext._api_table().pages()
+    # a name defined in a private module is listed on its public parent's page
+    assert "   compute_pairwise" in pages["modules/shapelib.pairwise.rst"]  # defined in pairwise._driver
+    assert "   InputError" in pages["modules/shapelib.rst"]  # defined in shapelib._validate
+
+
+@requires_html
+def test_the_top_pages_have_no_empty_left_sidebar():
+    for page in ("index", "installation", "getting-started", "performance", "license"):
+        html = (HTML / f"{page}.html").read_text()
+        assert 'class="bd-sidebar-primary' not in html or "hide-on-wide" in html, page
