@@ -33,6 +33,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax 3 (tex-chtml and its fonts) copied into the built site's _static/mathjax, and the pages
+    # load it from there: the site is read from a local build, without a network
+    "sphinx-mathjax-offline",
     "sphinx.ext.intersphinx",
     "numpydoc",
     "myst_nb",
@@ -44,7 +47,8 @@ extensions = [
 root_doc = "index"
 exclude_patterns = ["_build", "_data", "_scripts", "_templates", "_intersphinx", "**.ipynb_checkpoints",
                     "notebooks/.runs", "examples/*.py", "examples/*.md", "examples/README.txt", "auto_examples/*.ipynb",
-                    "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json"]
+                    "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json",
+                    "sg_execution_times.rst", "auto_examples/sg_execution_times.rst"]
 templates_path = ["_templates"]
 html_static_path = ["_static"]
 
@@ -74,6 +78,10 @@ intersphinx_disabled_reftypes = ["std:doc"]
 # Private names (``_kernels``, ``_alpha_qform_grad``) are not documented: a docstring may name one,
 # which then shows as code without a link.
 nitpick_ignore_regex = [(r"py:.*", r"(.*\.)?_[A-Za-z]\w*(\..*)?")]
+# Helpers of private modules (shapelib._validate, _executor, pairwise._driver) that the docstrings
+# of their public names mention: private modules have no reference page, so these show as code.
+nitpick_ignore = [("py:data", "LIBRARY_WORDS"), ("py:func", "literal"), ("py:class", "Interrupts"),
+                  ("py:func", "ignore_sigint")]
 
 # -- API reference -------------------------------------------------------------------------------
 autosummary_generate = True
@@ -115,6 +123,8 @@ sphinx_gallery_conf = {
     "show_memory": False,
     "only_warn_on_example_error": False,
     "abort_on_example_error": False,
+    # no page of run times: sphinx-gallery renders it with scripts from a CDN, and the site is read offline
+    "write_computation_times": False,
 }
 
 # -- HTML ----------------------------------------------------------------------------------------
@@ -124,7 +134,7 @@ html_logo = None
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
-    "header_links_before_dropdown": 8,
+    "header_links_before_dropdown": 5,  # the top menu on one line; the other pages under "More"
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
     "icon_links": [
@@ -135,5 +145,8 @@ html_theme_options = {
     ],
 }
 html_context = {"default_mode": "light"}
+# pages that stand alone: no left sidebar (it would be empty), the page's own contents on the right
+html_sidebars = {page: [] for page in ("index", "installation", "getting-started", "reproduction",
+                                        "performance", "changelog", "citing", "license")}
 html_show_sourcelink = False
 html_copy_source = False

@@ -51,6 +51,9 @@ __all__ = [
     "CC_PAPER_IDS",
 ]
 
+#: The environment variable naming a folder that holds the datasets in the registry's layout
+#: (e.g. ``$SHAPELIB_DATA_DIR/cdfhc/cdfhc_data2D_CC.mat``): the loaders read them from there instead
+#: of downloading them.
 DATA_DIR_ENV = "SHAPELIB_DATA_DIR"
 CACHE_DIR_ENV = "SHAPELIB_CACHE_DIR"
 #: the registry as a package resource (``shapelib/data/registry.csv``; in a wheel or a checkout alike)

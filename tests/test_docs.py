@@ -280,3 +280,57 @@ def test_notebook_pages_hide_the_study_plumbing():
     assert called("plot_metric_panels", page)  # the notebook's own code is shown
     assert not called("record_values", re.sub(r"<details.*?</details>", "", page, flags=re.S))  # folded at most
     assert not called("default_output_dir", page)  # the parameter cell is removed
+
+
+#: a script or stylesheet the page loads from another host (the site is read from a local build)
+REMOTE_ASSET = re.compile(r"<(?:script|link)\b[^>]*\b(?:src|href)=[\"'](?:https?:)?//[^\"']+[\"'][^>]*>", re.I)
+
+
+def test_the_remote_asset_check_tells_loaded_files_from_links():
+    assert REMOTE_ASSET.search('<script defer src="https://cdn.example.org/mathjax/tex-chtml.js"></script>')
+    assert REMOTE_ASSET.search('<link rel="stylesheet" href="//cdn.example.org/a.css" />')
+    assert not REMOTE_ASSET.search('<script src="../_static/mathjax/tex-chtml.js"></script>')
+    assert not REMOTE_ASSET.search('<a class="reference external" href="https://doi.org/10.1109/TPAMI.2008.76">')
+
+
+@requires_html
+def test_no_page_loads_a_script_or_stylesheet_from_the_network():
+    pages = sorted(HTML.rglob("*.html"))
+    assert len(pages) > 100
+    remote = {str(p.relative_to(HTML)): REMOTE_ASSET.findall(p.read_text()) for p in pages}
+    remote = {page: found for page, found in remote.items() if found}
+    assert not remote, f"pages that load files from another host: {remote}"
+
+
+@requires_html
+def test_pages_with_math_load_mathjax_from_the_site():
+    with_math = 0
+    for page in sorted(HTML.rglob("*.html")):
+        html = page.read_text()
+        if not re.search(r'class="math[ "]', html):
+            continue
+        with_math += 1
+        scripts = re.findall(r'<script[^>]*\bsrc="([^"]*mathjax[^"]*)"', html)
+        assert scripts, f"{page.relative_to(HTML)} shows math but loads no MathJax"
+        for src in scripts:
+            path = src.split("?")[0]  # Sphinx may add ?v=<checksum>
+            assert (page.parent / path).resolve().is_file(), f"{page.relative_to(HTML)}: {src} is not in the site"
+    assert with_math >= 50  # the guide, the theory pages and the API reference
+    fonts = HTML / "_static" / "mathjax" / "output" / "chtml" / "fonts" / "woff-v2"
+    assert len(list(fonts.glob("MathJax_*.woff"))) >= 20  # the CHTML output's fonts come with it
+
+
+def test_the_reference_has_no_page_for_a_private_module(docs_ext):
+    modules = docs_ext._api_table().all_modules()
+    assert not [m for m in modules if any(part.startswith("_") for part in m.split("."))]
+    pages = docs_ext._api_table().pages()
+    # a name defined in a private module is listed on its public parent's page
+    assert "   compute_pairwise" in pages["modules/shapelib.pairwise.rst"]  # defined in pairwise._driver
+    assert "   InputError" in pages["modules/shapelib.rst"]  # defined in shapelib._validate
+
+
+@requires_html
+def test_the_top_pages_have_no_empty_left_sidebar():
+    for page in ("index", "installation", "getting-started", "performance", "license"):
+        html = (HTML / f"{page}.html").read_text()
+        assert 'class="bd-sidebar-primary' not in html or "hide-on-wide" in html, page

@@ -18,7 +18,7 @@ def test_environment_yml_in_sync_with_pyproject():
     for line in (ROOT / "environment.yml").read_text().splitlines():
         if re.match(r"^\S", line):
             in_deps = line.startswith("dependencies:")
-        m = re.match(r"^\s{2}- ([A-Za-z0-9_.-]+)", line)
+        m = re.match(r"^(?:\s{2}|\s{6})- ([A-Za-z0-9_.][A-Za-z0-9_.-]*)", line)  # conda's list, its pip: list
         if in_deps and m:
             conda_names.add(_name(m.group(1)))
     conda_names -= {"python", "pip"}  # conda-only conveniences

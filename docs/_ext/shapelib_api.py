@@ -364,17 +364,22 @@ def defined_in(e: Entry) -> str:
     return getattr(obj, "__module__", e.module) if callable(obj) else e.module
 
 
+def _public(module: str) -> bool:
+    return not any(part.startswith("_") for part in module.split("."))
+
+
 def all_modules() -> list[str]:
-    """Every public module of shapelib (each gets a page that renders its docstring)."""
+    """Every public module of shapelib (each gets a page that renders its docstring). A name defined
+    in a private module (``shapelib._validate.InputError``) is listed on its public parent's page."""
     import pkgutil
 
     import shapelib
 
     names = {"shapelib"}
     for info in pkgutil.walk_packages(shapelib.__path__, "shapelib."):
-        if not any(part.startswith("_") for part in info.name.split(".")) and info.name != "shapelib.__main__":
+        if _public(info.name) and info.name != "shapelib.__main__":
             names.add(info.name)
-    names |= {defined_in(e) for e in entries()}  # the home of a documented name, private or not
+    names |= {defined_in(e) for e in entries() if _public(defined_in(e))}  # the home of a documented name
     return sorted(names)
 
 

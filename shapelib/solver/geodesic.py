@@ -55,7 +55,7 @@ factorised by block Cholesky in O(n (Kd)³):
 * ``hessian="model"`` (and always for landmark diffeomorphisms): the model Hessian obtained by
   freezing the metric at each segment's midpoint, ``2n [[ḡ_t, −ḡ_t], [−ḡ_t, ḡ_t]]`` per
   segment (a metric-weighted Laplacian in time), with the energy-window stop only. For
-  Fisher–Rao it is 4× cheaper per iteration but converges linearly: on the benchmark pair it
+  Fisher–Rao it is cheaper per iteration but converges linearly: on the benchmark pair it
   stops at tol 1e-6 with an energy 2.6e-5 above the minimum and does not reach 1e-9 in 3,000
   iterations, where the exact Hessian certifies 1e-9 in 133.
 
@@ -481,8 +481,8 @@ def geodesic(u, v, *, metric: str = "alpha", sigma2, n_steps: int = 16, tol: flo
     hessian : {"exact", "model"}
         Newton steps on the exact Hessian of the path energy (certified stop by the Newton
         decrement), or on the model Hessian that freezes the metric at each segment's midpoint
-        (cheaper per iteration for Fisher–Rao — ~0.3 s against ~1.2 s for 63 landmarks at
-        ``n_steps = 16`` — but many more iterations, and it only stops on the energy window).
+        (cheaper per iteration for Fisher–Rao, but many more iterations, and it only stops on the
+        energy window; the performance page gives the measured cost of an iteration).
     warn : bool
         Emit a :class:`GeodesicWarning` when the solver stops before converging.
     backend : {"cpu", "jax"}
