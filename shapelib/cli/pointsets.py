@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from ._common import CLIError, _output_path, save_figure, use_agg
+from ._common import EXIT_UNCONVERGED, PROG, CLIError, _output_path, save_figure, use_agg
 
 EXAMPLES = {
     "register": "examples:\n  shapelib register template.csv outline.csv -o moved.csv --plot fig.png\n"
@@ -27,6 +28,18 @@ def _one_set(path, ident, option):
         raise CLIError(f"{option} {ident}: {path} has no point set with that id (it has {', '.join(ids[:8])}"
                        f"{', …' if len(ids) > 8 else ''})")
     return sets[ids.index(ident)]
+
+
+def _sigma2(text: str):
+    if text is None or text == "auto":
+        return "auto"
+    try:
+        s2 = float(text)
+    except ValueError:
+        raise CLIError(f"--sigma2 must be a positive number or 'auto'; got {text!r}") from None
+    if not s2 > 0 or not np.isfinite(s2):
+        raise CLIError(f"--sigma2 must be a positive number or 'auto'; got {text!r}")
+    return s2
 
 
 def _w(text: str):
@@ -50,8 +63,14 @@ def cmd_register(args) -> int:
         _output_path(args.correspondence, suffixes=(".csv",), option="--correspondence")
     source = _one_set(args.source, args.source_id, "--source-id")
     target = _one_set(args.target, args.target_id, "--target-id")
-    res = register(source, target, transform=args.transform, metric=args.metric, sigma2=args.sigma2, w=_w(args.w),
-                   reflection=args.reflection)
+    import warnings
+
+    from ..pointsets.registration import RegistrationWarning
+
+    with warnings.catch_warnings():  # the summary says it, once: not a warning beside it
+        warnings.simplefilter("ignore", RegistrationWarning)
+        res = register(source, target, transform=args.transform, metric=args.metric, sigma2=_sigma2(args.sigma2),
+                       w=_w(args.w), reflection=args.reflection)
     write_point_set(out, res.points)
     print(res.summary())
     print(f"moved source -> {out}")
@@ -80,6 +99,11 @@ def cmd_register(args) -> int:
         ax.set_title(f"{res.transform} registration ({res.metric})", fontsize=9)
         save_figure(fig, args.plot)
         print(f"figure -> {args.plot}")
+    if not (res.converged and res.reliable):
+        why = "; ".join(res.reasons) if not res.reliable else "EM stopped before its tolerance"
+        print(f"{PROG} register: the registration probably failed ({why}); exit status {EXIT_UNCONVERGED}",
+              file=sys.stderr)
+        return EXIT_UNCONVERGED
     return 0
 
 
@@ -95,10 +119,13 @@ def register(add) -> None:
     p.add_argument("--source-id", metavar="ID", help="the set to use when SOURCE holds several")
     p.add_argument("--target-id", metavar="ID", help="the set to use when TARGET holds several")
     p.add_argument("--transform", choices=("rigid", "similarity", "affine", "nonrigid"), default="nonrigid",
-                   help="what may change (default nonrigid: an affine pose, then a deformation)")
+                   help="what may change (default nonrigid: a smooth deformation, whose similarity part is "
+                        "reported as the pose)")
     p.add_argument("--metric", choices=("alpha", "fisher_rao"), default="alpha",
                    help="density distance of the pose search and metric of the deformation (default alpha)")
-    p.add_argument("--sigma2", type=float, metavar="S2", help="fixed sigma2 (default: estimated by EM)")
-    p.add_argument("--w", default="0", metavar="W", help="outlier weight in [0, 1), or 'auto' to estimate it (default 0)")
+    p.add_argument("--sigma2", default="auto", metavar="S2",
+                   help="fixed sigma2, or 'auto' (default): estimated by EM")
+    p.add_argument("--w", default="auto", metavar="W",
+                   help="outlier weight in [0, 1), or 'auto' (default): chosen from the data")
     p.add_argument("--reflection", action="store_true", help="also try mirror images of the source")
     p.set_defaults(func=cmd_register)

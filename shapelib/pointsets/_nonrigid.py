@@ -5,7 +5,7 @@ kept, and what the other fits say about it.
 The equations are in :mod:`shapelib.pointsets._coherent_em`; this module decides where EM starts
 and which of its fits is the answer. Both sets come in normalised units (zero mean, unit RMS radius).
 
-1. **Starts.** The source turned by every rotation of a fixed set (2-D: every 45°; 3-D: the 24
+1. **Starts.** The source turned by every rotation of a fixed set (2-D: every 22.5°; 3-D: the 24
    rotations of the cube), and their mirror images when reflections are allowed. EM's basin of
    attraction reaches further than half the step (CPD recovers rotations up to about 70° on its
    own), so one start lies in the right basin whatever the target's orientation.
@@ -30,13 +30,15 @@ import numpy as np
 from ._coherent_em import EMState, Kernel, box_volume, initial_sigma2, objective, posteriors, run_em
 
 #: rotation starts in 2-D (every 360/N degrees)
-N_ROT_2D = 8
+N_ROT_2D = 16
 #: EM iterations from every start before the best are kept
 SCREEN_ITER = 40
 #: starts carried to convergence
 N_KEEP = 2
 #: the outlier weight of the screening
 W_SCREEN = 0.2
+#: a progress bar over the starts when the sets have at least this many point pairs
+PROGRESS_PAIRS = 250_000
 #: the outlier weights compared when ``w="auto"``
 W_GRID = (0.05, 0.2, 0.5)
 
@@ -80,7 +82,10 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
     grid = W_GRID if w is None else (w,)
     opts = dict(lam=lam, volume=volume, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
     screened = []
-    for k, r in enumerate(rots):
+    from tqdm.auto import tqdm
+
+    long = len(xn) * len(yn) >= PROGRESS_PAIRS
+    for k, r in enumerate(tqdm(rots, desc="register: starts", disable=not long, leave=False)):
         u = xn @ r.T
         s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(u, yn)
         st = EMState(u=u, kernel=kernel_of(u), coef=np.zeros_like(u), s2=s2, w=screen_w)
@@ -93,8 +98,10 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
             if wk == screen_w and st0.ok:
                 fits.append((f0, k, st0))
                 continue
-            st = EMState(u=st0.u, kernel=st0.kernel, coef=st0.coef.copy(), s2=st0.s2, w=wk, it=st0.it)
-            run_em(st, yn, max_iter=max(max_iter - st.it, 1), **opts)
+            # each weight from the start: a fit continued from another weight's keeps that weight's basin
+            s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(st0.u, yn)
+            st = EMState(u=st0.u, kernel=st0.kernel, coef=np.zeros_like(st0.u), s2=s2, w=wk)
+            run_em(st, yn, max_iter=max_iter, **opts)
             fits.append((objective(st, yn, lam=lam, volume=volume), k, st))
     fits.sort(key=lambda c: c[0])
     return fits, rots, screened
@@ -148,18 +155,6 @@ def refit(u, yn, w, kernel_of, *, volume, lam, fixed_s2, max_iter, tol, s2_floor
     return run_em(st, yn, lam=lam, volume=volume, max_iter=max_iter, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
 
 
-def similarity_of(x, y):
-    """The similarity ``y ≈ s R x + t`` of least squares (Umeyama): (A = s R, t)."""
-    mx, my = x.mean(axis=0), y.mean(axis=0)
-    xc, yc = x - mx, y - my
-    u, sv, vt = np.linalg.svd(yc.T @ xc)
-    c = np.ones(len(sv))
-    c[-1] = np.sign(np.linalg.det(u @ vt)) or 1.0
-    r = (u * c) @ vt
-    s = float(np.sum(sv * c) / max(np.sum(xc * xc), 1e-300))
-    return s * r, my - s * r @ mx
-
-
 def with_kernel(kernel_matrix_of, *, invariant):
     """``kernel_of(u)`` for :func:`fit_all`: an (n, n) kernel of the weight coordinates is factored
     (once, when ``invariant``: it does not change with a rotation of ``u``), an (n d, n d) kernel on
@@ -176,4 +171,4 @@ def with_kernel(kernel_matrix_of, *, invariant):
     return kernel_of
 
 
-__all__ = ["fit_all", "assess", "refit", "start_rotations", "similarity_of", "with_kernel", "W_GRID", "N_KEEP"]
+__all__ = ["fit_all", "assess", "refit", "start_rotations", "with_kernel", "W_GRID", "N_KEEP"]

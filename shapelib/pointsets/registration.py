@@ -66,6 +66,9 @@ W_MAX = 0.9
 SIGMA2_FLOOR = 1e-4
 #: the deformation kernels: the metric in the mixture's weight coordinates, or on its means
 KERNELS = ("weights", "means")
+#: non-rigid: larger sets are registered through subsets of this many points (farthest-point samples),
+#: the fit carried to every source point by the kernel: memory and time stay bounded
+MAX_POINTS = 800
 
 
 class RegistrationWarning(RuntimeWarning):
@@ -256,7 +259,11 @@ class RegistrationResult:
     @property
     def probabilities(self) -> np.ndarray:
         """Soft correspondences ``P`` (n, m): ``P_ij`` the posterior that target point j came
-        from source point i (columns sum to ``1 −`` the outlier posterior)."""
+        from source point i (columns sum to ``1 −`` the outlier posterior). Not kept for sets over
+        ``MAX_POINTS`` points (a ValueError)."""
+        if self._p is None:
+            raise ValueError(f"probabilities are not kept for sets over {MAX_POINTS} points (they would take "
+                             f"{len(self.points) * len(self._target) * 8 / 1e9:.1f} GB); use correspondence")
         return self._p.copy()
 
     @property
@@ -320,12 +327,16 @@ class RegistrationResult:
         if self.metric != "alpha":
             raise ValueError("method='kernel' needs the closed-form alpha kernel; register with metric='alpha'")
         mean, size = self._frame
-        rot, mx, sx, *shift = self._start
-        zn = ((x - mx) / sx) @ rot.T + (shift[0] if shift else 0.0)  # the frame of the fit's start
+        a0, t0, mx, sx, scale, rot, shift = self._start
+        zn = ((x - mx) / sx) @ a0.T + t0  # the frame of the fit
         s2g = self.sigma2_metric / size ** 2
         if self._kernel == "weights":
-            return (zn + overlap_kernel(zn, self._u, s2g) @ self._coef) * size + mean
-        return (zn + (alpha_kernel(zn, self._u, s2g) @ self._coef.ravel()).reshape(-1, d)) * size + mean
+            z = zn + overlap_kernel(zn, self._u, s2g) @ self._coef
+        else:
+            z = zn + (alpha_kernel(zn, self._u, s2g) @ self._coef.ravel()).reshape(-1, d)
+        if rot is not None:  # the similarity in front of the deformation
+            z = scale * z @ rot.T + shift
+        return z * size + mean
 
     def summary(self) -> str:
         """A few lines: the pose, the fit, the correspondences and convergence."""
@@ -464,7 +475,12 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}; got {kernel!r}")
     tol = check_positive(tol, name="tol")
+    if transform == "nonrigid" and max(len(x), len(y)) > MAX_POINTS and (metric, kernel) != ("alpha", "weights"):
+        raise ValueError(f"sets of over {MAX_POINTS} points are registered with metric='alpha' and kernel='weights' "
+                         f"(their fit is carried to every point by the kernel); got metric={metric!r}, kernel={kernel!r}")
     with one_blas_thread():
+        if transform == "nonrigid" and max(len(x), len(y)) > MAX_POINTS:
+            return _register_large(x, y, fixed_s2, w0, auto_w, reflection, lam, s2g, max_iter, tol, n_steps, warn)
         if transform == "nonrigid":
             return _register_nonrigid(x, y, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, max_iter,
                                       tol, n_steps, warn)
@@ -585,16 +601,16 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
     fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=search_kernel, w=None if auto_w else w,
                                       reflection=reflection, **em_opts)
     f0, k, st = fits[0]
-    # the similarity part of the deformation, as the pose (the posed source: the geodesic's start)
-    a, t = _nonrigid.similarity_of(xn, st.theta)
-    frame = (rots[k], mx, sx)
+    start = (rots[k], np.zeros(x.shape[1]))  # x -> u = ((x − m_x)/s_x) A0ᵀ + t0, the fit's frame
     reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2)
     if (metric, kernel) != ("alpha", "weights"):
+        a, t = _pose_of(st, *start)
         st = _nonrigid.refit(xn @ a.T + t, yn, st.w, _nonrigid.with_kernel(
             lambda u: _kernel(u, s2g, metric, kernel), invariant=False), volume=box_volume(yn), **em_opts)
-        f0, frame = None, (a, mx, sx, t)
-        a, t = _nonrigid.similarity_of(xn, st.theta)
+        f0, start = None, (a, t)
         reasons = reasons + _nonrigid.assess([(0.0, 0, st)], yn, spacing2=spacing2)[0]
+    # the similarity in front of the deformation, as the pose (the posed source: the geodesic's start)
+    a, t = _pose_of(st, *start)
     theta = st.theta
     diagnostics.update(objective=f0, candidates=[(f, int(kk), float(s.w)) for f, kk, s in fits])
     p = posteriors(theta, yn, st.s2, st.w, box_volume(yn))
@@ -610,7 +626,49 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
         warnings.warn("register: the registration is probably wrong: " + "; ".join(reasons), RegistrationWarning,
                       stacklevel=3)
     return _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, "nonrigid", metric, s2g, kernel, n_steps,
-                   reasons=reasons, diagnostics=diagnostics, start=frame)
+                   reasons=reasons, diagnostics=diagnostics, start=(*start, mx, sx, st.scale, st.rot, st.shift))
+
+
+def farthest_points(a, k):
+    """Indices of ``k`` points of ``a`` spread over it: farthest-point sampling from the point nearest
+    the centroid (deterministic)."""
+    idx = np.empty(k, dtype=np.intp)
+    idx[0] = int(np.argmin(np.sum((a - a.mean(axis=0)) ** 2, axis=1)))
+    dist = np.sum((a - a[idx[0]]) ** 2, axis=1)
+    for i in range(1, k):
+        idx[i] = int(np.argmax(dist))
+        dist = np.minimum(dist, np.sum((a - a[idx[i]]) ** 2, axis=1))
+    return np.sort(idx)
+
+
+def _register_large(x, y, fixed_s2, w, auto_w, reflection, lam, s2g, max_iter, tol, n_steps, warn):
+    """Non-rigid for sets over ``MAX_POINTS``: the registration of farthest-point subsets, its kernel
+    warp applied to every source point, correspondences by nearest neighbours within 3σ."""
+    from dataclasses import replace
+
+    from scipy.spatial import cKDTree
+
+    ix = farthest_points(x, min(len(x), MAX_POINTS))
+    iy = farthest_points(y, min(len(y), MAX_POINTS))
+    sub = _register_nonrigid(x[ix], y[iy], "alpha", fixed_s2, w, auto_w, reflection, lam, s2g, "weights", max_iter,
+                             tol, n_steps, warn)
+    points = sub.warp(x)
+    reach = 3.0 * np.sqrt(sub.sigma2) + np.sqrt(_spacing2(y))
+    dist, near = cKDTree(y).query(points)
+    corr = np.where(dist <= reach, near, -1)
+    dist_t, near_t = cKDTree(points).query(y)
+    tcorr = np.where(dist_t <= reach, near_t, -1)
+    diagnostics = dict(sub.diagnostics, subsets=(len(ix), len(iy)))
+    return replace(sub, points=points, correspondence=corr, target_correspondence=tcorr, diagnostics=diagnostics,
+                   _source=x, _target=y, _p=None, _geodesic=None)
+
+
+def _pose_of(st, a0, t0):
+    """The similarity ``x_n ↦ a x_n + t`` (normalised units) of a fit from the frame ``u = x_n a0ᵀ + t0``."""
+    if st.rot is None:
+        return a0, t0
+    a = st.scale * st.rot @ a0
+    return a, st.scale * st.rot @ t0 + st.shift
 
 
 def _spacing2(yn):

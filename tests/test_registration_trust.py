@@ -1,0 +1,175 @@
+"""shapelib.register with its defaults, on the degradations of the Chui–Rangarajan benchmark made
+small: a deformation, noise, outliers in the target, a part of the source that the target lacks,
+any rotation — each recovered against its known truth; and a
+result that says when it probably failed (a near-symmetric shape, a target of pure noise), in the
+right units, whatever the order of the points."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import shapelib as sl
+from shapelib.cli import EXIT_UNCONVERGED, main
+
+
+def fish(n=60):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return np.column_stack([np.cos(t) + 0.45 * np.cos(2 * t), 0.55 * np.sin(t) + 0.12 * np.sin(2 * t)])
+
+
+def rot2(a):
+    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+
+
+def warp(x, amount=0.3):
+    """A smooth non-rigid map: a bend and a bulge."""
+    return x + np.column_stack([0.05 * np.sin(2 * x[:, 1]), amount * x[:, 0] ** 2 - 0.1])
+
+
+def size(y):
+    return float(np.sqrt(np.mean(np.sum((y - y.mean(0)) ** 2, axis=1))))
+
+
+def register_quietly(x, y, **kw):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = sl.register(x, y, **kw)
+    return res, [w for w in caught if issubclass(w.category, sl.RegistrationWarning)]
+
+
+def outliers(rng, y, k):
+    lo, hi = y.min(0) - 0.3, y.max(0) + 0.3
+    return lo + (hi - lo) * rng.random((k, 2))
+
+
+CASES = {
+    # name: (target builder, indices of the source with a known image, tolerance in units of the target's size)
+    "deformation": lambda x, rng: (warp(x, 0.25) @ rot2(0.3).T, np.arange(len(x)), 0.01),
+    "noise": lambda x, rng: (warp(x) + 0.02 * rng.normal(size=x.shape), np.arange(len(x)), 0.03),
+    "outliers": lambda x, rng: (np.vstack([warp(x), outliers(rng, warp(x), 60)]), np.arange(len(x)), 0.01),
+    "rotation 180": lambda x, rng: (warp(x) @ rot2(np.pi).T * 2.0 + [3.0, -1.0], np.arange(len(x)), 0.01),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_each_degradation_is_recovered_with_the_defaults_and_said_reliable(name):
+    x = fish()
+    rng = np.random.default_rng(7)
+    y, known, tol = CASES[name](x, rng)
+    truth = y[: len(known)] if name != "noise" else warp(x)
+    res, warned = register_quietly(x, rng.permutation(y, axis=0))
+    err = np.mean(np.linalg.norm(res.points[known] - truth, axis=1))
+    assert err < tol * size(truth), (name, err)
+    assert res.reliable and not res.reasons and not warned, res.reasons
+
+
+def test_outliers_in_the_target_are_unmatched_and_the_outlier_weight_is_chosen_above_the_smallest():
+    x = fish()
+    rng = np.random.default_rng(3)
+    y = np.vstack([warp(x), outliers(rng, warp(x), 60)])  # half the target is clutter
+    res, _ = register_quietly(x, y)
+    assert res.w >= 0.2
+    tc = res.target_correspondence
+    assert np.mean(tc[60:] == -1) > 0.9  # the clutter has no source point
+    off = np.abs(tc[:60] - np.arange(60))
+    assert np.mean(np.minimum(off, 60 - off) <= 1) > 0.9  # the outline keeps its counterparts (± one point)
+
+
+def test_a_part_only_the_source_has_matches_nothing():
+    x = fish()
+    y = warp(x, 0.25)[:52]  # the last eight points of the outline are missing from the target
+    res, _ = register_quietly(x, y)
+    assert np.all(res.correspondence[53:] == -1)  # inside the missing part: no counterpart
+    assert np.all(res.target_correspondence >= 0)  # and every target point has one
+
+
+def test_a_symmetric_shape_is_flagged_as_ambiguous():
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    ellipse = np.column_stack([1.6 * np.cos(t), np.sin(t)])  # the same shape after a half turn
+    res, warned = register_quietly(ellipse, ellipse @ rot2(0.4).T)
+    assert not res.reliable and warned
+    assert any("another pose" in r for r in res.reasons)
+    assert "NOT RELIABLE" in res.summary()
+
+
+def test_a_target_of_pure_noise_is_flagged_not_reported_as_a_good_fit():
+    x = fish()
+    y = np.random.default_rng(0).uniform(-1.5, 1.5, size=(80, 2))
+    res, warned = register_quietly(x, y)
+    assert not res.reliable and warned and res.reasons
+
+
+def test_reordering_either_set_only_reorders_the_result():
+    x, y = fish(), warp(fish()) @ rot2(2.0).T
+    rng = np.random.default_rng(1)
+    ps, pt = rng.permutation(60), rng.permutation(60)
+    a, _ = register_quietly(x, y)
+    b, _ = register_quietly(x[ps], y[pt])
+    assert np.allclose(b.points, a.points[ps], atol=1e-4 * size(y))  # EM stops at its tolerance
+    assert np.mean(pt[b.correspondence] == a.correspondence[ps]) > 0.95
+
+
+def test_sigma2_and_the_objective_are_in_the_target_units():
+    x, y = fish(), warp(fish())
+    a, _ = register_quietly(x, y)
+    b, _ = register_quietly(x, 10.0 * y + 5.0)  # the same target in other units
+    assert b.sigma2 == pytest.approx(100.0 * a.sigma2, rel=1e-6)
+    assert b.sigma2_objective == pytest.approx(100.0 * a.sigma2_objective, rel=1e-6)
+    assert np.allclose(b.points, 10.0 * a.points + 5.0, atol=1e-6)
+    # the objective is the L2 distance of the moved source's and the target's mixtures at sigma2_objective
+    for r, t in ((a, y), (b, 10.0 * y + 5.0)):
+        independent = np.sqrt(sl.l2_distance_sq(r.points, t, sigma2=r.sigma2_objective))
+        assert r.objective == pytest.approx(independent, rel=1e-6)
+
+
+def test_the_em_sigma2_of_an_exact_fit_is_tiny_and_of_a_noisy_fit_near_the_noise():
+    x = fish()
+    y = warp(x) + np.random.default_rng(5).normal(scale=0.03, size=x.shape)
+    res, _ = register_quietly(x, y)
+    # sigma2 estimates the residual variance per coordinate, between the noise's share left after the
+    # smooth fit and the noise itself
+    assert 0.2 * 0.03 ** 2 < res.sigma2 < 1.5 * 0.03 ** 2
+
+
+def test_the_kernel_on_the_means_interpolates_and_follows_a_mild_bend():
+    x = fish(30)
+    y = warp(x, 0.1)
+    res, _ = register_quietly(x, y, kernel="means")
+    assert np.allclose(res.warp(x), res.points, atol=1e-8)  # the kernel carries the source onto the fit
+    assert np.mean(np.linalg.norm(res.points - y, axis=1)) < 0.05 * size(y)
+
+
+def test_three_dimensional_rotation_and_bend_are_recovered():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(60, 3)) * [2.0, 1.0, 0.6]
+    y = (x + 0.15 * np.sin(x[:, [1, 2, 0]])) @ Rotation.from_euler("zyx", [150, 40, 70], degrees=True).as_matrix().T
+    res, _ = register_quietly(x, y[::-1])
+    assert np.median(np.linalg.norm(res.points - y, axis=1)) < 0.01 * size(y)  # the far tails of a
+    assert res.reliable  # Gaussian cloud have few neighbours to follow
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(sigma2="sometimes"), "sigma2 must be a positive number or 'auto'"),
+    (dict(sigma2=0.0), "sigma2"),
+])
+def test_bad_sigma2_gets_one_clear_error(kwargs, words):
+    with pytest.raises(ValueError, match=words):
+        sl.register(fish(10), fish(12), **kwargs)
+
+
+def test_command_line_sigma2_auto_and_the_exit_status_of_a_probable_failure(tmp_path, capsys):
+    src, good, noise = tmp_path / "s.csv", tmp_path / "t.csv", tmp_path / "n.csv"
+    sl.write_point_set(src, fish())
+    sl.write_point_set(good, warp(fish()))
+    sl.write_point_set(noise, np.random.default_rng(0).uniform(-1.5, 1.5, size=(80, 2)))
+    assert main(["register", str(src), str(good), "-o", str(tmp_path / "m.csv"), "--sigma2", "auto"]) == 0
+    out = capsys.readouterr().out
+    assert "reliable" in out and "NOT RELIABLE" not in out
+    assert main(["register", str(src), str(noise), "-o", str(tmp_path / "m2.csv")]) == EXIT_UNCONVERGED
+    captured = capsys.readouterr()
+    assert "NOT RELIABLE" in captured.out and "probably failed" in captured.err
+    assert main(["register", str(src), str(good), "-o", str(tmp_path / "m3.csv"), "--sigma2", "big"]) == 1
+    assert "--sigma2 must be a positive number or 'auto'" in capsys.readouterr().err
