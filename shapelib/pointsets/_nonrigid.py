@@ -37,8 +37,6 @@ SCREEN_ITER = 40
 N_KEEP = 2
 #: the outlier weight of the screening
 W_SCREEN = 0.2
-#: a progress bar over the starts when the sets have at least this many point pairs
-PROGRESS_PAIRS = 250_000
 #: the outlier weights compared when ``w="auto"``
 W_GRID = (0.05, 0.2, 0.5)
 
@@ -82,10 +80,7 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
     grid = W_GRID if w is None else (w,)
     opts = dict(lam=lam, volume=volume, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
     screened = []
-    from tqdm.auto import tqdm
-
-    long = len(xn) * len(yn) >= PROGRESS_PAIRS
-    for k, r in enumerate(tqdm(rots, desc="register: starts", disable=not long, leave=False)):
+    for k, r in enumerate(rots):
         u = xn @ r.T
         s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(u, yn)
         st = EMState(u=u, kernel=kernel_of(u), coef=np.zeros_like(u), s2=s2, w=screen_w)

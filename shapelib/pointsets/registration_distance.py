@@ -52,8 +52,9 @@ def registration_misfits(u, v, *, reflection: bool = True, lam: float = 2.0, sig
         unit.append(x / radius)  # unit mean squared radius: σ² in the target's units is the misfit
     out = []
     for a, b in ((unit[0], unit[1]), (unit[1], unit[0])):
+        # w = 0: every target point must be explained, so that no misfit hides as "outliers"
         r = register(a, b, transform="nonrigid", reflection=reflection, lam=lam, sigma2_metric=sigma2_metric,
-                     max_iter=max_iter, tol=tol, warn=False)
+                     w=0.0, max_iter=max_iter, tol=tol, warn=False)
         out.append((float(r.sigma2), bool(r.converged), int(r.n_iter)))
     (m_uv, c_uv, n_uv), (m_vu, c_vu, n_vu) = out
     return m_uv, m_vu, c_uv and c_vu, n_uv + n_vu
