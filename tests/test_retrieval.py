@@ -26,6 +26,22 @@ def test_bullseye_known_answer():
     assert bullseye(d, labels).value == 1.0
 
 
+def test_bullseye_default_top_is_twice_the_largest_class():
+    # three classes of c = 2 on a line: a at 0 and 3.5, b at 1 and 2, c far away at 20 and 21. By hand:
+    # the query a@0 ranks 0, 1, 2, 3.5 and a@3.5 ranks 3.5, 2, 1, 0: each finds its class-mate 4th,
+    # inside the 2c = 4 nearest but not the 2c - 1 = 3 nearest; b and c find theirs 2nd or 3rd
+    pos = np.array([0.0, 3.5, 1.0, 2.0, 20.0, 21.0])
+    labels = ["a", "a", "b", "b", "c", "c"]
+    d = np.abs(pos[:, None] - pos[None, :])
+    s = bullseye(d, labels)
+    assert s.top == 4
+    np.testing.assert_array_equal(s.hits, [2, 2, 2, 2, 2, 2])
+    assert s.value == 1.0
+    three = bullseye(d, labels, top=3)  # one fewer: the a queries lose their class-mate
+    np.testing.assert_array_equal(three.hits, [1, 1, 2, 2, 2, 2])
+    assert three.value == pytest.approx(10 / 12)
+
+
 def test_bullseye_counts_the_query_itself_first():
     d = np.zeros((4, 4))  # every distance ties: the query comes first, then index order
     s = bullseye(d, [0, 1, 0, 1], top=2)

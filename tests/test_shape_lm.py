@@ -100,3 +100,33 @@ def test_allometry_recovers_a_known_allometric_vector_and_corrects_for_size(rng)
     assert np.abs(c @ (corr - corr.mean(axis=0))).max() < 1e-10
     with pytest.raises(ValueError, match="same centroid size"):
         allometry(sl.to_centroid_size(shapes, 1.0))
+
+
+def test_allometry_of_rectangles_against_hand_made_procrustes_coordinates(rng):
+    """Rectangles with half-sides (a, b) centred on the axes: their Procrustes coordinates at unit
+    size are the corners over the centroid size 2 √(a² + b²) (two such rectangles are already at
+    their best rotation, the identity), so the slope, mean and r² follow from a least-squares fit
+    of those coordinates on [1, log CS], whatever common frame the alignment picks."""
+    from scipy.linalg import orthogonal_procrustes
+
+    from shapelib.statistics.allometry import allometry
+
+    size = np.exp(rng.uniform(0.0, 1.5, 12))
+    a, b = size * (1 + 0.3 * np.log(size)), size  # elongates as it grows
+    corners = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+    shapes = np.stack([corners * [ai, bi] for ai, bi in zip(a, b)])
+    cs = 2 * np.sqrt(a ** 2 + b ** 2)
+    y = (shapes / cs[:, None, None]).reshape(len(size), -1)  # hand-made Procrustes coordinates
+    design = np.column_stack([np.ones_like(cs), np.log(cs) - np.log(cs).mean()])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    resid = y - design @ coef
+    r2 = 1 - np.sum(resid ** 2) / np.sum((y - y.mean(axis=0)) ** 2)
+
+    res = allometry(shapes, n_permutations=19)
+    np.testing.assert_allclose(res.centroid_size, cs, rtol=1e-12)
+    rot, _ = orthogonal_procrustes(coef[0].reshape(4, 2), res.mean)  # the alignment's common frame
+    np.testing.assert_allclose(res.mean, coef[0].reshape(4, 2) @ rot, atol=1e-9)
+    np.testing.assert_allclose(res.slope, coef[1].reshape(4, 2) @ rot, atol=1e-9)
+    assert res.r2 == pytest.approx(r2, rel=1e-9)
+    np.testing.assert_allclose(res.corrected.reshape(len(size), -1),
+                               ((coef[0] + resid).reshape(-1, 4, 2) @ rot).reshape(len(size), -1), atol=1e-9)
