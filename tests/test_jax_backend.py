@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, import_or_missing
 
 import shapelib
 from shapelib.solver.energy import path_energy
@@ -19,7 +19,7 @@ from shapelib.solver.path_metric import path_metric
 
 if "jax" not in sys.modules:  # compile time dominates these small problems: XLA's cheapest code generation
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
-jax = pytest.importorskip("jax")
+jax = import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
 
 from shapelib.geometry import _jax_kernels as jk  # noqa: E402
 from shapelib.solver import batched  # noqa: E402
