@@ -130,7 +130,7 @@ def write_record(runs: list[dict], argv: list[str]) -> Path:
     old = json.loads(RECORD.read_text()) if RECORD.is_file() else {}
     modules = {m["module"]: m for m in old.get("results", {}).get("modules", [])}
     modules.update({r["module"]: r for r in runs})
-    data = {"benchmark": "mutation", "command": "python benchmarks/mutation.py " + " ".join(argv),
+    data = {"benchmark": "mutation", "command": " ".join(["python benchmarks/mutation.py", *(a for a in argv if a != "--record")]),
             "machine": machine(),
             "results": {"tool": f"mutmut {_version()}", "modules": sorted(modules.values(), key=lambda m: m["module"])}}
     RECORD.parent.mkdir(parents=True, exist_ok=True)
