@@ -144,3 +144,87 @@ def test_tpsdig_curves_slide_and_the_metrics_take_the_result(rng, tmp_path):
     assert np.isfinite(d) and d > 0
     with pytest.raises(ValueError, match="slides twice"):
         slide_semilandmarks(both, np.array([[4, 5, 6], [5, 5, 6]]))
+
+
+def test_curve_sliders_open_and_closed():
+    np.testing.assert_array_equal(curve_sliders(3, 4), [[3, 4, 5], [4, 5, 6]])
+    np.testing.assert_array_equal(curve_sliders(0, 3), [[0, 1, 2]])  # open by default: the ends stay
+    np.testing.assert_array_equal(curve_sliders(2, 4, closed=True), [[5, 2, 3], [2, 3, 4], [3, 4, 5], [4, 5, 2]])
+    two = curve_sliders(5, 2)  # no interior point: no slider, still an (m, 3) integer array
+    assert two.shape == (0, 3) and np.issubdtype(two.dtype, np.integer)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_bending_energy_matrix_is_positive_semidefinite_with_the_affine_maps_as_null_space(rng, d):
+    import warnings
+
+    ref = rng.normal(size=(9, d))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # r² log r at r = 0 is 0, silently
+        lk = bending_energy_matrix(ref)
+    np.testing.assert_allclose(lk, lk.T, atol=1e-12)
+    affine = np.column_stack([np.ones(9), ref])
+    np.testing.assert_allclose(lk @ affine, 0.0, atol=1e-9)
+    eig = np.linalg.eigvalsh(lk)
+    assert eig.min() > -1e-9 * eig.max()  # a bending energy is never negative
+    assert np.sum(eig > 1e-9 * eig.max()) == 9 - (d + 1)  # and zero only for the affine maps
+    np.testing.assert_allclose(bending_energy_matrix(np.round(ref * 10).astype(int)),
+                               bending_energy_matrix(np.round(ref * 10)), atol=1e-12)
+
+
+def test_a_semilandmark_between_coincident_neighbours_stays():
+    """Its tangent is undefined (a zero chord): the point does not move, and nothing is NaN."""
+    y = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5], [0.2, 0.7]])
+    mean = y + 0.1
+    sliders = np.array([[0, 4, 0], [1, 5, 2]])
+    for criterion in ("procrustes", "bending_energy"):
+        lk = bending_energy_matrix(mean) if criterion == "bending_energy" else None
+        out = _slide_one(y, mean, sliders, criterion, lk)
+        assert np.all(np.isfinite(out))
+        np.testing.assert_array_equal(out[4], y[4])
+
+
+def test_slide_result_reports_what_it_did_and_stops_by_its_rule(rng):
+    """The shapes at unit centroid size; the result names its sliders and criterion; it stops at
+    the first iteration whose Procrustes sum of squares (recomputed here) changed by less than tol,
+    or after exactly max_iter iterations."""
+    x = _quads_with_an_edge_curve(rng)
+    sliders = curve_sliders(4, 5)
+    tol = 1e-4
+    res = slide_semilandmarks(x, sliders, criterion="procrustes", tol=tol)
+    assert res.converged and res.stop_reason == "tol" and res.criterion == "procrustes" and res.n_iter >= 2
+    np.testing.assert_array_equal(res.sliders, sliders)
+    np.testing.assert_allclose([sl.geometry.procrustes.centroid_size(s) for s in res.shapes], 1.0, rtol=1e-12)
+
+    def ss(n):
+        r = slide_semilandmarks(x, sliders, criterion="procrustes", tol=1e-300, max_iter=n)
+        assert r.n_iter == n and not r.converged and r.stop_reason == "max_iter"
+        return float(np.sum((r.shapes - r.mean) ** 2))
+
+    last, before, earlier = ss(res.n_iter), ss(res.n_iter - 1), ss(res.n_iter - 2)
+    assert abs(before - last) / last < tol <= abs(earlier - before) / before
+    assert res.summary() == (f"3 semilandmarks slid by minimum procrustes on 8 shapes: converged True in "
+                             f"{res.n_iter} iterations (tol)")
+    assert slide_semilandmarks(x, sliders).summary().startswith("3 semilandmarks slid by minimum bending energy on")
+    curved = slide_semilandmarks(_arcs(rng), curve_sliders(2, 8))  # creeps along the arc: the default 20
+    assert (curved.n_iter, curved.converged, curved.stop_reason) == (20, False, "max_iter")
+
+
+def test_bad_sliders_and_shapes_are_value_errors_that_say_what_is_wrong(rng):
+    x = _quads_with_an_edge_curve(rng, n=3)  # 9 landmarks
+    ok = curve_sliders(4, 5)
+    for bad in (np.array([4, 5, 6]), np.array([[4, 5], [5, 6]]), ok.astype(float)):
+        with pytest.raises(ValueError, match=r"^sliders must be an \(m, 3\) array of landmark indices; got "):
+            slide_semilandmarks(x, bad)
+    with pytest.raises(ValueError, match=r"^sliders name landmark 9; the shapes have landmarks 0 to 8$"):
+        slide_semilandmarks(x, np.array([[7, 8, 9]]))
+    with pytest.raises(ValueError, match=r"^sliders name landmark -1; the shapes have landmarks 0 to 8$"):
+        slide_semilandmarks(x, np.array([[-1, 0, 1]]))
+    assert slide_semilandmarks(x, np.array([[0, 4, 8]])).shapes.shape == x.shape  # 0 and 8 are landmarks
+    with pytest.raises(ValueError, match=r"^a landmark slides twice: each point may appear once in the middle "
+                                         r"column of sliders$"):
+        slide_semilandmarks(x, np.array([[4, 5, 6], [4, 5, 7]]))
+    with pytest.raises(ValueError, match=r"^criterion must be one of \('bending_energy', 'procrustes'\); got 'x'"):
+        slide_semilandmarks(x, ok, criterion="x")
+    with pytest.raises(ValueError, match=r"^shapes must contain at least 2 shape"):
+        slide_semilandmarks(x[:1], ok)
