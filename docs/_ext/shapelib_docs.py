@@ -417,7 +417,7 @@ def _mutation(r: dict) -> list[Table]:
             "limit. Each module's load average at its start is in the record.")
     tables = [Table("Mutation score per module", ["module", "date", "tool", "mutants", "killed", "survived", "score"],
                     rows, note, key="modules")]
-    left = [[f"``{m['module']}``", f"``{s['mutant'].rsplit('.', 1)[-1]}``", f"``{s['diff'].splitlines()[-1].strip()}``"
+    left = [[f"``{m['module']}``", f"``{s['mutant'].rsplit('.', 1)[-1]}``", f"``{s['diff'].splitlines()[-1].lstrip('+').strip()}``"
              if s["diff"] else "—", s["why"]] for m in mods for s in m["survivors"]]
     if left:
         tables.append(Table("Surviving mutants", ["module", "mutant", "change", "why it survives"], left,
