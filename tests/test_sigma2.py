@@ -11,6 +11,7 @@ from shapelib import ScaleWarning, geodesic, landmark_spacing
 from shapelib.geometry.scale import estimate_sigma2
 from shapelib.geometry.procrustes import pose_align
 from shapelib.geometry.sigma2 import predictive_sigma2, scatter_sigma2
+from tests.conftest import ellipse_population
 
 
 def _contour(k, d, rng):
@@ -121,3 +122,31 @@ def test_scale_warning_advises_the_estimate(rng):
     s2 = estimate_sigma2(np.stack([u, v])).sigma2
     assert f"estimate_sigma2(shapes) gives sigma2 = {s2:.3g}" in text[0]
     assert "below 0.2 spacings too" in text[0] and "closed-form bounds (alpha_bound, fisher_rao_bound) are still exact" in text[0]
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_predictive_sigma2_of_two_far_spread_shapes_has_its_closed_form(d):
+    """Two shapes whose landmarks are 100 apart and differ by radial moves (zero mean, no torque: the
+    superimposition leaves them), so each landmark is predicted by its own counterpart alone:
+    ŝ² = mean |δ_a|² / d, and the rule returns ŝ²/2 times the pose correction kd / (kd − d(d+1)/2)
+    (1 when the pose has as many parameters as the coordinates: two landmarks in 3-D)."""
+    if d == 2:
+        u = 100.0 * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+        eps = np.array([0.3, 0.1, 0.3, 0.1])  # opposite corners move alike
+    else:
+        u = 100.0 * np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+        eps = np.array([0.2, 0.2])
+    v = u + eps[:, None] * u / np.linalg.norm(u, axis=1, keepdims=True)
+    s2 = np.mean(eps ** 2) / d
+    # 2-D: 8 coordinates, 3 pose parameters (2 shifts, 1 rotation); 3-D: 6 coordinates, 6 pose parameters
+    pose = 8 / (8 - 3) if d == 2 else 1.0
+    assert predictive_sigma2(np.stack([u, v])) == pytest.approx(s2 / 2 * pose, rel=1e-6)
+
+
+def test_predictive_sigma2_draws_partners_with_its_seed(rng):
+    x = ellipse_population(rng, 10, k=6, noise=0.1)
+    a = [predictive_sigma2(x, partners=2, seed=s) for s in (0, 0, 3)]
+    assert a[0] == a[1] and a[0] != a[2]
+    assert predictive_sigma2(x, partners=2) == a[0]
+    with pytest.raises(ValueError, match="partners"):
+        predictive_sigma2(x, partners=0)
