@@ -228,3 +228,12 @@ def test_bad_sliders_and_shapes_are_value_errors_that_say_what_is_wrong(rng):
         slide_semilandmarks(x, ok, criterion="x")
     with pytest.raises(ValueError, match=r"^shapes must contain at least 2 shape"):
         slide_semilandmarks(x[:1], ok)
+
+
+def test_slid_shapes_slid_again_stop_after_one_iteration(rng):
+    """Shapes already slid to convergence: the first iteration changes the sum of squares by less
+    than tol (measured from their own alignment), so it stops there, converged, in 1 iteration."""
+    x = _quads_with_an_edge_curve(rng)
+    first = slide_semilandmarks(x, curve_sliders(4, 5), criterion="procrustes", tol=1e-4)
+    again = slide_semilandmarks(first.shapes, curve_sliders(4, 5), criterion="procrustes", tol=1e-4)
+    assert (again.n_iter, again.converged, again.stop_reason) == (1, True, "tol")
