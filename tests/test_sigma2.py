@@ -171,3 +171,24 @@ def test_predictive_sigma2_input_errors():
         predictive_sigma2(np.ones((1, 4, 2)))
     with pytest.raises(ValueError, match=r"\bpartners\b"):
         predictive_sigma2(np.random.default_rng(0).normal(size=(3, 4, 2)), partners=0)
+
+
+def test_scatter_sigma2_of_two_shapes_differing_by_radial_moves_has_its_closed_form():
+    """Two squares 100 wide, corners moved radially by δ_a (the superimposition leaves them): each
+    deviation from the mean is ±δ_a/2, the degrees of freedom (N − 1) K d − N d(d + 1)/2 = 8 − 6 = 2,
+    so σ² = Σ δ_a² / 2 / 2 with standard error σ² √(2/2); and one degree of freedom is enough."""
+    u = 100.0 * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+    eps = np.array([0.3, 0.1, 0.3, 0.1])
+    v = u + eps[:, None] * u / np.linalg.norm(u, axis=1, keepdims=True)
+    s2, se, per = scatter_sigma2(np.stack([u, v]))
+    assert s2 == pytest.approx(np.sum(eps ** 2) / 4, rel=1e-9) and se == pytest.approx(s2, rel=1e-9)
+    np.testing.assert_allclose(per, eps ** 2 / 2 / (2 / 4), rtol=1e-9)
+    one = scatter_sigma2(np.random.default_rng(1).normal(size=(5, 2, 2)))  # 4·2·2 − 5·3 = 1
+    assert one[1] == pytest.approx(one[0] * np.sqrt(2.0), rel=1e-12)
+    with pytest.raises(ValueError, match=r"^shapes: 2 shapes of 2 landmarks in 2-D leave no degrees of freedom once "
+                                         r"their pose is fitted; sigma2 cannot be estimated from them$"):
+        scatter_sigma2(np.random.default_rng(1).normal(size=(2, 2, 2)))
+    with pytest.raises(ValueError, match="^shapes: every shape is the same, so the landmark scatter"):
+        scatter_sigma2(np.stack([u, u, u]))
+    with pytest.raises(ValueError, match="^shapes must contain at least 2 shape"):
+        scatter_sigma2(u[None])
