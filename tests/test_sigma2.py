@@ -192,4 +192,3 @@ def test_scatter_sigma2_of_two_shapes_differing_by_radial_moves_has_its_closed_f
         scatter_sigma2(np.stack([u, u, u]))
     with pytest.raises(ValueError, match="^shapes must contain at least 2 shape"):
         scatter_sigma2(u[None])
-
