@@ -225,6 +225,7 @@ def test_wendland_unchanged_in_3d(pair3):
     assert wendland_bending_energy(u, v) != pytest.approx(tps_bending_energy(u, v), rel=1e-3)
 
 
+@pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")  # the far point is a pose difference too
 def test_hausdorff_takes_the_larger_of_the_two_directed_distances():
     """One far point of v: v → u is 8 (10 to 2), u → v is 1 (2 to 1); the distance is 8 both ways."""
     u = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
