@@ -9,7 +9,7 @@ PY     := $(VENV)/bin/python
 JOBS   ?=
 ARGS   ?=
 
-.PHONY: setup results quick test test-all docs lab bench clean
+.PHONY: setup results quick test test-all docs lab bench mutate clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -58,6 +58,15 @@ bench: setup
 	$(PY) benchmarks/bench_pairwise.py --record
 	$(PY) benchmarks/bench_registration.py --samples 10 --record
 	$(PY) benchmarks/bench_registration_3d.py --record
+
+# mutation testing of one module of the numerical core, or of those changed since a commit, against the tests
+# that cover it (benchmarks/mutation_targets.toml; minutes per module; not part of `make test`):
+#   make mutate MODULE=shapelib/geometry/gmm.py     make mutate SINCE=main     (RECORD=1: into the docs' record)
+MODULE ?=
+SINCE  ?=
+RECORD ?=
+mutate: setup
+	nice -n 10 $(PY) benchmarks/mutation.py $(MODULE) $(if $(SINCE),--since $(SINCE),) $(if $(RECORD),--record,)
 
 clean:
 	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/api/reference docs/auto_examples \

@@ -53,6 +53,49 @@ def raw_data():
 requires_data = pytest.mark.usefixtures("raw_data")
 
 
+def in_ci() -> bool:
+    """``CI`` is set (to anything but empty, 0, false or no): .ci/run and hosted CI runners set it."""
+    return os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
+
+
+def missing(reason: str):
+    """Something a test needs is not here: the test FAILS in CI (where everything must be there)
+    and is skipped elsewhere, saying why in one line either way."""
+    if in_ci():
+        pytest.fail(f"{reason} (CI is set: a test may not skip for want of it)", pytrace=False)
+    pytest.skip(reason)
+
+
+def needs(available: bool, reason: str):
+    """Decorator: run the test when ``available``; else :func:`missing` (fail in CI, skip elsewhere)."""
+    import functools
+
+    def decorate(test):
+        if available:
+            return test
+
+        @functools.wraps(test)
+        def unavailable(*args, **kwargs):
+            missing(reason)
+
+        return unavailable
+
+    return decorate
+
+
+def import_or_missing(module: str, reason: str):
+    """``pytest.importorskip`` that fails in CI: the module, or the whole test module skipped
+    (failed in CI) with ``reason`` and the import error."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        if in_ci():
+            pytest.fail(f"{reason}: {exc} (CI is set: a test may not skip for want of it)", pytrace=False)
+        pytest.skip(f"{reason}: {exc}", allow_module_level=True)
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(20261122)

@@ -12,7 +12,7 @@ import pytest
 
 import run_all
 import shapelib
-from tests.conftest import ROOT, requires_data
+from tests.conftest import ROOT, needs, requires_data
 
 DOCS = ROOT / "docs"
 #: modules documented under their own name (``shapelib.io.read_landmarks``); they load on first use
@@ -175,8 +175,8 @@ def test_an_executed_notebook_becomes_a_page_with_its_parameters_and_no_build_pa
 # the built site (docs/_build/html, written by `make docs`; CI builds it before the tests)
 
 HTML = DOCS / "_build" / "html"
-requires_html = pytest.mark.skipif(not (HTML / "api" / "index.html").is_file(),
-                                   reason="the documentation is not built (make docs)")
+requires_html = needs((HTML / "api" / "index.html").is_file(),
+                      f"the documentation is not built: no {HTML / 'api' / 'index.html'} (make docs)")
 
 #: what every API page shows: a function its Parameters (if it takes any, as tests/test_docstrings.py
 #: asks), Returns and an Example; a class its Parameters or Attributes and an Example; a page of a

@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 
 from shapelib import io
+from tests.conftest import import_or_missing
 
-ktch_io = pytest.importorskip("ktch.io")
+ktch_io = import_or_missing("ktch.io", "ktch (the dev extra: the independent reader) is not installed")
 
 
 def _write(path, text, *, crlf=False):

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, import_or_missing
 
 import shapelib
 from shapelib.solver.energy import path_energy
@@ -19,7 +19,7 @@ from shapelib.solver.path_metric import path_metric
 
 if "jax" not in sys.modules:  # compile time dominates these small problems: XLA's cheapest code generation
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
-jax = pytest.importorskip("jax")
+jax = import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
 
 from shapelib.geometry import _jax_kernels as jk  # noqa: E402
 from shapelib.solver import batched  # noqa: E402
@@ -110,7 +110,7 @@ def test_converged_geodesic_matches_the_cpu_solver_and_is_certified_the_same_way
     np.testing.assert_array_equal(gpu_path.path[[0, -1]], np.stack([u, v]))
 
 
-@pytest.mark.slow  # JAX compiles new programs here (minutes on 2 cores): `make test-all`
+@pytest.mark.slow  # 7 s of CPU beyond its fixture (JAX compiles the batched Fisher–Rao programs); test_each_pair_of_a_batch_gets_its_own_geodesic checks α batches in `make test`
 def test_batched_geodesics_equal_one_by_one(pair2, fr_geodesics):
     u, v = pair2
     v2 = shapelib.procrustes_align(u, _pair(np.random.default_rng(11), 5, 2, 0.3)[1] * 0.2 + 0.8 * v, scaling=False)
@@ -124,6 +124,27 @@ def test_batched_geodesics_equal_one_by_one(pair2, fr_geodesics):
     single = shapelib.geodesic(u, v2, metric="fisher_rao", sigma2=S2, n_steps=6, tol=1e-8, max_iter=2000,
                                backend="jax", device="cpu")
     assert res[1].length == pytest.approx(single.length, rel=1e-10)
+
+
+def test_each_pair_of_a_batch_gets_its_own_geodesic():
+    """Three different pairs in one device batch (α, 3 landmarks, 4 steps: seconds of compilation):
+    each result has its own pair's endpoints and the length and path of the CPU solver's geodesic
+    of that pair alone."""
+    rng = np.random.default_rng(3)
+    u = _shape(rng, 3, 2)
+    v = [shapelib.procrustes_align(u, u + rng.normal(size=u.shape) * s, scaling=False) for s in (0.2, 0.5, 0.9)]
+    us, vs = np.stack([u, v[0], u]), np.stack(v)
+    kw = dict(metric="alpha", sigma2=S2, n_steps=4, tol=1e-9, max_iter=500)
+    res = batched.batched_geodesics(us, vs, device="cpu", batch_size=3, **kw)
+    lengths = []
+    for a, b, r in zip(us, vs, res):
+        one = shapelib.geodesic(a, b, **kw)
+        assert r.converged and one.converged
+        np.testing.assert_array_equal(r.path[[0, -1]], np.stack([a, b]))
+        assert r.length == pytest.approx(one.length, rel=1e-7)
+        np.testing.assert_allclose(r.path, one.path, atol=1e-6)
+        lengths.append(one.length)
+    assert min(abs(p - q) for i, p in enumerate(lengths) for q in lengths[i + 1:]) > 1e-3  # three different answers
 
 
 @pytest.fixture(scope="module")
@@ -192,7 +213,7 @@ def test_missing_jax_is_a_one_line_import_error_naming_the_extra():
     assert proc.stdout.count("\n") == 1
 
 
-@pytest.mark.slow  # JAX compiles new programs here (minutes on 2 cores): `make test-all`
+@pytest.mark.slow  # 35 s of CPU (the GPU benchmark's CPU check, JAX compiling in a subprocess): `make test-all`
 def test_bench_gpu_cpu_check_writes_a_record(tmp_path):
     out = tmp_path / "bench_gpu.json"
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_gpu.py"), "--cpu-check", "--json", str(out)],
@@ -230,7 +251,7 @@ def three(pair2):
     return np.stack([u, v, v2])
 
 
-@pytest.mark.slow  # JAX compiles new programs here (minutes on 2 cores): `make test-all`
+@pytest.mark.slow  # 9 s of CPU (JAX compiles the engine's block programs): `make test-all`
 @pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
 def test_pairwise_engine_sends_a_block_to_the_device_as_one_batch(three, fr_geodesics):
     d = shapelib.pairwise_distances(three, metric="fisher_rao", sigma2=S2, n_steps=6, tol=1e-8, max_iter=2000,
@@ -240,7 +261,7 @@ def test_pairwise_engine_sends_a_block_to_the_device_as_one_batch(three, fr_geod
     assert d[0, 1] == pytest.approx(fr_geodesics[0].length, rel=1e-6)  # and the CPU one
 
 
-@pytest.mark.slow  # JAX compiles new programs here (minutes on 2 cores): `make test-all`
+@pytest.mark.slow  # 6 s of CPU (JAX compiles the batched log maps): `make test-all`
 @pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")
 def test_frechet_mean_with_batched_log_maps_matches_the_cpu_mean(three):
     # α: its programs do not depend on a grid, so the moving base compiles nothing new per iteration

@@ -56,6 +56,53 @@ def test_leave_one_out_sigma2_is_a_maximum_scales_with_the_points_and_its_se_mat
     assert 0.5 < np.std(boot) / fit.standard_error < 2.0
 
 
+def test_leave_one_out_of_far_apart_pairs_has_its_closed_form():
+    """Pairs of points, the pairs 100 apart: each point's leave-one-out density is its mate's
+    Gaussian alone, ℓ_i = −δ_i²/(2σ²) − log(2πσ²) − log(n − 1) in 2-D with δ_i the pair's gap. So
+    σ̂² = mean(δ_i²)/2 and, in t = log σ², the score s_i = δ_i²/(2σ²) − 1, the curvature −n and
+    the sandwich standard error σ̂² √(Σ s_i²)/n (the curvature alone would say σ̂²/√n)."""
+    gaps = np.array([0.05, 0.1, 0.2, 0.5, 1.0, 1.5, 2.0])
+    centres = 100.0 * np.column_stack([np.arange(7.0), np.arange(7.0) % 2])
+    x = np.concatenate([centres, centres + gaps[:, None] * [0.6, 0.8]])
+    delta2 = np.tile(gaps ** 2, 2)
+    n = len(x)
+    fit = fit_mixture(x, tol=1e-13)
+    s2 = np.mean(delta2) / 2
+    assert fit.sigma2 == pytest.approx(s2, rel=1e-9)
+    ll = np.sum(-delta2 / (2 * s2) - np.log(2 * np.pi * s2) - np.log(n - 1))
+    assert fit.log_likelihood == pytest.approx(ll, rel=1e-9)
+    score = delta2 / (2 * s2) - 1
+    assert fit.standard_error == pytest.approx(s2 * np.sqrt(np.sum(score ** 2)) / n, rel=1e-6)
+    assert abs(fit.standard_error - s2 / np.sqrt(n)) > 0.2 * fit.standard_error  # the two differ here
+
+
+def test_leave_one_out_likelihood_and_sandwich_error_against_scipy_densities():
+    """On a small irregular set: ℓ_LOO summed from scipy's Gaussian densities; its maximiser found
+    by scipy; the sandwich error from finite differences of the per-point terms in log σ²."""
+    from scipy.optimize import minimize_scalar
+    from scipy.stats import multivariate_normal
+
+    rng = np.random.default_rng(1)
+    c = rng.uniform(0, 20, size=(6, 2))
+    x = np.concatenate([c, c + np.array([0.05, 0.1, 0.2, 1.0, 1.5, 2.0])[:, None] * [1.0, 0.0]])
+    n, d = x.shape
+
+    def per_point(t):  # ℓ_i at σ² = e^t (the density is symmetric in x_i and x_j)
+        return np.array([np.log(np.mean(multivariate_normal.pdf(np.delete(x, i, axis=0), mean=x[i],
+                                                                cov=np.exp(t) * np.eye(d)))) for i in range(n)])
+
+    fit = fit_mixture(x, tol=1e-13)
+    t = np.log(fit.sigma2)
+    assert fit.log_likelihood == pytest.approx(per_point(t).sum(), rel=1e-10)
+    best = minimize_scalar(lambda u: -per_point(u).sum(), bracket=(t - 1, t + 1), tol=1e-10)
+    assert fit.sigma2 == pytest.approx(np.exp(best.x), rel=1e-6)
+    h = 1e-4
+    score = (per_point(t + h) - per_point(t - h)) / (2 * h)
+    curvature = (per_point(t + 10 * h).sum() - 2 * per_point(t).sum() + per_point(t - 10 * h).sum()) / (10 * h) ** 2
+    assert fit.standard_error == pytest.approx(fit.sigma2 * np.sqrt(np.sum(score ** 2)) / abs(curvature), rel=1e-5)
+    assert fit.standard_error > 1.2 * fit.sigma2 / np.sqrt(abs(curvature))  # not the curvature-only error
+
+
 def test_em_rejects_bad_input():
     with pytest.raises(ValueError, match="n_components must be at most the number of points 5"):
         fit_mixture(np.arange(10.0).reshape(5, 2) ** 2, n_components=6)

@@ -38,6 +38,10 @@ def test_procrustes_anova_matches_vegan_adonis2(adhd):
     assert fit.table.loc["diagnosis", "F"] == pytest.approx(r.loc["diagnosis", "F"], rel=2e-3)
     assert fit.table.loc["diagnosis", "r2"] == pytest.approx(r.loc["diagnosis", "r2"], rel=2e-3)
     assert fit.table.loc["diagnosis", "df"] == r.loc["diagnosis", "df"]
+    # the sums of squares themselves (F and r² are ratios: coordinates at the wrong scale keep them);
+    # R's are on the partial Procrustes tangent coordinates at unit size, ours on the aligned ones
+    for term in ("diagnosis", "Residual", "Total"):
+        assert fit.table.loc[term, "sum_of_squares"] == pytest.approx(r.loc[term, "sum_of_squares"], rel=2e-3)
     assert (fit.table.loc["diagnosis", "p_value"] <= 0.05) == (r.loc["diagnosis", "p_value"] <= 0.05)
 
 

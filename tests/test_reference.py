@@ -4,7 +4,7 @@ import re
 import pandas as pd
 import pytest
 
-from tests.conftest import ROOT, SHARED
+from tests.conftest import ROOT, SHARED, needs
 
 PAPER = SHARED / "paper" / "peter-rangarajan-information-geometry-landmark-shapes.txt"
 
@@ -25,7 +25,7 @@ def test_table1_reference_is_complete_and_consistent():
     assert (ref.loc[alpha, "scale"] == 1e-3).all() and (ref.loc[~alpha, "scale"] == 1e-2).all()
 
 
-@pytest.mark.skipif(not PAPER.exists(), reason="paper text not available")
+@needs(PAPER.exists(), f"the paper text is not at {PAPER} (the shared/ folder beside the checkout)")
 def test_table1_reference_matches_paper_text_cell_by_cell():
     text = PAPER.read_text()
     rows = re.findall(r"(\d) vs\. (\d)((?: \d+\.\d\d){11})", text)

@@ -1,5 +1,7 @@
 """Bull's-eye scores on constructed distance matrices with known answers; the Procrustes outline baseline."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -24,6 +26,22 @@ def test_bullseye_known_answer():
     assert s.summary().startswith("bull's-eye 87.50 %")
     # default top: twice the class size -> every query finds all 4 among its 8 nearest here
     assert bullseye(d, labels).value == 1.0
+
+
+def test_bullseye_default_top_is_twice_the_largest_class():
+    # three classes of c = 2 on a line: a at 0 and 3.5, b at 1 and 2, c far away at 20 and 21. By hand:
+    # the query a@0 ranks 0, 1, 2, 3.5 and a@3.5 ranks 3.5, 2, 1, 0: each finds its class-mate 4th,
+    # inside the 2c = 4 nearest but not the 2c - 1 = 3 nearest; b and c find theirs 2nd or 3rd
+    pos = np.array([0.0, 3.5, 1.0, 2.0, 20.0, 21.0])
+    labels = ["a", "a", "b", "b", "c", "c"]
+    d = np.abs(pos[:, None] - pos[None, :])
+    s = bullseye(d, labels)
+    assert s.top == 4
+    np.testing.assert_array_equal(s.hits, [2, 2, 2, 2, 2, 2])
+    assert s.value == 1.0
+    three = bullseye(d, labels, top=3)  # one fewer: the a queries lose their class-mate
+    np.testing.assert_array_equal(three.hits, [1, 1, 2, 2, 2, 2])
+    assert three.value == pytest.approx(10 / 12)
 
 
 def test_bullseye_counts_the_query_itself_first():
@@ -72,3 +90,67 @@ def test_procrustes_outline_equals_best_shift_of_the_landmark_procrustes_distanc
     assert D[1, 2] < 1e-7 and D[0, 3] < 1e-7  # the mirror image matches with reflection=True
     assert procrustes_outline_matrix([a, a * [-1, 1]], reflection=False)[0, 1] > 0.01
     np.testing.assert_allclose(D, D.T)
+
+
+def test_procrustes_outline_matrix_of_many_outlines_in_small_chunks_is_the_brute_force_one():
+    """Every entry against the landmark Procrustes distance minimised over start points and
+    directions (no mirror images: ``reflection=False``), rows computed 2 at a time or all at
+    once; small outlines (centroid size below 1) are no special case."""
+    outlines = np.stack([_outline(s, n=16) for s in range(5)]) * 0.05
+    D = procrustes_outline_matrix(outlines, reflection=False, chunk=2)
+    for i in range(5):
+        for j in range(5):
+            brute = min(sl.procrustes_distance(outlines[i], np.roll(w, s, axis=0))
+                        for w in (outlines[j], outlines[j][::-1]) for s in range(16))
+            assert D[i, j] == pytest.approx(brute, abs=1e-9), (i, j)
+    assert np.all(np.diag(D) == 0.0)
+    np.testing.assert_allclose(procrustes_outline_matrix(outlines, reflection=False), D, atol=1e-12)
+
+
+def test_bad_outlines_are_value_errors_naming_the_outlines():
+    with pytest.raises(ValueError, match=r"^outlines must be an \(N, n, 2\) array.*got shape \(2, 5, 3\)"):
+        procrustes_outline_matrix(np.zeros((2, 5, 3)))
+    with pytest.raises(ValueError, match=r"^outlines contains non-finite values"):
+        procrustes_outline_matrix(np.stack([_outline(1, n=8), np.full((8, 2), np.nan)]))
+    with pytest.raises(ValueError, match=r"^outlines\[1\]: all points coincide"):
+        procrustes_outline_matrix(np.stack([_outline(1, n=8), np.ones((8, 2))]))
+
+
+def test_bullseye_edge_cases_ties_and_summary():
+    d = np.abs(np.subtract.outer([0.0, 1.0, 5.0, 6.0, 6.5], [0.0, 1.0, 5.0, 6.0, 6.5]))
+    labels = np.array([3, 3, 7, 7, 3])
+    # top = 1: each query finds itself only, a perfect score; top = 0 is no score
+    assert bullseye(d, labels, top=1).value == 1.0
+    with pytest.raises(ValueError, match="^top must be at least 1; got 0"):
+        bullseye(d, labels, top=0)
+    # integer distances are distances (the query still comes first)
+    np.testing.assert_array_equal(bullseye(d.astype(int), labels, top=2).hits, bullseye(d, labels, top=2).hits)
+    # the per-class scores are keyed by plain Python labels (they go into JSON)
+    s = bullseye(d, labels, top=2)
+    # by hand at top 2 (itself and its nearest): class 3 at 0 and 1 find each other (2 hits each), at
+    # 6.5 finds 6 of class 7 (1): 5/6; class 7 at 5 finds 6 (2), at 6 finds 6.5 (1): 3/4; 8/10 overall
+    assert json.loads(json.dumps(s.per_class)) == {"3": pytest.approx(5 / 6), "7": 0.75}
+    # the summary lists the worst classes first, in percent
+    assert s.summary() == "bull's-eye 80.00 % (5 queries, top 2); worst classes: 7 75.0 %, 3 83.3 %"
+    # 40 shapes at one distance from each other: ties go by index after the query, whatever
+    # the size (an unstable sort reorders ties beyond 16 elements)
+    ties = np.ones((40, 40))
+    found = nearest_wrong(ties, np.arange(40) % 2, k=20)
+    np.testing.assert_array_equal(found, [np.arange(1 - q % 2, 40, 2) for q in range(40)])
+
+
+def test_nearest_wrong_default_and_the_largest_k():
+    pos = np.array([0.0, 0.4, 1.0, 3.0, 3.2])
+    labels = np.array(["a", "a", "b", "b", "c"])
+    d = np.abs(pos[:, None] - pos[None, :])
+    np.testing.assert_array_equal(nearest_wrong(d, labels), [[2], [2], [1], [4], [3]])
+    assert nearest_wrong(d, labels, k=3).shape == (5, 3)  # "a" and "b" have exactly 3 others
+    with pytest.raises(ValueError, match="k must"):
+        nearest_wrong(d, labels, k=0)
+
+
+def test_summary_names_the_three_worst_classes():
+    from shapelib.retrieval import BullseyeScore
+
+    s = BullseyeScore(0.5, {"w": 0.9, "x": 0.2, "y": 0.5, "z": 0.4}, np.ones(8, int), 4)
+    assert s.summary() == "bull's-eye 50.00 % (8 queries, top 4); worst classes: x 20.0 %, z 40.0 %, y 50.0 %"

@@ -100,3 +100,64 @@ def test_allometry_recovers_a_known_allometric_vector_and_corrects_for_size(rng)
     assert np.abs(c @ (corr - corr.mean(axis=0))).max() < 1e-10
     with pytest.raises(ValueError, match="same centroid size"):
         allometry(sl.to_centroid_size(shapes, 1.0))
+
+
+def test_allometry_of_rectangles_against_hand_made_procrustes_coordinates(rng):
+    """Rectangles with half-sides (a, b) centred on the axes: their Procrustes coordinates at unit
+    size are the corners over the centroid size 2 √(a² + b²) (two such rectangles are already at
+    their best rotation, the identity), so the slope, mean and r² follow from a least-squares fit
+    of those coordinates on [1, log CS], whatever common frame the alignment picks."""
+    from scipy.linalg import orthogonal_procrustes
+
+    from shapelib.statistics.allometry import allometry
+
+    size = np.exp(rng.uniform(0.0, 1.5, 12))
+    a, b = size * (1 + 0.3 * np.log(size)), size  # elongates as it grows
+    corners = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+    shapes = np.stack([corners * [ai, bi] for ai, bi in zip(a, b)])
+    cs = 2 * np.sqrt(a ** 2 + b ** 2)
+    y = (shapes / cs[:, None, None]).reshape(len(size), -1)  # hand-made Procrustes coordinates
+    design = np.column_stack([np.ones_like(cs), np.log(cs) - np.log(cs).mean()])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    resid = y - design @ coef
+    r2 = 1 - np.sum(resid ** 2) / np.sum((y - y.mean(axis=0)) ** 2)
+
+    res = allometry(shapes, n_permutations=19)
+    np.testing.assert_allclose(res.centroid_size, cs, rtol=1e-12)
+    rot, _ = orthogonal_procrustes(coef[0].reshape(4, 2), res.mean)  # the alignment's common frame
+    np.testing.assert_allclose(res.mean, coef[0].reshape(4, 2) @ rot, atol=1e-9)
+    np.testing.assert_allclose(res.slope, coef[1].reshape(4, 2) @ rot, atol=1e-9)
+    assert res.r2 == pytest.approx(r2, rel=1e-9)
+    assert res.F == pytest.approx(r2 / (1 - r2) * (len(size) - 2), rel=1e-9)  # one term, n − 2 residual df
+    assert res.n_permutations == 19
+    assert res.summary().startswith(f"allometry: shape on log centroid size (12 shapes, size {cs.min():.4g} … "
+                                    f"{cs.max():.4g}): R² = {r2:.4g}, F = {res.F:.4g}, permutation p = ")
+    assert res.summary().endswith("(19 permutations)")
+    np.testing.assert_allclose(res.corrected.reshape(len(size), -1),
+                               ((coef[0] + resid).reshape(-1, 4, 2) @ rot).reshape(len(size), -1), atol=1e-9)
+
+
+def test_allometry_tests_by_shape_lm_with_its_seed_and_checks_its_input(rng):
+    """The permutation test is shape_lm's on log centroid size, with the seed given (0 by default,
+    999 permutations); a size effect too weak to find, so that the p-value depends on the draws."""
+    from shapelib.statistics.allometry import allometry
+
+    x = ellipse_population(rng, 10, k=5, noise=0.05) * rng.uniform(1, 2, 10)[:, None, None]
+    data = pd.DataFrame({"log_size": np.log([sl.geometry.procrustes.centroid_size(s) for s in x])})
+    y = procrustes_coordinates(x)
+    p = {seed: shape_lm("~ log_size", data, y, n_permutations=49, seed=seed).table.loc["log_size", "p_value"]
+         for seed in (0, 1, 5)}
+    assert len(set(p.values())) > 1  # the draws matter here
+    assert allometry(x, n_permutations=49, seed=5).p_value == p[5]
+    assert allometry(x, n_permutations=49).p_value == p[0]
+    full = allometry(x)
+    assert full.n_permutations == 999 and full.p_value == \
+        shape_lm("~ log_size", data, y, seed=0).table.loc["log_size", "p_value"]
+    assert allometry(x[:3], n_permutations=19).centroid_size.shape == (3,)  # three shapes are enough
+    with pytest.raises(ValueError, match=r"^shapes must contain at least 3 shape"):
+        allometry(x[:2])
+    # sizes equal to 1e-11 of the size itself: the same size, whatever the units
+    same = np.stack([sl.to_centroid_size(s, 1000.0 * (1 + 1e-14 * i)) for i, s in enumerate(x[:4])])
+    with pytest.raises(ValueError, match="the shapes all have the same centroid size: were they scaled to unit size "
+                                         "already[?] allometry needs the shapes as measured"):
+        allometry(same)

@@ -11,6 +11,7 @@ from shapelib import ScaleWarning, geodesic, landmark_spacing
 from shapelib.geometry.scale import estimate_sigma2
 from shapelib.geometry.procrustes import pose_align
 from shapelib.geometry.sigma2 import predictive_sigma2, scatter_sigma2
+from tests.conftest import ellipse_population
 
 
 def _contour(k, d, rng):
@@ -121,3 +122,73 @@ def test_scale_warning_advises_the_estimate(rng):
     s2 = estimate_sigma2(np.stack([u, v])).sigma2
     assert f"estimate_sigma2(shapes) gives sigma2 = {s2:.3g}" in text[0]
     assert "below 0.2 spacings too" in text[0] and "closed-form bounds (alpha_bound, fisher_rao_bound) are still exact" in text[0]
+
+
+@pytest.mark.parametrize("d, k", [(2, 4), (2, 2), (3, 2)])
+def test_predictive_sigma2_of_two_far_spread_shapes_has_its_closed_form(d, k):
+    """Two shapes whose landmarks are 100 apart and differ by radial moves (zero mean, no torque: the
+    superimposition leaves them), so each landmark is predicted by its own counterpart alone:
+    ŝ² = mean |δ_a|² / d, and the rule returns ŝ²/2 times the pose correction kd / (kd − d(d+1)/2)
+    (1 when the pose has as many parameters as the coordinates: two landmarks in 3-D)."""
+    if k == 4:
+        u = 100.0 * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+        eps = np.array([0.3, 0.1, 0.3, 0.1])  # opposite corners move alike
+    else:
+        u = 100.0 * np.eye(d)[:1] * [[1.0], [-1.0]]
+        eps = np.array([0.2, 0.2])
+    v = u + eps[:, None] * u / np.linalg.norm(u, axis=1, keepdims=True)
+    s2 = np.mean(eps ** 2) / d
+    # 2-D: 2k coordinates, 3 pose parameters (2 shifts, 1 rotation); 3-D: 6 coordinates, 6 pose parameters
+    pose = {(2, 4): 8 / (8 - 3), (2, 2): 4 / (4 - 3), (3, 2): 1.0}[d, k]
+    assert predictive_sigma2(np.stack([u, v])) == pytest.approx(s2 / 2 * pose, rel=1e-6)
+
+
+def test_predictive_sigma2_draws_partners_with_its_seed(rng):
+    x = ellipse_population(rng, 10, k=6, noise=0.1)
+    a = [predictive_sigma2(x, partners=2, seed=s) for s in (0, 0, 3)]
+    assert a[0] == a[1] and a[0] != a[2]
+    assert predictive_sigma2(x, partners=2) == a[0]
+    with pytest.raises(ValueError, match="partners"):
+        predictive_sigma2(x, partners=0)
+
+
+def test_predictive_sigma2_of_three_shapes_pairs_each_with_the_two_others():
+    """Three far-spread shapes differing by radial moves A and B: the ordered pairs (u, v), (u, w),
+    (v, w) and back differ by A, B and A − B, never a shape with itself (nor a pair twice)."""
+    u = 100.0 * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+    radial = u / np.linalg.norm(u, axis=1, keepdims=True)
+    a, b = np.array([0.3, 0.1, 0.3, 0.1]), np.array([-0.05, 0.2, -0.05, 0.2])
+    x = np.stack([u, u + a[:, None] * radial, u + b[:, None] * radial])
+    s2 = np.mean(np.concatenate([a ** 2, b ** 2, (a - b) ** 2])) / 2
+    assert predictive_sigma2(x) == pytest.approx(s2 / 2 * 8 / 5, rel=1e-6)
+    assert predictive_sigma2(x, partners=2, seed=7) == pytest.approx(s2 / 2 * 8 / 5, rel=1e-6)
+
+
+def test_predictive_sigma2_input_errors():
+    with pytest.raises(ValueError, match="^shapes: all landmarks coincide, so no sigma2 can be estimated from them$"):
+        predictive_sigma2(np.zeros((3, 4, 2)))
+    with pytest.raises(ValueError, match="^shapes must contain at least 2 shape"):
+        predictive_sigma2(np.ones((1, 4, 2)))
+    with pytest.raises(ValueError, match=r"\bpartners\b"):
+        predictive_sigma2(np.random.default_rng(0).normal(size=(3, 4, 2)), partners=0)
+
+
+def test_scatter_sigma2_of_two_shapes_differing_by_radial_moves_has_its_closed_form():
+    """Two squares 100 wide, corners moved radially by δ_a (the superimposition leaves them): each
+    deviation from the mean is ±δ_a/2, the degrees of freedom (N − 1) K d − N d(d + 1)/2 = 8 − 6 = 2,
+    so σ² = Σ δ_a² / 2 / 2 with standard error σ² √(2/2); and one degree of freedom is enough."""
+    u = 100.0 * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+    eps = np.array([0.3, 0.1, 0.3, 0.1])
+    v = u + eps[:, None] * u / np.linalg.norm(u, axis=1, keepdims=True)
+    s2, se, per = scatter_sigma2(np.stack([u, v]))
+    assert s2 == pytest.approx(np.sum(eps ** 2) / 4, rel=1e-9) and se == pytest.approx(s2, rel=1e-9)
+    np.testing.assert_allclose(per, eps ** 2 / 2 / (2 / 4), rtol=1e-9)
+    one = scatter_sigma2(np.random.default_rng(1).normal(size=(5, 2, 2)))  # 4·2·2 − 5·3 = 1
+    assert one[1] == pytest.approx(one[0] * np.sqrt(2.0), rel=1e-12)
+    with pytest.raises(ValueError, match=r"^shapes: 2 shapes of 2 landmarks in 2-D leave no degrees of freedom once "
+                                         r"their pose is fitted; sigma2 cannot be estimated from them$"):
+        scatter_sigma2(np.random.default_rng(1).normal(size=(2, 2, 2)))
+    with pytest.raises(ValueError, match="^shapes: every shape is the same, so the landmark scatter"):
+        scatter_sigma2(np.stack([u, u, u]))
+    with pytest.raises(ValueError, match="^shapes must contain at least 2 shape"):
+        scatter_sigma2(u[None])

@@ -223,3 +223,20 @@ def test_wendland_unchanged_in_3d(pair3):
     dsp = v - u
     assert wendland_bending_energy(u, v, affine=False) == pytest.approx(np.trace(dsp.T @ np.linalg.solve(kmat, dsp)), rel=1e-10)
     assert wendland_bending_energy(u, v) != pytest.approx(tps_bending_energy(u, v), rel=1e-3)
+
+
+@pytest.mark.filterwarnings("ignore::shapelib.PoseWarning")  # the far point is a pose difference too
+def test_hausdorff_takes_the_larger_of_the_two_directed_distances():
+    """One far point of v: v → u is 8 (10 to 2), u → v is 1 (2 to 1); the distance is 8 both ways."""
+    u = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    v = np.array([[0.0, 0.0], [1.0, 0.0], [10.0, 0.0]])
+    assert directed_hausdorff(u, v)[0] == 1.0 and directed_hausdorff(v, u)[0] == 8.0
+    assert hausdorff_distance(u, v) == 8.0 and hausdorff_distance(v, u) == 8.0
+
+
+def test_hausdorff_of_unaligned_shapes_warns_naming_it():
+    import shapelib as sl
+
+    u = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.5], [0.2, 0.9]])
+    with pytest.warns(sl.PoseWarning, match=r"\bhausdorff\b"):
+        hausdorff_distance(u, u @ np.array([[0.0, -1.0], [1.0, 0.0]]).T)

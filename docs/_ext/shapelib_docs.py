@@ -480,9 +480,25 @@ def _retrieval(r: dict) -> list[Table]:
 
 
 
+def _mutation(r: dict) -> list[Table]:
+    mods = r.get("modules", [])
+    rows = [[f"``{m['module']}``", _date(m["date"]), m["tool"], str(m["mutants"]), str(m["killed"]), str(m["survived"]),
+             f"{m['score']:.1f} %"] for m in mods]
+    note = ("Killed: a test of the module's test files (benchmarks/mutation_targets.toml) failed or ran past the time "
+            "limit. Each module's load average at its start is in the record.")
+    tables = [Table("Mutation score per module", ["module", "date", "tool", "mutants", "killed", "survived", "score"],
+                    rows, note, key="modules")]
+    left = [[f"``{m['module']}``", f"``{s['mutant'].rsplit('.', 1)[-1]}``", f"``{s['diff'].splitlines()[-1].lstrip('+').strip()}``"
+             if s["diff"] else "—", s["why"]] for m in mods for s in m["survivors"]]
+    if left:
+        tables.append(Table("Surviving mutants", ["module", "mutant", "change", "why it survives"], left,
+                            key="survivors"))
+    return tables
+
+
 RENDERERS = {"bench_registration": _registration, "bench_registration_3d": _registration_3d, "bench_geodesic": _geodesic, "bench_bracket": _bracket, "bench_pairwise": _pairwise,
              "bench_solvers": _solvers, "run_times": _run_times, "bench_intrinsic": _intrinsic, "bench_gpu": _gpu,
-             "bench_retrieval": _retrieval}
+             "bench_retrieval": _retrieval, "mutation": _mutation}
 #: records that may be absent (measured on hardware that is not always at hand): the page says so
 OPTIONAL = {"bench_gpu": "Pending a measurement on a GPU: run ``python benchmarks/bench_gpu.py`` on a machine "
                          "with an NVIDIA GPU and ``pip install \"shapelib[gpu]\"``, which writes the record this "

@@ -1,0 +1,182 @@
+"""Mutation testing of the numerical core with mutmut: how many small changes to a module (an operator,
+a constant, an argument) its tests notice.
+
+    python benchmarks/mutation.py shapelib/geometry/gmm.py [more modules]   # or: make mutate MODULE=...
+    python benchmarks/mutation.py --since <commit>                          # or: make mutate SINCE=...
+
+Each module is mutated in a scratch copy of the repository (build/mutation/<module>/, so the checkout
+is never touched) and only the test files that cover it are run against each mutant (the mapping is
+benchmarks/mutation_targets.toml; slow-marked tests are left out, as in ``make test``). A mutant that
+runs past mutmut's time limit (``--timeout-multiplier`` times the tests' own time) counts as killed.
+
+The score of each module, with the date, the machine, mutmut's version and every surviving mutant
+(its diff, and why it survives: benchmarks/mutation_notes.toml, written by hand), goes into
+docs/_data/benchmarks/mutation.json (``--record``), which the performance page renders.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks._machine import RECORD_DIR, loadavg, machine  # noqa: E402
+
+TARGETS = ROOT / "benchmarks" / "mutation_targets.toml"
+NOTES = ROOT / "benchmarks" / "mutation_notes.toml"
+SCRATCH = ROOT / "build" / "mutation"
+RECORD = RECORD_DIR / "mutation.json"
+#: the numerical core: what `--since` looks at
+CORE = ("shapelib/geometry/", "shapelib/solver/", "shapelib/pointsets/", "shapelib/statistics/",
+        "shapelib/comparison/", "shapelib/retrieval.py")
+KILLED = {"killed", "timeout"}
+
+
+def targets() -> dict[str, list[str]]:
+    """Module -> the test files that cover it (benchmarks/mutation_targets.toml)."""
+    return tomllib.loads(TARGETS.read_text())["modules"]
+
+
+def notes() -> dict[str, str]:
+    """Mutant name -> why it survives (benchmarks/mutation_notes.toml), where someone has looked."""
+    return tomllib.loads(NOTES.read_text()).get("survivors", {}) if NOTES.is_file() else {}
+
+
+def changed_since(commit: str) -> list[str]:
+    """The modules of the numerical core changed since ``commit`` (committed or not)."""
+    out = subprocess.run(["git", "diff", "--name-only", commit, "--", "shapelib"], cwd=ROOT, check=True,
+                         capture_output=True, text=True).stdout.split()
+    return sorted(p for p in out if p.endswith(".py") and p.startswith(CORE) and (ROOT / p).is_file())
+
+
+def _mutmut_config(module: str, tests: list[str], timeout_multiplier: float) -> str:
+    quoted = lambda xs: "[" + ", ".join(json.dumps(x) for x in xs) + "]"  # noqa: E731
+    return ("\n[tool.mutmut]\n"
+            'source_paths = ["shapelib"]\n'
+            f"only_mutate = {quoted([module])}\n"
+            f"pytest_add_cli_args_test_selection = {quoted(tests)}\n"
+            'pytest_add_cli_args = ["-p", "no:xdist", "-p", "no:cacheprovider", "-q", "--durations=0"]\n'
+            'also_copy = ["data"]\n'
+            f"timeout_multiplier = {float(timeout_multiplier)}\n"
+            "timeout_constant = 5.0\n")
+
+
+def _mutmut(args: list[str], cwd: Path, log=None) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env.setdefault("SHAPELIB_DATA_DIR", str(ROOT.parent / "shared" / "data"))
+    return subprocess.run([sys.executable, "-m", "mutmut", *args], cwd=cwd, env=env, text=True,
+                          stdout=log if log is not None else subprocess.PIPE,
+                          stderr=subprocess.STDOUT if log is not None else subprocess.PIPE)
+
+
+def run_module(module: str, tests: list[str], *, max_children: int, timeout_multiplier: float) -> dict:
+    """Mutate ``module`` in a scratch copy, run ``tests`` against every mutant; the counts and the survivors."""
+    slug = module.removesuffix(".py").replace("/", ".")
+    work = SCRATCH / slug
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir(parents=True)
+    skip = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc")
+    for folder in ("shapelib", "tests", "data"):
+        shutil.copytree(ROOT / folder, work / folder, ignore=skip)
+    (work / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text()
+                                         + _mutmut_config(module, tests, timeout_multiplier))
+    load_start, t0 = loadavg(), time.perf_counter()
+    with open(work / "mutmut.log", "w") as log:
+        rc = _mutmut(["run", "--max-children", str(max_children)], work, log).returncode
+    seconds = time.perf_counter() - t0
+    listing = _mutmut(["results", "--all", "true"], work).stdout
+    status = dict(re.findall(r"^\s+(\S+): (.+?)\s*$", listing, flags=re.M))
+    if rc != 0 or not status:
+        tail = (work / "mutmut.log").read_text()[-3000:]
+        raise RuntimeError(f"mutmut failed on {module} (exit {rc}); the end of {work / 'mutmut.log'}:\n{tail}")
+    why = notes()
+    counts: dict[str, int] = {}
+    for s in status.values():
+        counts[s] = counts.get(s, 0) + 1
+    survivors = []
+    for name, s in sorted(status.items()):
+        if s in KILLED:
+            continue
+        diff = _mutmut(["show", name], work).stdout
+        body = "\n".join(line for line in diff.splitlines()
+                         if line.startswith(("+", "-")) and not line.startswith(("+++", "---")))
+        survivors.append({"mutant": name, "status": s, "diff": body,
+                          "why": why.get(name, "not yet looked at")})
+    killed = sum(counts.get(s, 0) for s in KILLED)
+    return {"module": module, "tests": tests, "date": machine()["date"], "tool": f"mutmut {_version()}",
+            "loadavg_start": load_start, "loadavg_end": loadavg(), "seconds": round(seconds, 1),
+            "timeout_multiplier": timeout_multiplier, "mutants": len(status), "killed": killed,
+            "survived": len(status) - killed, "by_status": counts,
+            "score": round(100.0 * killed / len(status), 1), "survivors": survivors}
+
+
+def _version() -> str:
+    return importlib.metadata.version("mutmut")
+
+
+def write_record(runs: list[dict], argv: list[str]) -> Path:
+    """Merge ``runs`` into docs/_data/benchmarks/mutation.json: one entry per module, the latest run each."""
+    old = json.loads(RECORD.read_text()) if RECORD.is_file() else {}
+    modules = {m["module"]: m for m in old.get("results", {}).get("modules", [])}
+    modules.update({r["module"]: r for r in runs})
+    data = {"benchmark": "mutation", "command": " ".join(["python benchmarks/mutation.py", *(a for a in argv if a != "--record")]),
+            "machine": machine(),
+            "results": {"tool": f"mutmut {_version()}", "modules": sorted(modules.values(), key=lambda m: m["module"])}}
+    RECORD.parent.mkdir(parents=True, exist_ok=True)
+    RECORD.write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n")
+    return RECORD
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("modules", nargs="*", help="modules to mutate, e.g. shapelib/geometry/gmm.py")
+    p.add_argument("--since", metavar="COMMIT", help="mutate the modules of the numerical core changed since COMMIT")
+    p.add_argument("--max-children", type=int, default=max(1, (os.cpu_count() or 2) - 1),
+                   help="mutants tested at once (default: the cores but one)")
+    p.add_argument("--timeout-multiplier", type=float, default=10.0,
+                   help="a mutant whose tests run this many times longer than unmutated is killed (timeout)")
+    p.add_argument("--record", action="store_true", help="write the scores into docs/_data/benchmarks/mutation.json")
+    a = p.parse_args(argv)
+    known = targets()
+    modules = list(a.modules)
+    if a.since:
+        changed = changed_since(a.since)
+        unmapped = [m for m in changed if m not in known]
+        if unmapped:
+            print("changed but not in benchmarks/mutation_targets.toml (not mutated): " + ", ".join(unmapped))
+        modules += [m for m in changed if m in known and m not in modules]
+    if not modules:
+        p.error("name a module (e.g. shapelib/geometry/gmm.py) or --since COMMIT with changed, mapped modules")
+    for m in modules:
+        if m not in known:
+            raise SystemExit(f"{m} is not in benchmarks/mutation_targets.toml: add it with the tests that cover it; "
+                             f"known: {', '.join(sorted(known))}")
+    runs = []
+    for m in modules:
+        print(f"mutating {m} (tests: {' '.join(known[m])}) in {SCRATCH}", flush=True)
+        r = run_module(m, known[m], max_children=a.max_children, timeout_multiplier=a.timeout_multiplier)
+        runs.append(r)
+        print(f"{m}: {r['mutants']} mutants, {r['killed']} killed, {r['survived']} survived "
+              f"({r['score']:.1f} %) in {r['seconds']:.0f} s", flush=True)
+        for s in r["survivors"]:
+            print(f"  {s['mutant']} [{s['status']}] {s['why']}\n    " + s["diff"].replace("\n", "\n    "))
+    if a.record:
+        print(f"recorded in {write_record(runs, argv)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
