@@ -72,10 +72,12 @@ MAX_POINTS = 800
 
 
 class RegistrationWarning(RuntimeWarning):
-    """The registration's EM stopped before meeting its tolerance.
+    """The registration probably failed: its EM stopped before meeting its tolerance, or the result
+    is not ``reliable`` (another pose explains the target about as well, a large residual, most of
+    the source unmatched).
 
-    A :class:`RuntimeWarning`: :func:`register` still returns its last estimate, with
-    ``converged`` false and ``stop_reason`` ``"max_iter"``.
+    A :class:`RuntimeWarning`: :func:`register` still returns its estimate, with ``converged``
+    false and ``stop_reason`` ``"max_iter"``, or ``reliable`` false and its ``reasons``.
 
     Parameters
     ----------
