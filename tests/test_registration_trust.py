@@ -12,15 +12,12 @@ import pytest
 import shapelib as sl
 import shapelib.pointsets._nonrigid
 from shapelib.cli import EXIT_UNCONVERGED, main
+from test_registration import fish as _fish
+from test_registration import rot2
 
 
 def fish(n=60):
-    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
-    return np.column_stack([np.cos(t) + 0.45 * np.cos(2 * t), 0.55 * np.sin(t) + 0.12 * np.sin(2 * t)])
-
-
-def rot2(a):
-    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    return _fish(n)
 
 
 def warp(x, amount=0.3):
