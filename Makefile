@@ -60,5 +60,5 @@ bench: setup
 	$(PY) benchmarks/bench_registration_3d.py --record
 
 clean:
-	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/api/reference docs/auto_examples \
+	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/api/reference docs/api/backreferences docs/auto_examples \
 	       docs/sg_execution_times.rst docs/notebooks/*.ipynb

@@ -255,13 +255,40 @@ def test_every_equation_of_the_map_links_its_function_and_module():
 
 @requires_html
 def test_the_gallery_has_every_example_executed_with_its_figures():
-    sources = sorted(p.stem for p in (DOCS / "examples").glob("plot_*.py"))
+    sources = sorted((DOCS / "examples").glob("*/plot_*.py"))
     assert len(sources) >= 8
-    for stem in sources:
-        page = HTML / "auto_examples" / f"{stem}.html"
-        assert page.is_file(), f"docs/examples/{stem}.py has no gallery page"
-        assert re.search(r'<img [^>]*src="\.\./_images/sphx_glr_' + stem + r'_\d+\.png"', page.read_text()), \
+    assert not list((DOCS / "examples").glob("plot_*.py")), "every example belongs to a topic folder"
+    for source in sources:
+        topic, stem = source.parent.name, source.stem
+        page = HTML / "auto_examples" / topic / f"{stem}.html"
+        assert page.is_file(), f"docs/examples/{topic}/{stem}.py has no gallery page"
+        assert re.search(r'<img [^>]*src="\.\./\.\./_images/sphx_glr_' + stem + r'_\d+\.png"', page.read_text()), \
             f"{stem}: no figure on its page"
+
+
+def test_the_gallery_lists_every_topic_and_example_in_reading_order(docs_ext):
+    topics = sorted(p.parent.name for p in (DOCS / "examples").glob("*/README.txt"))
+    assert sorted(docs_ext.GALLERY_ORDER) == topics
+    for topic, names in docs_ext.GALLERY_ORDER.items():
+        assert sorted(names) == sorted(p.name for p in (DOCS / "examples" / topic).glob("plot_*.py")), topic
+    assert next(iter(docs_ext.GALLERY_ORDER.values()))[0] == "plot_first_geodesic.py"
+    order = docs_ext.ExampleOrder("examples/landmarks")
+    assert sorted(["plot_own_tps_file.py", "/x/plot_first_geodesic.py"], key=order)[0].endswith("first_geodesic.py")
+
+
+@requires_html
+def test_the_gallery_page_shows_the_topics_in_reading_order():
+    page = (HTML / "auto_examples" / "index.html").read_text()
+    where = [page.find(f">{title}<") for title in ("Landmarks", "Point sets and retrieval", "Statistics", "The study")]
+    assert -1 not in where and where == sorted(where), where
+    assert page.find("A first geodesic") < page.find("Fisher–Rao vs α")
+
+
+@requires_html
+def test_api_pages_show_the_examples_that_use_their_name():
+    page = (HTML / "api" / "generated" / "shapelib.geodesic.html").read_text()
+    assert "Examples using" in page and "plot_first_geodesic.html" in page
+    assert re.search(r"<h1>geodesic<", page), "the page title is the function's name"
 
 
 @requires_html

@@ -127,9 +127,11 @@ AREAS = (
     Area("statistics", "Statistics",
          "Intrinsic statistics on the information manifolds — log and exp maps of the discrete "
          "geodesic, the Fréchet mean, tangent PCA, geodesic regression, a permutation test of a "
-         "difference in mean shape — and tests and ordinations on distance matrices. The "
-         "top-level statistics run their log maps on the engine's workers (``n_jobs``, "
-         "``client``, ``scheduler``); those of ``shapelib.statistics`` take any executor.",
+         "difference in mean shape — and tests and ordinations on distance matrices. "
+         "``frechet_mean``, ``tangent_pca``, ``geodesic_regression`` and ``mean_difference_test`` "
+         "are the same functions as ``shapelib.statistics.frechet_mean`` and so on, documented "
+         "once, under their top-level names; their log maps run on the engine's workers "
+         "(``n_jobs``, ``client``, ``scheduler``) or on any ``executor``.",
          ("shapelib.solver.logexp", "shapelib.statistics", "shapelib.statistics.frechet",
           "shapelib.statistics.tangent_pca", "shapelib.statistics.regression", "shapelib.statistics.group",
           "shapelib.statistics.distance_based", "shapelib.statistics.sweep", "shapelib.statistics.linear_model",
@@ -143,14 +145,10 @@ AREAS = (
          shapelib.TangentPCA
          shapelib.geodesic_regression
          shapelib.mean_difference_test
-         shapelib.statistics.frechet_mean
          shapelib.statistics.FrechetMeanResult
          shapelib.statistics.procrustes_mean
-         shapelib.statistics.tangent_pca
          shapelib.statistics.TangentPCAResult
-         shapelib.statistics.geodesic_regression
          shapelib.statistics.GeodesicRegressionResult
-         shapelib.statistics.mean_difference_test
          shapelib.statistics.MeanDifferenceResult
          shapelib.statistics.permanova
          shapelib.statistics.PermanovaResult
@@ -396,6 +394,16 @@ def documented_objects() -> dict[int, str]:
     return out
 
 
+def _shadowed(module: str) -> bool:
+    """Whether a module's parent serves another object under the module's name (the function
+    ``shapelib.statistics.tangent_pca`` hides the module of that name)."""
+    import importlib
+    import inspect
+
+    parent, _, leaf = module.rpartition(".")
+    return bool(parent) and not inspect.ismodule(getattr(importlib.import_module(parent), leaf, None))
+
+
 def pages() -> dict[str, str]:
     """``{path relative to docs/api/reference: reST}`` of every generated page."""
     out: dict[str, str] = {}
@@ -415,7 +423,8 @@ def pages() -> dict[str, str]:
         page = [":orphan:", "", _title(f"``{module}``")]
         # a module whose name is also a documented function's (shapelib.statistics.tangent_pca):
         # its docstring without a second object of that name
-        page += [f".. module-docstring:: {module}" if module in documented else f".. automodule:: {module}", ""]
+        page += [f".. module-docstring:: {module}" if module in documented or _shadowed(module)
+                 else f".. automodule:: {module}", ""]
         if here:
             title = "Public names of this module" + (f" (area: {area.title})" if area else "")
             page += [title, "-" * len(title)]
