@@ -291,6 +291,45 @@ def test_api_pages_show_the_examples_that_use_their_name():
     assert re.search(r"<h1>geodesic<", page), "the page title is the function's name"
 
 
+
+#: the widest code line that fits a code block of the site at 1280 px without a scroll bar
+CODE_WIDTH = 88
+_FENCE = re.compile(r"^```(?P<info>[^\n]*)\n(?P<code>.*?)^```[ \t]*$", flags=re.M | re.S)
+
+
+def long_code_lines(text: str) -> list[tuple[int, int]]:
+    """``[(line number, length)]`` of the code lines wider than :data:`CODE_WIDTH` in a Markdown
+    page's fenced code blocks; directives (```{image}) and printed output (```text) are not code."""
+    out = []
+    for m in _FENCE.finditer(text):
+        info = m.group("info").strip()
+        if info.startswith("{") or info == "text":
+            continue
+        first = text.count("\n", 0, m.start("code")) + 1
+        out += [(first + i, len(line)) for i, line in enumerate(m.group("code").splitlines())
+                if len(line) > CODE_WIDTH]
+    return out
+
+
+def test_the_code_line_check_finds_wide_lines_in_code_blocks_only():
+    wide = "x = " + "1" * 90
+    text = f"{wide}\n```python\nok = 1\n{wide}\n```\n```text\n{wide}\n```\n```{{image}} a.png\n:alt: {wide}\n```\n"
+    assert long_code_lines(text) == [(4, len(wide))]
+
+
+def test_code_lines_of_the_pages_and_examples_fit_their_blocks():
+    from sphinx_gallery.py_source_parser import split_code_and_text_blocks
+
+    wide = []
+    for page in sorted([*DOCS.glob("*.md"), *(DOCS / "guide").glob("*.md"), ROOT / "CONTRIBUTING.md"]):
+        wide += [f"{page.relative_to(ROOT)}:{n} ({width})" for n, width in long_code_lines(page.read_text())]
+    for example in sorted((DOCS / "examples").rglob("*.py")):
+        for block in split_code_and_text_blocks(str(example))[1]:
+            if block.type == "code":
+                wide += [f"{example.relative_to(ROOT)}:{block.lineno + i} ({len(line)})"
+                         for i, line in enumerate(block.content.splitlines()) if len(line) > CODE_WIDTH]
+    assert not wide, f"code lines over {CODE_WIDTH} characters (wrap them): {wide}"
+
 @requires_html
 def test_the_header_links_the_paper():
     page = (HTML / "index.html").read_text()
