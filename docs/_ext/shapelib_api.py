@@ -394,16 +394,6 @@ def documented_objects() -> dict[int, str]:
     return out
 
 
-def _shadowed(module: str) -> bool:
-    """Whether a module's parent serves another object under the module's name (the function
-    ``shapelib.statistics.tangent_pca`` hides the module of that name)."""
-    import importlib
-    import inspect
-
-    parent, _, leaf = module.rpartition(".")
-    return bool(parent) and not inspect.ismodule(getattr(importlib.import_module(parent), leaf, None))
-
-
 def pages() -> dict[str, str]:
     """``{path relative to docs/api/reference: reST}`` of every generated page."""
     out: dict[str, str] = {}
@@ -423,8 +413,7 @@ def pages() -> dict[str, str]:
         page = [":orphan:", "", _title(f"``{module}``")]
         # a module whose name is also a documented function's (shapelib.statistics.tangent_pca):
         # its docstring without a second object of that name
-        page += [f".. module-docstring:: {module}" if module in documented or _shadowed(module)
-                 else f".. automodule:: {module}", ""]
+        page += [f".. module-docstring:: {module}" if module in documented else f".. automodule:: {module}", ""]
         if here:
             title = "Public names of this module" + (f" (area: {area.title})" if area else "")
             page += [title, "-" * len(title)]
