@@ -604,12 +604,14 @@ def _homes_of(name: str) -> list[str]:
 
 
 def module_docstring_directive():
-    """``.. module-docstring:: MODULE``: a module's docstring, parsed as reST, without declaring
-    the module (for a module whose name a documented function also has)."""
+    """``.. module-docstring:: MODULE``: a module's docstring, parsed as numpydoc, without
+    declaring the module (for a module whose name a documented function also has:
+    ``shapelib.rerank``)."""
     import importlib
 
     from docutils import nodes
     from docutils.statemachine import StringList
+    from numpydoc.docscrape_sphinx import SphinxDocString
     from sphinx.util.docstrings import prepare_docstring
     from sphinx.util.docutils import SphinxDirective
 
@@ -618,6 +620,8 @@ def module_docstring_directive():
 
         def run(self):
             doc = importlib.import_module(self.arguments[0]).__doc__ or ""
+            # its numpydoc sections (References) as numpydoc renders them on any other page
+            doc = str(SphinxDocString(doc, config={}))
             container = nodes.container()
             self.state.nested_parse(StringList(prepare_docstring(doc), source=self.arguments[0]),
                                     self.content_offset, container)
