@@ -69,5 +69,5 @@ mutate: setup
 	nice -n 10 $(PY) benchmarks/mutation.py $(MODULE) $(if $(SINCE),--since $(SINCE),) $(if $(RECORD),--record,)
 
 clean:
-	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/api/reference docs/auto_examples \
+	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/api/reference docs/api/backreferences docs/auto_examples \
 	       docs/sg_execution_times.rst docs/notebooks/*.ipynb

@@ -11,6 +11,7 @@ sys.path.insert(0, str(DOCS / "_ext"))
 sys.path.insert(0, str(ROOT))  # run_all.py (the study notebooks' runner)
 
 import shapelib  # noqa: E402
+import shapelib_docs  # noqa: E402  (docs/_ext)
 
 project = "shapelib"
 author = "the shapelib developers"
@@ -46,9 +47,9 @@ extensions = [
 
 root_doc = "index"
 exclude_patterns = ["_build", "_data", "_scripts", "_templates", "_intersphinx", "**.ipynb_checkpoints",
-                    "notebooks/.runs", "examples/*.py", "examples/*.md", "examples/README.txt", "auto_examples/*.ipynb",
-                    "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json",
-                    "sg_execution_times.rst", "auto_examples/sg_execution_times.rst"]
+                    "notebooks/.runs", "examples/**", "auto_examples/**.ipynb", "auto_examples/**.py",
+                    "auto_examples/**.zip", "auto_examples/**.json", "sg_execution_times.rst",
+                    "auto_examples/sg_execution_times.rst"]
 templates_path = ["_templates"]
 html_static_path = ["_static"]
 
@@ -108,14 +109,20 @@ myst_heading_anchors = 3
 suppress_warnings = ["mystnb.unknown_mime_type"]
 
 # -- example gallery -------------------------------------------------------------------------------
-# Every docs/examples/plot_*.py is executed when the documentation is built (sphinx-gallery) and
-# becomes a page of docs/auto_examples/ with its figures and output; a failing example fails the build.
+# Every docs/examples/<topic>/plot_*.py is executed when the documentation is built (sphinx-gallery)
+# and becomes a page of docs/auto_examples/<topic>/ with its figures and output; a failing example
+# fails the build. The topics (each a folder with a README.txt) and the examples within each come
+# in reading order: shapelib_docs.GALLERY_ORDER. Each API page lists the examples that use its name
+# ("backreferences", written to docs/api/backreferences/ and shown by the page's minigallery).
 sphinx_gallery_conf = {
     "examples_dirs": "examples",
     "gallery_dirs": "auto_examples",
     "filename_pattern": r"/plot_",
     "ignore_pattern": r"__init__\.py",
-    "within_subsection_order": "FileNameSortKey",
+    "subsection_order": [f"examples/{topic}" for topic in shapelib_docs.GALLERY_ORDER],
+    "within_subsection_order": "shapelib_docs.ExampleOrder",
+    "doc_module": ("shapelib",),
+    "backreferences_dir": "api/backreferences",
     "download_all_examples": False,
     "remove_config_comments": True,
     "matplotlib_animations": False,
@@ -147,6 +154,7 @@ html_theme_options = {
 html_context = {"default_mode": "light"}
 # pages that stand alone: no left sidebar (it would be empty), the page's own contents on the right
 html_sidebars = {page: [] for page in ("index", "installation", "getting-started", "reproduction",
-                                        "performance", "changelog", "citing", "license")}
+                                        "performance", "contributing", "changelog", "citing",
+                                        "license")}
 html_show_sourcelink = False
 html_copy_source = False

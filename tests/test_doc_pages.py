@@ -195,7 +195,7 @@ def test_the_quoted_landmark_spacings_of_sigma2_are_computed_ones():
     one_line = {p: " ".join(p.read_text().split()) for p in (DOCS / "getting-started.md", DOCS / "guide" / "scale.md")}
     assert "σ² = 0.1, 0.5 and 1.5 are 1.1, 2.6 and 4.5 landmark spacings" in one_line[DOCS / "getting-started.md"]
     assert "σ is 1.1, 2.6 and 4.5 times the mean nearest-landmark spacing" in one_line[DOCS / "guide" / "scale.md"]
-    assert "σ² = 0.5 is about 2.6 landmark spacings" in (DOCS / "examples" / "plot_first_geodesic.py").read_text()
+    assert "σ² = 0.5 is about 2.6 landmark spacings" in (DOCS / "examples" / "landmarks" / "plot_first_geodesic.py").read_text()
     adhd = sl.to_centroid_size(load_adhd200()[0])
     assert f"{sl.sigma_ratio(adhd, sigma2=1.2):.1f}" == "2.6"
     assert "At σ² = 1.2 (σ = 2.6 landmark spacings" in (DOCS / "reproduction.md").read_text()

@@ -255,14 +255,80 @@ def test_every_equation_of_the_map_links_its_function_and_module():
 
 @requires_html
 def test_the_gallery_has_every_example_executed_with_its_figures():
-    sources = sorted(p.stem for p in (DOCS / "examples").glob("plot_*.py"))
+    sources = sorted((DOCS / "examples").glob("*/plot_*.py"))
     assert len(sources) >= 8
-    for stem in sources:
-        page = HTML / "auto_examples" / f"{stem}.html"
-        assert page.is_file(), f"docs/examples/{stem}.py has no gallery page"
-        assert re.search(r'<img [^>]*src="\.\./_images/sphx_glr_' + stem + r'_\d+\.png"', page.read_text()), \
+    assert not list((DOCS / "examples").glob("plot_*.py")), "every example belongs to a topic folder"
+    for source in sources:
+        topic, stem = source.parent.name, source.stem
+        page = HTML / "auto_examples" / topic / f"{stem}.html"
+        assert page.is_file(), f"docs/examples/{topic}/{stem}.py has no gallery page"
+        assert re.search(r'<img [^>]*src="\.\./\.\./_images/sphx_glr_' + stem + r'_\d+\.png"', page.read_text()), \
             f"{stem}: no figure on its page"
 
+
+def test_the_gallery_lists_every_topic_and_example_in_reading_order(docs_ext):
+    topics = sorted(p.parent.name for p in (DOCS / "examples").glob("*/README.txt"))
+    assert sorted(docs_ext.GALLERY_ORDER) == topics
+    for topic, names in docs_ext.GALLERY_ORDER.items():
+        assert sorted(names) == sorted(p.name for p in (DOCS / "examples" / topic).glob("plot_*.py")), topic
+    assert next(iter(docs_ext.GALLERY_ORDER.values()))[0] == "plot_first_geodesic.py"
+    order = docs_ext.ExampleOrder("examples/landmarks")
+    assert sorted(["plot_own_tps_file.py", "/x/plot_first_geodesic.py"], key=order)[0].endswith("first_geodesic.py")
+
+
+@requires_html
+def test_the_gallery_page_shows_the_topics_in_reading_order():
+    page = (HTML / "auto_examples" / "index.html").read_text()
+    where = [page.find(f">{title}<") for title in ("Landmarks", "Point sets and retrieval", "Statistics", "The study")]
+    assert -1 not in where and where == sorted(where), where
+    assert page.find("A first geodesic") < page.find("Fisher–Rao vs α")
+
+
+@requires_html
+def test_api_pages_show_the_examples_that_use_their_name():
+    page = (HTML / "api" / "generated" / "shapelib.geodesic.html").read_text()
+    assert "Examples using" in page and "plot_first_geodesic.html" in page
+    assert re.search(r"<h1>geodesic<", page), "the page title is the function's name"
+
+
+
+#: the widest code line that fits a code block of the site at 1280 px without a scroll bar
+CODE_WIDTH = 88
+_FENCE = re.compile(r"^```(?P<info>[^\n]*)\n(?P<code>.*?)^```[ \t]*$", flags=re.M | re.S)
+
+
+def long_code_lines(text: str) -> list[tuple[int, int]]:
+    """``[(line number, length)]`` of the code lines wider than :data:`CODE_WIDTH` in a Markdown
+    page's fenced code blocks; directives (```{image}) and printed output (```text) are not code."""
+    out = []
+    for m in _FENCE.finditer(text):
+        info = m.group("info").strip()
+        if info.startswith("{") or info == "text":
+            continue
+        first = text.count("\n", 0, m.start("code")) + 1
+        out += [(first + i, len(line)) for i, line in enumerate(m.group("code").splitlines())
+                if len(line) > CODE_WIDTH]
+    return out
+
+
+def test_the_code_line_check_finds_wide_lines_in_code_blocks_only():
+    wide = "x = " + "1" * 90
+    text = f"{wide}\n```python\nok = 1\n{wide}\n```\n```text\n{wide}\n```\n```{{image}} a.png\n:alt: {wide}\n```\n"
+    assert long_code_lines(text) == [(4, len(wide))]
+
+
+def test_code_lines_of_the_pages_and_examples_fit_their_blocks():
+    from sphinx_gallery.py_source_parser import split_code_and_text_blocks
+
+    wide = []
+    for page in sorted([*DOCS.glob("*.md"), *(DOCS / "guide").glob("*.md"), ROOT / "CONTRIBUTING.md"]):
+        wide += [f"{page.relative_to(ROOT)}:{n} ({width})" for n, width in long_code_lines(page.read_text())]
+    for example in sorted((DOCS / "examples").rglob("*.py")):
+        for block in split_code_and_text_blocks(str(example))[1]:
+            if block.type == "code":
+                wide += [f"{example.relative_to(ROOT)}:{block.lineno + i} ({len(line)})"
+                         for i, line in enumerate(block.content.splitlines()) if len(line) > CODE_WIDTH]
+    assert not wide, f"code lines over {CODE_WIDTH} characters (wrap them): {wide}"
 
 @requires_html
 def test_the_header_links_the_paper():

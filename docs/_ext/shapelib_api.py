@@ -127,9 +127,11 @@ AREAS = (
     Area("statistics", "Statistics",
          "Intrinsic statistics on the information manifolds — log and exp maps of the discrete "
          "geodesic, the Fréchet mean, tangent PCA, geodesic regression, a permutation test of a "
-         "difference in mean shape — and tests and ordinations on distance matrices. The "
-         "top-level statistics run their log maps on the engine's workers (``n_jobs``, "
-         "``client``, ``scheduler``); those of ``shapelib.statistics`` take any executor.",
+         "difference in mean shape — and tests and ordinations on distance matrices. "
+         "``frechet_mean``, ``tangent_pca``, ``geodesic_regression`` and ``mean_difference_test`` "
+         "are the same functions as ``shapelib.statistics.frechet_mean`` and so on, documented "
+         "once, under their top-level names; their log maps run on the engine's workers "
+         "(``n_jobs``, ``client``, ``scheduler``) or on any ``executor``.",
          ("shapelib.solver.logexp", "shapelib.statistics", "shapelib.statistics.frechet",
           "shapelib.statistics.tangent_pca", "shapelib.statistics.regression", "shapelib.statistics.group",
           "shapelib.statistics.distance_based", "shapelib.statistics.sweep", "shapelib.statistics.linear_model",
@@ -143,14 +145,10 @@ AREAS = (
          shapelib.TangentPCA
          shapelib.geodesic_regression
          shapelib.mean_difference_test
-         shapelib.statistics.frechet_mean
          shapelib.statistics.FrechetMeanResult
          shapelib.statistics.procrustes_mean
-         shapelib.statistics.tangent_pca
          shapelib.statistics.TangentPCAResult
-         shapelib.statistics.geodesic_regression
          shapelib.statistics.GeodesicRegressionResult
-         shapelib.statistics.mean_difference_test
          shapelib.statistics.MeanDifferenceResult
          shapelib.statistics.permanova
          shapelib.statistics.PermanovaResult
@@ -606,12 +604,14 @@ def _homes_of(name: str) -> list[str]:
 
 
 def module_docstring_directive():
-    """``.. module-docstring:: MODULE``: a module's docstring, parsed as reST, without declaring
-    the module (for a module whose name a documented function also has)."""
+    """``.. module-docstring:: MODULE``: a module's docstring, parsed as numpydoc, without
+    declaring the module (for a module whose name a documented function also has:
+    ``shapelib.rerank``)."""
     import importlib
 
     from docutils import nodes
     from docutils.statemachine import StringList
+    from numpydoc.docscrape_sphinx import SphinxDocString
     from sphinx.util.docstrings import prepare_docstring
     from sphinx.util.docutils import SphinxDirective
 
@@ -620,6 +620,8 @@ def module_docstring_directive():
 
         def run(self):
             doc = importlib.import_module(self.arguments[0]).__doc__ or ""
+            # its numpydoc sections (References) as numpydoc renders them on any other page
+            doc = str(SphinxDocString(doc, config={}))
             container = nodes.container()
             self.state.nested_parse(StringList(prepare_docstring(doc), source=self.arguments[0]),
                                     self.content_offset, container)

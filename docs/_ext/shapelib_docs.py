@@ -38,6 +38,36 @@ NOTEBOOKS_ENV = "SHAPELIB_DOCS_NOTEBOOKS"
 
 
 # ---------------------------------------------------------------------------------------------
+# the example gallery's reading order
+
+#: ``{topic folder of docs/examples: its examples' file names}``, in reading order: the gallery
+#: shows the topics and, within each, the examples in this order (a file not listed comes last)
+GALLERY_ORDER = {
+    "landmarks": ["plot_first_geodesic.py", "plot_fisher_rao_vs_alpha.py", "plot_certified_distances.py",
+                  "plot_choosing_sigma2.py", "plot_own_tps_file.py"],
+    "pointsets": ["plot_pointset_registration.py", "plot_retrieval.py"],
+    "statistics": ["plot_mean_shape_modes.py", "plot_regression_on_age.py"],
+    "study": ["plot_distance_matrix_dask.py"],
+}
+
+
+class ExampleOrder:
+    """sphinx-gallery's ``within_subsection_order``: the examples of a topic folder in the order
+    :data:`GALLERY_ORDER` lists them, then any other file by name."""
+
+    def __init__(self, src_dir):
+        self.src_dir = src_dir
+
+    def __call__(self, filename) -> tuple[int, str]:
+        name = Path(filename).name
+        order = [n for names in GALLERY_ORDER.values() for n in names]
+        return (order.index(name) if name in order else len(order), name)
+
+    def __repr__(self) -> str:  # part of the configuration Sphinx compares between builds
+        return "ExampleOrder"
+
+
+# ---------------------------------------------------------------------------------------------
 # benchmark tables (no Sphinx needed)
 
 @dataclass

@@ -111,6 +111,8 @@ def python_page(name: str, role: str) -> str:
         module = "concurrent.futures"
     if name.startswith("os.path"):
         module = "os.path"
+    if name.startswith("importlib.resources"):
+        module = "importlib.resources"
     return f"library/{module}.html#{'module-' if role == 'py:module' else ''}{name}"
 
 
@@ -120,7 +122,8 @@ PROJECTS = {
     "python": ("https://docs.python.org/3/", python_page,
                ["builtins", "pathlib", "os", "os.path", "warnings", "enum", "dataclasses", "concurrent.futures",
                 "collections.abc", "typing", "functools", "json", "signal", "multiprocessing", "threading",
-                "logging", "io", "csv", "argparse", "subprocess", "tempfile", "contextlib"],
+                "logging", "io", "csv", "argparse", "subprocess", "tempfile", "contextlib",
+                "importlib.resources"],
                ["pathlib.Path", "concurrent.futures.Executor", "concurrent.futures.Future", "dict", "list",
                 "str", "enum.Enum", "warnings.catch_warnings", "threading.Event"]),
     "numpy": ("https://numpy.org/doc/stable/", numpy_page,

@@ -46,12 +46,26 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._common import FORMATS, NEGATIVE_COORDINATES_COMMENT, _format_of
+from . import _common
+from ._common import _format_of
 from ._csv import read_csv, write_csv
 from ._npy import from_pkn, read_npy, to_pkn, write_npy
 from ._pointsets import read_point_sets, write_point_set
 from ._sliders import read_sliders
 from ._tps import read_tps, write_tps
+
+# Documented here, where the API reference reads them (the ``#:`` comments are their docs).
+
+#: file extension -> format name: the formats :func:`read_landmarks` and :func:`write_landmarks`
+#: tell by a file's extension
+FORMATS = _common.FORMATS
+
+#: What :func:`write_tps` adds, as a ``COMMENT=`` line, to each specimen with negative coordinates
+#: (e.g. aligned shapes), and :func:`read_tps` honours: there a negative value is a coordinate,
+#: not tpsDig's missing-landmark code (missing landmarks are then written ``NA``). A standard tps
+#: field, which other readers skip or keep as a comment (ktch reads such files; tpsDig still takes
+#: the negative values as missing).
+NEGATIVE_COORDINATES_COMMENT = _common.NEGATIVE_COORDINATES_COMMENT
 
 __all__ = [
     "read_landmarks", "write_landmarks", "read_tps", "write_tps", "read_csv", "write_csv",

@@ -13,15 +13,11 @@ import pandas as pd
 from .._validate import InputError, check_dimension, literal
 
 
-#: file extension -> format name
+# file extension -> format name (documented in shapelib/io/__init__.py, which serves it)
 FORMATS = {".tps": "tps", ".csv": "csv", ".npy": "npy", ".npz": "npz"}
 
 
-#: What :func:`write_tps` adds, as a ``COMMENT=`` line, to each specimen with negative coordinates
-#: (e.g. aligned shapes), and :func:`read_tps` honours: there a negative value is a coordinate,
-#: not tpsDig's missing-landmark code (missing landmarks are then written ``NA``). A standard tps
-#: field, which other readers skip or keep as a comment (ktch reads such files; tpsDig still takes
-#: the negative values as missing).
+# what write_tps marks specimens with negative coordinates with (documented in shapelib/io/__init__.py)
 NEGATIVE_COORDINATES_COMMENT = "shapelib: negative values are coordinates, not missing landmarks"
 
 

@@ -25,8 +25,8 @@ import numpy as np
 import shapelib as sl
 from shapelib.plotting import plot_metric_panels
 
-# The hinge is raised off the line: the pose difference is part of the deformation shown, so
-# the warning that the two shapes are not aligned does not apply here.
+# The hinge is raised off the line: the pose difference is part of the deformation
+# shown, so the warning that the two shapes are not aligned does not apply here.
 warnings.filterwarnings("ignore", category=sl.PoseWarning)
 
 k = 11

@@ -29,7 +29,8 @@ u, v = x[0], x[3]
 # One bracket per tolerance: the tighter the tolerance, the finer the path the solver needs.
 for rtol in (1e-2, 1e-3):
     b = sl.distance_bracket(u, v, metric="fisher_rao", sigma2=0.5, rtol=rtol)
-    print(f"rtol {rtol:g}: {b.lower:.5f} <= d <= {b.upper:.5f} (gap {b.rel_gap:.1e}, {b.stopped_by})")
+    print(f"rtol {rtol:g}: {b.lower:.5f} <= d <= {b.upper:.5f}",
+          f"(gap {b.rel_gap:.1e}, {b.stopped_by})")
 
 # %%
 # Every distance of the paper's Table I goes through :func:`shapelib.distance`; the closed-form
@@ -37,7 +38,8 @@ for rtol in (1e-2, 1e-3):
 # shapes much as the geodesic distances do.
 metrics = ["alpha_bound", "alpha", "procrustes", "tps"]
 params = {"alpha_bound": {"sigma2": 0.5}, "alpha": {"sigma2": 0.5, "rtol": 1e-2}}
-d = {m: np.array([sl.distance(x[0], x[j], metric=m, **params.get(m, {})) for j in range(1, len(x))])
+d = {m: np.array([sl.distance(x[0], x[j], metric=m, **params.get(m, {}))
+                  for j in range(1, len(x))])
      for m in metrics}
 fig, ax = plt.subplots(figsize=(5, 3.5))
 for m in metrics[1:]:

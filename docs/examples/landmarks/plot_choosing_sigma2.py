@@ -25,7 +25,8 @@ print(est.summary())
 # %%
 # The paper's values σ² = 0.1, 0.5 and 1.5 against the landmark spacing at this scale:
 for s2 in (0.1, 0.5, 1.5, float(est.sigma2)):
-    print(f"sigma2 = {s2:.3g}: sigma = {sl.sigma_ratio(x[0], sigma2=s2):.2f} landmark spacings")
+    ratio = sl.sigma_ratio(x[0], sigma2=s2)
+    print(f"sigma2 = {s2:.3g}: sigma = {ratio:.2f} landmark spacings")
 
 # %%
 # What σ² does to the shape: the density of one outline at the estimate, at the paper's 0.5 and
@@ -37,7 +38,8 @@ gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 160), np.linspace(lo[1], hi[1], 8
 grid = np.column_stack([gx.ravel(), gy.ravel()])
 fig, axes = plt.subplots(1, 3, figsize=(10, 2.6), layout="constrained")
 for ax, s2 in zip(axes, (float(est.sigma2), 0.5, 4.0)):
-    ax.contourf(gx, gy, sl.gmm_density(grid, x[0], sigma2=s2).reshape(gx.shape), levels=20, cmap="Greys")
+    density = sl.gmm_density(grid, x[0], sigma2=s2).reshape(gx.shape)
+    ax.contourf(gx, gy, density, levels=20, cmap="Greys")
     ax.plot(*x[0].T, ".", color="C1", ms=2)
     ax.set_title(f"σ² = {s2:.2g}")
     ax.set_aspect("equal")

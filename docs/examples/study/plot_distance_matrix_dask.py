@@ -23,17 +23,19 @@ raw, _ = load_corpus_callosum()
 x = sl.to_centroid_size(raw)
 store = Path(tempfile.mkdtemp()) / "alpha.zarr"
 
-with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
-        Client(cluster) as client:
-    result = sl.pairwise_distances(x, metric="alpha", sigma2=0.5, rtol=1e-2, client=client, store=store,
-                                   block_size=8, progress=False, return_result=True)
+cluster_options = dict(n_workers=2, threads_per_worker=1, processes=False,
+                       dashboard_address=None)
+with LocalCluster(**cluster_options) as cluster, Client(cluster) as client:
+    result = sl.pairwise_distances(x, metric="alpha", sigma2=0.5, rtol=1e-2,
+                                   client=client, store=store, block_size=8,
+                                   progress=False, return_result=True)
 print(result.summary())
 print(result.log)
 
 # %%
 # The store keeps the blocks: the same call again reads them instead of computing them.
-again = sl.pairwise_distances(x, metric="alpha", sigma2=0.5, rtol=1e-2, store=store, block_size=8,
-                              progress=False, return_result=True)
+again = sl.pairwise_distances(x, metric="alpha", sigma2=0.5, rtol=1e-2, store=store,
+                              block_size=8, progress=False, return_result=True)
 print(again.log)  # every block found done in the store
 
 fig, ax = plt.subplots(figsize=(4, 3.4))

@@ -17,7 +17,8 @@ import numpy as np
 import shapelib as sl
 from shapelib.datasets import load_mpeg7
 
-data = load_mpeg7(classes=["Bone", "bell", "deer", "fork", "octopus"], per_class=6, n_points=80)
+classes = ["Bone", "bell", "deer", "fork", "octopus"]
+data = load_mpeg7(classes=classes, per_class=6, n_points=80)
 rng = np.random.default_rng(0)
 outlines = []
 for o in data.shapes:  # an arbitrary pose for each: rotation, mirror, scale, position
@@ -29,8 +30,9 @@ for o in data.shapes:  # an arbitrary pose for each: rotation, mirror, scale, po
 D = sl.invariant_distance_matrix(outlines, sigma2=0.01)
 score = sl.bullseye(D, data.labels)
 print(score.summary())
+procrustes = sl.bullseye(sl.procrustes_outline_matrix(np.stack(outlines)), data.labels)
 print("Procrustes on the outlines (best start point):",
-      f"{100 * sl.bullseye(sl.procrustes_outline_matrix(np.stack(outlines)), data.labels).value:.1f} %")
+      f"{100 * procrustes.value:.1f} %")
 
 # %%
 # Each query's nearest shapes, the query first. The distance is the L² norm of the difference

@@ -38,5 +38,6 @@ print(reg.summary())
 ages = np.linspace(age.min(), age.max(), 5)
 fig, ax = plt.subplots(figsize=(6, 3))
 plot_shapes_along(ax, reg.predict(ages))
-ax.set_title(f"predicted shape at ages {ages[0]:.0f} to {ages[-1]:.0f} (R² = {reg.r2:.3f})")
+ax.set_title(f"predicted shape at ages {ages[0]:.0f} to {ages[-1]:.0f}"
+             f" (R² = {reg.r2:.3f})")
 plt.show()

@@ -22,7 +22,8 @@ from shapelib.datasets import load_corpus_callosum
 
 folder = Path(tempfile.mkdtemp())
 raw, paper_ids = load_corpus_callosum()
-path = io.write_tps(folder / "callosum.tps", raw, specimens=[f"cc-{i}" for i in paper_ids])
+names = [f"cc-{i}" for i in paper_ids]
+path = io.write_tps(folder / "callosum.tps", raw, specimens=names)
 print("".join(path.read_text().splitlines(True)[:4]), "...")
 
 # %%

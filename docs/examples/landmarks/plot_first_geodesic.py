@@ -40,6 +40,7 @@ print(f"length {r.length:.4f}, lower bound {r.lower_bound:.4f}, path {r.path.sha
 
 fig, ax = plt.subplots(figsize=(7, 3.2))
 plot_shapes_along(ax, r.path, every=4)
-ax.set_title("α-order geodesic between two corpus callosum outlines (colour: t from 0 to 1)")
+ax.set_title("α-order geodesic between two corpus callosum outlines\n"
+             "(colour: t from 0 to 1)")
 ax.set_aspect("equal")
 plt.show()

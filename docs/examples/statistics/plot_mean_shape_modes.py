@@ -25,7 +25,8 @@ from shapelib.plotting import plot_deformation, plot_mean, plot_modes
 raw, _ = load_corpus_callosum()
 shapes = sl.to_centroid_size(raw)  # aligned, at the study's scale (centroid size 20)
 
-mean = sl.frechet_mean(shapes, metric="alpha", sigma2=0.5, n_jobs=1)  # n_jobs=1: in this process
+# n_jobs=1: in this process
+mean = sl.frechet_mean(shapes, metric="alpha", sigma2=0.5, n_jobs=1)
 print(mean.summary())
 
 # %%
@@ -36,7 +37,8 @@ plt.show()
 # %%
 # Tangent PCA at that mean reuses its log maps: no further geodesic is solved.
 pca = sl.tangent_pca(shapes, mean=mean, n_jobs=1, modes=(0, 1), sd=(-1.0, 0.0, 1.0))
-print("explained variance ratio of the first modes:", np.round(pca.explained_variance_ratio[:3], 3))
+print("explained variance ratio of the first modes:",
+      np.round(pca.explained_variance_ratio[:3], 3))
 fig = plot_modes(pca, components=(0, 1), sd=(-1.0, 0.0, 1.0))
 plt.show()
 
@@ -46,7 +48,8 @@ plt.show()
 # and a grid carried along it by the paper's extrinsic warp (§III-E). Landmarks slide along a
 # dense outline at almost no cost, so a strong magnification tangles the outline before it shows
 # more of the shape change.
-g = sl.geodesic(mean.mean, pca.mode_shapes[0][-1], metric="alpha", sigma2=0.5, n_steps=4)
+g = sl.geodesic(mean.mean, pca.mode_shapes[0][-1], metric="alpha", sigma2=0.5,
+                n_steps=4)
 fig, ax = plt.subplots(figsize=(6, 3.5))
 plot_deformation(ax, g, mag=1.5, n_lines=12, points_per_line=30, grid_size=24)
 ax.set_title("first mode, +1 SD, magnified 1.5 times")
