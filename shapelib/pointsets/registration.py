@@ -1,39 +1,30 @@
-"""Registration of point sets by the information geometry: pose over every rotation, then a
-deformation that is a geodesic of the α-order (or Fisher–Rao) metric.
+"""Registration of point sets by the information geometry: a deformation that is a geodesic of
+the α-order (or Fisher–Rao) metric, found from every rotation, with a result that says when it
+probably failed.
 
-Both sets are mixtures of eq. (5), one component per point. ``register(source, target)``:
+Both sets are mixtures of eq. (5), one component per point, centred and scaled to unit RMS radius
+(the source keeps the target's scale for ``transform="rigid"``). ``register(source, target)``:
 
-1. **Pose.** Centre each set and scale it to unit RMS radius (the source keeps the target's scale
-   for ``transform="rigid"``), then :func:`shapelib.align`: the density distance
-   (α: closed-form L²; Fisher–Rao: Hellinger) minimised over every rotation (a global search, not
-   one local start), the similarity group for ``"nonrigid"``.
-2. **σ², outliers, correspondences by EM** with the posed source ``u`` as the means of a mixture
-   that explains the target ``y`` together with a uniform component of weight ``w``
-   (Coherent Point Drift's model, Myronenko & Song 2010, with the uniform density ``1/V`` over
-   the target's bounding box of volume V in place of CPD's ``1/m``): posteriors
-
-       P_ij = exp(−|y_j − θ_i|²/2σ²) / (Σ_k exp(−|y_j − θ_k|²/2σ²) + (2πσ²)^{d/2} w/(1−w) · n/V),
-
-   ``σ² = Σ_ij P_ij |y_j − θ_i|² / (d Σ_ij P_ij)`` and, with ``w="auto"``, ``w = 1 − Σ_ij P_ij / m``.
-   Non-rigid, ``w`` is estimated with the means held at the pose and then held fixed: with both
-   free, σ² → 0 and w → 1 (a deformation that explains a few target points exactly and calls the
-   rest outliers) has an unbounded likelihood.
-3. **Non-rigid: the metric as the deformation's kernel.** The means move to
-   ``θ = u + G W``, where ``G = g(u)/g_aa`` is the α-order metric tensor of eq. (22) of the posed
-   source mixture at the geometry's σ_g², divided by its diagonal:
-
-       G_ab = exp(−|u_a − u_b|²/4σ_g²) [I − (u_a − u_b)(u_a − u_b)ᵀ/(2σ_g²)]
-
-   (the Gram matrix ``⟨∂_a p, ∂_b p⟩_{L²}`` of the mixture's tangent functions; for Fisher–Rao
-   the Fisher information matrix by quadrature). The M-step minimises
-   ``Σ_ij P_ij |y_j − θ_i|²/2σ² + (λ/2) Wᵀ G W`` — a linear solve,
-   ``(diag(P1) G + λσ² I) W = P y − diag(P1) u``. ``Wᵀ G W = (θ − u)ᵀ G⁻¹ (θ − u)`` is the
-   squared length of the displacement in the metric's dual: a displacement that moves
-   neighbouring points together costs little, one that tears them apart costs much. (The metric
-   itself, ``(θ − u)ᵀ G (θ − u)``, ranks them the other way — two overlapping components moving
-   apart leave the density almost unchanged — so it does not keep a shape together.)
-4. **The deformation is a geodesic.** The path from ``u`` to the fitted ``θ`` (points in
-   correspondence) is the α-order (or Fisher–Rao) geodesic (:func:`shapelib.geodesic`) at the
+1. **Rigid, similarity, affine.** :func:`shapelib.align` minimises the density distance (α:
+   closed-form L²; Fisher–Rao: Hellinger) over every rotation (a global search, not one local
+   start); then EM on σ² (and, with ``w="auto"``, the outlier weight ``w = 1 − Σ_ij P_ij / m``)
+   with the means held at the pose.
+2. **Non-rigid (the default).** EM of Coherent Point Drift's model with the metric as the
+   deformation's kernel (the equations: :mod:`shapelib.pointsets._coherent_em`), started from every
+   rotation of a fixed set, the best starts fitted at a few fixed outlier weights and the fit of
+   least negative log-posterior kept (the search: :mod:`shapelib.pointsets._nonrigid`). The means
+   move to ``θ = u + G W`` with ``G`` the α-order metric of the source mixture in its weight
+   coordinates, ``G_ab = ⟨N_a, N_b⟩_{L²} / ⟨N_a, N_a⟩_{L²} = exp(−|u_a − u_b|²/4σ_g²)``, and the
+   M-step minimises ``Σ_ij P_ij |y_j − θ_i|²/2σ² + (λ/2) tr(Wᵀ G W)``: ``Wᵀ G W`` is the squared
+   length of the displacement in the metric's dual, so that a displacement that moves neighbouring
+   points together costs little and one that tears them apart costs much. (The metric on the
+   means, ``kernel="means"``, ranks them the other way — two overlapping components moving apart
+   leave the density almost unchanged — and deforms from the pose the search finds.)
+   ``reliable`` is False when another start reaches a nearly equal objective with a different
+   fit, when σ is large against the target's point spacing, or when most of the source is
+   unmatched. Sets of over ``MAX_POINTS`` points go through farthest-point subsets.
+3. **The deformation is a geodesic.** The path from the posed source to the fitted ``θ`` (points
+   in correspondence) is the α-order (or Fisher–Rao) geodesic (:func:`shapelib.geodesic`) at the
    target's leave-one-out σ² (the spacing of its points, the scale of the paper's geodesics),
    computed on first use of ``result.path``. Other points are moved by the fit's kernel,
    ``x ↦ x + Σ_b G(x, u_b) W_b`` (exact at the source points), or, in 2-D on request, carried
