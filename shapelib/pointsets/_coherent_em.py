@@ -21,11 +21,7 @@ of :mod:`shapelib.pointsets.registration`), and ``W`` solves
 
     (\\operatorname{diag}(P\\mathbf 1)\\, G + λσ^2 I)\\, W = P y - \\operatorname{diag}(P\\mathbf 1)\\, u ,
 
-the minimiser of ``Σ_ij P_ij |y_j − θ_i|²/2σ² + (λ/2) tr(Wᵀ G W)``. A similarity
-``θ = s (u + G W) Rᵀ + t`` may stand in front of the deformation (as in Bayesian coherent point
-drift [2]_): it is fitted first by weighted Procrustes, and the deformation's step is the one above
-with ``y`` replaced by ``Rᵀ(y − t)/s`` and σ² by ``σ²/s²`` — the prior weighs the deformation, not
-the pose, so that a rotation, a scale or a shift costs nothing. Then
+the minimiser of ``Σ_ij P_ij |y_j − θ_i|²/2σ² + (λ/2) tr(Wᵀ G W)``; then
 ``σ² = Σ_ij P_ij |y_j − θ_i|² / (d Σ_ij P_ij)``. The objective that EM decreases, and by which
 :func:`shapelib.register` compares fits from different starts and outlier weights, is the
 negative log-posterior
@@ -45,8 +41,6 @@ References
 ----------
 .. [1] A. Myronenko and X. Song, "Point set registration: coherent point drift", *IEEE Transactions on
    Pattern Analysis and Machine Intelligence* 32(12), 2262–2275, 2010.
-.. [2] O. Hirose, "A Bayesian formulation of coherent point drift", *IEEE Transactions on Pattern
-   Analysis and Machine Intelligence* 43(7), 2269–2286, 2021.
 """
 
 from __future__ import annotations
@@ -167,8 +161,7 @@ class Kernel:
 
 @dataclass
 class EMState:
-    """One fit: the posed source ``u``, the coefficients ``coef`` and the similarity (``scale``,
-    ``rot``, ``shift``): ``θ = scale · (u + G W) rotᵀ + shift``; σ², w."""
+    """One fit: the posed source ``u``, the coefficients ``coef`` (``θ = u + G W``), σ², w."""
 
     u: np.ndarray
     kernel: Kernel | None
@@ -178,21 +171,10 @@ class EMState:
     it: int = 0
     ok: bool = False
     why: str = "max_iter"
-    scale: float = 1.0
-    rot: np.ndarray | None = None
-    shift: np.ndarray | None = None
-
-    @property
-    def deformed(self):
-        """``u + G W``: the source deformed, before the similarity."""
-        return self.u if self.kernel is None else self.u + self.kernel.apply(self.coef)
 
     @property
     def theta(self):
-        z = self.deformed
-        if self.rot is None:
-            return z
-        return self.scale * z @ self.rot.T + self.shift
+        return self.u if self.kernel is None else self.u + self.kernel.apply(self.coef)
 
 
 def initial_sigma2(u, y):
@@ -200,33 +182,10 @@ def initial_sigma2(u, y):
     return float(np.mean(sq_dist(u, y)) / u.shape[1])
 
 
-POSE_MODE = "similarity"
-
-
-def similarity_step(z, y, p1, pt1, py, rigid=False):
-    """The similarity ``(s, R, t)`` that minimises ``Σ_ij P_ij |y_j − s R z_i − t|²`` (weighted
-    Procrustes, as in CPD's rigid registration)."""
-    d = z.shape[1]
-    np_ = max(float(p1.sum()), 1e-300)
-    my, mz = (pt1 @ y) / np_, (p1 @ z) / np_
-    a = py.T @ z - np_ * np.outer(my, mz)
-    u, sv, vt = np.linalg.svd(a)
-    c = np.ones(d)
-    c[-1] = 1.0 if np.linalg.det(u @ vt) >= 0 else -1.0
-    r = (u * c) @ vt
-    zc2 = float(p1 @ np.einsum("id,id->i", z - mz, z - mz))
-    s = 1.0 if rigid else float(np.sum(sv * c) / max(zc2, 1e-300))
-    return s, r, my - s * r @ mz
-
-
 def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12):
     """Continue the EM of the module docstring for up to ``max_iter`` more iterations (w fixed).
 
-    With a similarity in the state (``st.rot`` not None) each iteration first fits it to the
-    deformed source (:func:`similarity_step`), then the deformation in the source's frame, where
-    the target is ``Rᵀ(y − t)/s`` and σ² is ``σ²/s²``: the similarity is free, the prior is on the
-    deformation alone. Stops (``ok``, ``why="tolerance"``) when σ² changes by less than ``tol``
-    (relative).
+    Stops (``ok``, ``why="tolerance"``) when σ² changes by less than ``tol`` (relative).
     """
     n, d = st.u.shape
     y = np.ascontiguousarray(y, dtype=float)
@@ -236,13 +195,7 @@ def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12):
         p1, pt1, py, sse = _estep(np.ascontiguousarray(st.theta), y, st.s2, outlier_term(n, d, st.s2, st.w, volume))
         np_ = float(p1.sum())
         if st.kernel is not None:
-            if st.rot is not None:
-                sc, st.rot, st.shift = similarity_step(st.deformed, y, p1, pt1, py, rigid=POSE_MODE == "rigid")
-                st.scale = sc
-                b = ((py - p1[:, None] * st.shift) @ st.rot) / st.scale - p1[:, None] * st.u
-                st.coef = st.kernel.solve(p1, b, lam * st.s2 / st.scale ** 2)
-            else:
-                st.coef = st.kernel.solve(p1, py - p1[:, None] * st.u, lam * st.s2)
+            st.coef = st.kernel.solve(p1, py - p1[:, None] * st.u, lam * st.s2)
             theta = st.theta
             sse = float(pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.einsum("id,id->i", theta, theta))
         if fixed_s2 is not None:

@@ -100,10 +100,6 @@ def _rms(x):
     return float(np.sqrt(np.mean(np.sum(x * x, axis=1))))
 
 
-_sq = sq_dist
-_volume = box_volume
-
-
 def _posteriors(theta, y, s2, w):
     """P (n, m) with the uniform component over the target's bounding box; and Σ_ij P_ij |y_j − θ_i|²."""
     p = posteriors(theta, y, s2, w, box_volume(y))
@@ -123,7 +119,7 @@ def alpha_kernel(a, b, sigma2):
 def overlap_kernel(a, b, sigma2):
     """``⟨N_a, N_b⟩_{L²} / ⟨N_a, N_a⟩_{L²} = exp(−|a_i − b_j|²/4σ²)`` (n, m): the α-order metric of
     the mixture in its weight coordinates (``∂p/∂π_a = N_a``), divided by its diagonal."""
-    return np.exp(-_sq(a, b) / (4 * sigma2))
+    return np.exp(-sq_dist(a, b) / (4 * sigma2))
 
 
 def _fr_weight_metric(u, s2):
@@ -320,16 +316,12 @@ class RegistrationResult:
         if self.metric != "alpha":
             raise ValueError("method='kernel' needs the closed-form alpha kernel; register with metric='alpha'")
         mean, size = self._frame
-        a0, t0, mx, sx, scale, rot, shift = self._start
+        a0, t0, mx, sx = self._start
         zn = ((x - mx) / sx) @ a0.T + t0  # the frame of the fit
         s2g = self.sigma2_metric / size ** 2
         if self._kernel == "weights":
-            z = zn + overlap_kernel(zn, self._u, s2g) @ self._coef
-        else:
-            z = zn + (alpha_kernel(zn, self._u, s2g) @ self._coef.ravel()).reshape(-1, d)
-        if rot is not None:  # the similarity in front of the deformation
-            z = scale * z @ rot.T + shift
-        return z * size + mean
+            return (zn + overlap_kernel(zn, self._u, s2g) @ self._coef) * size + mean
+        return (zn + (alpha_kernel(zn, self._u, s2g) @ self._coef.ravel()).reshape(-1, d)) * size + mean
 
     def summary(self) -> str:
         """A few lines: the pose, the fit, the correspondences and convergence."""
@@ -545,7 +537,7 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
     pn = align(xn, yn, sigma2=s2_pose, transform=transform, metric=metric, reflection=reflection,
                n_angles=max(n_angles, 1), warn=warn)
     u = xn @ pn.matrix.T + pn.translation
-    s2 = fixed_s2 / sy ** 2 if fixed_s2 is not None else float(np.mean(_sq(u, yn)) / x.shape[1])
+    s2 = fixed_s2 / sy ** 2 if fixed_s2 is not None else float(np.mean(sq_dist(u, yn)) / x.shape[1])
     st = _em(_EMState(u=u, g=None, coef=None, s2=s2, w=w), yn, lam=lam, fixed_s2=fixed_s2, auto_w=auto_w,
              tol=tol, s2_floor=SIGMA2_FLOOR * s2_pose, max_iter=max_iter)
     if warn and not st.ok:
@@ -596,14 +588,14 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
     f0, k, st = fits[0]
     start = (rots[k], np.zeros(x.shape[1]))  # x -> u = ((x − m_x)/s_x) A0ᵀ + t0, the fit's frame
     reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2)
+    # the similarity part of the deformation, as the pose (the posed source: the geodesic's start)
+    a, t = _similarity_part(xn, st.theta, reflection)
     if (metric, kernel) != ("alpha", "weights"):
-        a, t = _pose_of(st, *start)
         st = _nonrigid.refit(xn @ a.T + t, yn, st.w, _nonrigid.with_kernel(
             lambda u: _kernel(u, s2g, metric, kernel), invariant=False), volume=box_volume(yn), **em_opts)
         f0, start = None, (a, t)
         reasons = reasons + _nonrigid.assess([(0.0, 0, st)], yn, spacing2=spacing2)[0]
-    # the similarity in front of the deformation, as the pose (the posed source: the geodesic's start)
-    a, t = _pose_of(st, *start)
+        a, t = _similarity_part(xn, st.theta, reflection)
     theta = st.theta
     diagnostics.update(objective=f0, candidates=[(f, int(kk), float(s.w)) for f, kk, s in fits])
     p = posteriors(theta, yn, st.s2, st.w, box_volume(yn))
@@ -619,7 +611,7 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
         warnings.warn("register: the registration is probably wrong: " + "; ".join(reasons), RegistrationWarning,
                       stacklevel=3)
     return _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, "nonrigid", metric, s2g, kernel, n_steps,
-                   reasons=reasons, diagnostics=diagnostics, start=(*start, mx, sx, st.scale, st.rot, st.shift))
+                   reasons=reasons, diagnostics=diagnostics, start=(*start, mx, sx))
 
 
 def farthest_points(a, k):
@@ -656,12 +648,16 @@ def _register_large(x, y, fixed_s2, w, auto_w, reflection, lam, s2g, max_iter, t
                    _source=x, _target=y, _p=None, _geodesic=None)
 
 
-def _pose_of(st, a0, t0):
-    """The similarity ``x_n ↦ a x_n + t`` (normalised units) of a fit from the frame ``u = x_n a0ᵀ + t0``."""
-    if st.rot is None:
-        return a0, t0
-    a = st.scale * st.rot @ a0
-    return a, st.scale * st.rot @ t0 + st.shift
+def _similarity_part(x, theta, reflection):
+    """The similarity ``x ↦ a x + t`` of least squares onto the fitted points ``theta`` (ordinary
+    Procrustes with scale, :func:`~shapelib.geometry.procrustes.optimal_rotation`)."""
+    from ..geometry.procrustes import optimal_rotation
+
+    mx, mt = x.mean(axis=0), theta.mean(axis=0)
+    xc = x - mx
+    r, trace = optimal_rotation(theta - mt, xc, reflection=reflection)  # theta − mt ≈ xc r
+    a = trace / max(float(np.sum(xc * xc)), 1e-300) * r.T
+    return a, mt - a @ mx
 
 
 def _spacing2(yn):
