@@ -78,11 +78,18 @@ def posteriors(theta, y, s2, w, volume):
     return e / den
 
 
+#: a term of ``P``'s denominator below ``exp(−PRUNE)`` times its largest is skipped (``exp(−37)``
+#: is 8.5e-17, below float64's resolution of the sum)
+PRUNE = 37.0
+
+
 @njit(cache=True, fastmath=False)
 def _estep(theta, y, s2, c):
     """The sums the M-step needs, without the (n, m) matrix: ``P1 = Σ_j P_ij`` (n,), ``Pᵀ1`` (m,),
     ``P y`` (n, d) and ``Σ_ij P_ij |y_j − θ_i|²``, with ``c`` the outlier term of ``P``'s
-    denominator."""
+    denominator. Each column is scaled by its largest term, ``exp(−r_min/2σ²)``, and the terms
+    ``PRUNE`` below it are skipped (the same sums to float64 precision, without the exponentials
+    that cannot change them)."""
     n, d = theta.shape
     m = y.shape[0]
     p1 = np.zeros(n)
@@ -91,23 +98,32 @@ def _estep(theta, y, s2, c):
     e = np.empty(n)
     dist = np.empty(n)
     sse = 0.0
+    half = 0.5 / s2
     for j in range(m):
-        den = c
+        rmin = np.inf
         for i in range(n):
             r = 0.0
             for k in range(d):
                 t = y[j, k] - theta[i, k]
                 r += t * t
             dist[i] = r
-            e[i] = math.exp(-r / (2.0 * s2))
-            den += e[i]
-        if den <= 0.0:
-            continue
+            if r < rmin:
+                rmin = r
+        if c == 0.0 and rmin * half > 708.0:
+            continue  # every term underflows and no outlier term: the point takes no posterior
+        den = c * math.exp(rmin * half) if c > 0.0 else 0.0
+        for i in range(n):
+            a = (dist[i] - rmin) * half
+            if a > PRUNE:
+                e[i] = 0.0
+            else:
+                e[i] = math.exp(-a)
+                den += e[i]
         tot = 0.0
         for i in range(n):
-            q = e[i] / den
-            if q == 0.0:
+            if e[i] == 0.0:
                 continue
+            q = e[i] / den
             p1[i] += q
             tot += q
             sse += q * dist[i]
@@ -115,6 +131,43 @@ def _estep(theta, y, s2, c):
                 py[i, k] += q * y[j, k]
         pt1[j] = tot
     return p1, pt1, py, sse
+
+
+@njit(cache=True, fastmath=False)
+def _em_loop(u, q, ev, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor):
+    """:func:`run_em`'s iterations for a factored weight-coordinate kernel ``G = Q diag(ev) Qᵀ``, compiled:
+    E-step, the Woodbury M-step of the module docstring and σ²'s update. ``c_unit`` is the outlier
+    term at σ² = 1 (it scales as ``σ^d``). Returns ``coef``, σ², the iterations run and whether σ²'s
+    relative change fell below ``tol``."""
+    n, d = u.shape
+    yy = np.zeros(y.shape[0])
+    for j in range(y.shape[0]):
+        for k in range(d):
+            yy[j] += y[j, k] * y[j, k]
+    qt = np.ascontiguousarray(q.T)
+    theta = u + q @ (ev[:, None] * (qt @ coef))
+    it = 0
+    ok = False
+    for _ in range(max_iter):
+        it += 1
+        p1, pt1, py, sse = _estep(theta, y, s2, c_unit * s2 ** (d / 2))
+        lam_s2 = lam * s2
+        b = py - p1[:, None] * u
+        dq = p1[:, None] * q
+        inner = qt @ dq
+        for a in range(inner.shape[0]):
+            inner[a, a] += lam_s2 / ev[a]
+        coef = (b - dq @ np.linalg.solve(inner, qt @ b)) / lam_s2
+        theta = u + q @ (ev[:, None] * (qt @ coef))
+        if fixed:
+            continue
+        sse = pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.sum(theta * theta, axis=1)
+        s2_old = s2
+        s2 = max(sse / (max(p1.sum(), 1e-300) * d), s2_floor)
+        if abs(s2 - s2_old) <= tol * s2_old:
+            ok = True
+            break
+    return coef, s2, it, ok
 
 
 def outlier_term(n, d, s2, w, volume):
@@ -189,6 +242,16 @@ def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12):
     """
     n, d = st.u.shape
     y = np.ascontiguousarray(y, dtype=float)
+    k = st.kernel
+    if k is not None and k.full is None:
+        c_unit = outlier_term(n, d, 1.0, st.w, volume)
+        coef, s2, it, ok = _em_loop(np.ascontiguousarray(st.u, dtype=float), np.ascontiguousarray(k.q), k.ev, y,
+                                    np.ascontiguousarray(st.coef, dtype=float), float(st.s2), c_unit, float(lam),
+                                    int(max_iter), float(tol), fixed_s2 is not None, float(s2_floor))
+        st.coef, st.s2, st.it = coef, s2, st.it + it
+        if fixed_s2 is not None or ok:
+            st.ok, st.why = True, "tolerance"
+        return st
     yy = np.einsum("jd,jd->j", y, y)
     for _ in range(max_iter):
         st.it += 1
