@@ -202,3 +202,33 @@ def test_farthest_points_spread_over_the_set():
     a = np.vstack([np.zeros((50, 2)), [[10.0, 0.0]], np.ones((50, 2)) * [0, 5]])
     idx = farthest_points(a, 3)
     assert sorted(map(tuple, a[idx])) == sorted([(0.0, 0.0), (10.0, 0.0), (0.0, 5.0)])
+
+
+def test_a_large_rigid_registration_runs_on_subsets_and_moves_every_point_by_the_pose(monkeypatch):
+    """The rigid transforms go through the subsets too (no (n, m) matrix of the whole sets): a known
+    rotation and shift are recovered and applied to every point."""
+    from shapelib.pointsets import registration
+
+    monkeypatch.setattr(registration, "MAX_POINTS", 80)
+    monkeypatch.setattr(registration, "WARP_BLOCK", 64)  # several blocks
+    x = fish(300)
+    y = x @ rot2(1.1).T + [0.3, -0.2]
+    res = sl.register(x, y[::-1], transform="rigid")
+    assert res.diagnostics["subsets"] == (80, 80)
+    np.testing.assert_allclose(res.pose.matrix, rot2(1.1), atol=1e-3)
+    np.testing.assert_allclose(res.points, x @ res.pose.matrix.T + res.pose.translation, atol=1e-12)
+    assert np.max(np.linalg.norm(res.points - y, axis=1)) < 0.01 * size(y)
+
+
+def test_progress_is_reported_for_every_start_and_fit_and_checked():
+    x = fish(40)
+    calls = []
+    register_quietly(x, warp(x, 0.2), progress=lambda done, total: calls.append((done, total)))
+    total = shapelib.pointsets._nonrigid.N_ROT_2D + shapelib.pointsets._nonrigid.N_KEEP * 3
+    assert [c[1] for c in calls] == [total] * total
+    assert [c[0] for c in calls] == list(range(1, total + 1))
+    calls.clear()
+    sl.register(x, x + 0.1, transform="similarity", progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(1, 2), (2, 2)]
+    with pytest.raises(ValueError, match="progress must be a callable"):
+        sl.register(x, x, progress=3)

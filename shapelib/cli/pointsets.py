@@ -52,6 +52,24 @@ def _w(text: str):
     return w
 
 
+def _progress_bar(off):
+    """A tqdm bar on standard error for :func:`~shapelib.register`'s ``progress`` (None when ``off``;
+    tqdm draws nothing where standard error is not a terminal)."""
+    if off:
+        return None
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=1, desc="register", unit="fit", leave=False, disable=None, file=sys.stderr)
+
+    def update_to(done, total):
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    bar.update_to = update_to
+    return bar
+
+
 def cmd_register(args) -> int:
     from ..io import write_point_set
     from ..pointsets.registration import register
@@ -67,10 +85,16 @@ def cmd_register(args) -> int:
 
     from ..pointsets.registration import RegistrationWarning
 
+    bar = _progress_bar(args.no_progress)
     with warnings.catch_warnings():  # the summary says it, once: not a warning beside it
         warnings.simplefilter("ignore", RegistrationWarning)
-        res = register(source, target, transform=args.transform, metric=args.metric, sigma2=_sigma2(args.sigma2),
-                       w=_w(args.w), reflection=args.reflection)
+        try:
+            res = register(source, target, transform=args.transform, metric=args.metric,
+                           sigma2=_sigma2(args.sigma2), w=_w(args.w), reflection=args.reflection,
+                           progress=None if bar is None else bar.update_to)
+        finally:
+            if bar is not None:
+                bar.close()
     write_point_set(out, res.points)
     print(res.summary())
     print(f"moved source -> {out}")
@@ -128,4 +152,5 @@ def register(add) -> None:
     p.add_argument("--w", default="auto", metavar="W",
                    help="outlier weight in [0, 1), or 'auto' (default): chosen from the data")
     p.add_argument("--reflection", action="store_true", help="also try mirror images of the source")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (drawn on a terminal only)")
     p.set_defaults(func=cmd_register)

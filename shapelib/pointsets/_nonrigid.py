@@ -66,12 +66,13 @@ def start_rotations(d, reflection):
     return rots
 
 
-def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s2_floor):
+def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s2_floor, progress=None):
     """Steps 1–3: every final fit as ``(objective, start index, EMState)``, best first, and the starts.
 
     ``kernel_of(u)`` gives the :class:`~shapelib.pointsets._coherent_em.Kernel` at a posed source (a
     weight-coordinate kernel is the same for every rotation: ``kernel_of`` may return a cached one);
-    ``w`` is a number, or None for the grid of step 3.
+    ``w`` is a number, or None for the grid of step 3. ``progress(done, total)``, if given, is called
+    after each start's screening and each final fit.
     """
     d = xn.shape[1]
     volume = box_volume(yn)
@@ -79,6 +80,8 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
     screen_w = W_SCREEN if w is None else w
     grid = W_GRID if w is None else (w,)
     opts = dict(lam=lam, volume=volume, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
+    total = len(rots) + N_KEEP * len(grid)
+    tick = progress if progress is not None else (lambda done, total: None)
     screened = []
     for k, r in enumerate(rots):
         u = xn @ r.T
@@ -86,18 +89,21 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
         st = EMState(u=u, kernel=kernel_of(u), coef=np.zeros_like(u), s2=s2, w=screen_w)
         run_em(st, yn, max_iter=min(SCREEN_ITER, max_iter), **opts)
         screened.append((objective(st, yn, lam=lam, volume=volume), k, st))
+        tick(k + 1, total)
     screened.sort(key=lambda c: c[0])
     fits = []
     for f0, k, st0 in screened[:N_KEEP]:
         for wk in grid:
             if wk == screen_w and st0.ok:
                 fits.append((f0, k, st0))
+                tick(len(rots) + len(fits), total)
                 continue
             # each weight from the start: a fit continued from another weight's keeps that weight's basin
             s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(st0.u, yn)
             st = EMState(u=st0.u, kernel=st0.kernel, coef=np.zeros_like(st0.u), s2=s2, w=wk)
             run_em(st, yn, max_iter=max_iter, **opts)
             fits.append((objective(st, yn, lam=lam, volume=volume), k, st))
+            tick(len(rots) + len(fits), total)
     fits.sort(key=lambda c: c[0])
     return fits, rots, screened
 

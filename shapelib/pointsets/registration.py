@@ -340,7 +340,7 @@ class RegistrationResult:
 def register(source, target, *, transform: str = "nonrigid", metric: str = "alpha", sigma2="auto", w="auto",
              reflection: bool = False, lam: float = 2.0, sigma2_metric: float = 2.0, kernel: str = "weights",
              n_angles: int = 36, max_iter: int = 150, tol: float = 1e-5, n_steps: int = 16,
-             warn: bool = True) -> RegistrationResult:
+             warn: bool = True, progress=None) -> RegistrationResult:
     """Register the point set ``source`` onto ``target`` by the information geometry.
 
     Rigid, similarity or affine: the pose minimises a density distance over every rotation, then
@@ -389,6 +389,10 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     warn : bool
         Warn (:class:`RegistrationWarning`) when EM stops without converging or the result is not
         ``reliable``.
+    progress : callable, optional
+        Called as ``progress(done, total)`` as the search advances (non-rigid: after each start's
+        screening and each final fit; the other transforms: after the pose search and after EM), for a
+        progress bar on long fits (``shapelib register`` draws one on a terminal).
 
     Returns
     -------
@@ -463,14 +467,21 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     if transform == "nonrigid" and max(len(x), len(y)) > MAX_POINTS and (metric, kernel) != ("alpha", "weights"):
         raise ValueError(f"sets of over {MAX_POINTS} points are registered with metric='alpha' and kernel='weights' "
                          f"(their fit is carried to every point by the kernel); got metric={metric!r}, kernel={kernel!r}")
-    with one_blas_thread():
-        if transform == "nonrigid" and max(len(x), len(y)) > MAX_POINTS:
-            return _register_large(x, y, fixed_s2, w0, auto_w, reflection, lam, s2g, max_iter, tol, n_steps, warn)
+    if progress is not None and not callable(progress):
+        raise ValueError(f"progress must be a callable progress(done, total) or None; got {progress!r}")
+    tick = progress if progress is not None else (lambda done, total: None)
+
+    def fit(xs, ys):
         if transform == "nonrigid":
-            return _register_nonrigid(x, y, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, max_iter,
-                                      tol, n_steps, warn)
-        return _register(x, y, transform, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, n_angles,
-                         max_iter, tol, n_steps, warn)
+            return _register_nonrigid(xs, ys, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, max_iter,
+                                      tol, n_steps, warn, tick)
+        return _register(xs, ys, transform, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, n_angles,
+                         max_iter, tol, n_steps, warn, tick)
+
+    with one_blas_thread():
+        if max(len(x), len(y)) > MAX_POINTS:
+            return _register_large(x, y, fit)
+        return fit(x, y)
 
 
 @dataclass
@@ -529,17 +540,19 @@ def _frames(x, y, transform):
 
 
 def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, n_angles, max_iter, tol,
-              n_steps, warn):
+              n_steps, warn, tick):
     """Rigid, similarity or affine: the pose search, then EM on σ² (and w) with the means held."""
     xn, yn, mx, sx, my, sy = _frames(x, y, transform)
     # pose: σ² of the search's last level from the target's own spread (leave-one-out), or the given one
     s2_pose = fixed_s2 / sy ** 2 if fixed_s2 is not None else fit_mixture(yn, warn=False).sigma2
     pn = align(xn, yn, sigma2=s2_pose, transform=transform, metric=metric, reflection=reflection,
                n_angles=max(n_angles, 1), warn=warn)
+    tick(1, 2)
     u = xn @ pn.matrix.T + pn.translation
     s2 = fixed_s2 / sy ** 2 if fixed_s2 is not None else float(np.mean(sq_dist(u, yn)) / x.shape[1])
     st = _em(_EMState(u=u, g=None, coef=None, s2=s2, w=w), yn, lam=lam, fixed_s2=fixed_s2, auto_w=auto_w,
              tol=tol, s2_floor=SIGMA2_FLOOR * s2_pose, max_iter=max_iter)
+    tick(2, 2)
     if warn and not st.ok:
         warnings.warn(f"register: EM stopped after {max_iter} iterations without converging (sigma2 = "
                       f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning, stacklevel=3)
@@ -571,7 +584,7 @@ def _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, transform, metric, s2
 
 
 def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, max_iter, tol, n_steps,
-                       warn):
+                       warn, tick):
     """Non-rigid: the search of :mod:`shapelib.pointsets._nonrigid` over starts and outlier weights."""
     from . import _nonrigid
 
@@ -584,7 +597,7 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
     search_kernel = _nonrigid.with_kernel(lambda u: _kernel(u, s2g, "alpha", "weights"), invariant=True)
     em_opts = dict(lam=lam, fixed_s2=fs2, max_iter=max_iter, tol=tol, s2_floor=SIGMA2_FLOOR * s2_eval)
     fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=search_kernel, w=None if auto_w else w,
-                                      reflection=reflection, **em_opts)
+                                      reflection=reflection, progress=tick, **em_opts)
     f0, k, st = fits[0]
     start = (rots[k], np.zeros(x.shape[1]))  # x -> u = ((x − m_x)/s_x) A0ᵀ + t0, the fit's frame
     reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2)
@@ -614,6 +627,10 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
                    reasons=reasons, diagnostics=diagnostics, start=(*start, mx, sx))
 
 
+#: source points warped at a time in a large registration (bounds the kernel block's memory)
+WARP_BLOCK = 4096
+
+
 def farthest_points(a, k):
     """Indices of ``k`` points of ``a`` spread over it: farthest-point sampling from the point nearest
     the centroid (deterministic)."""
@@ -626,18 +643,19 @@ def farthest_points(a, k):
     return np.sort(idx)
 
 
-def _register_large(x, y, fixed_s2, w, auto_w, reflection, lam, s2g, max_iter, tol, n_steps, warn):
-    """Non-rigid for sets over ``MAX_POINTS``: the registration of farthest-point subsets, its kernel
-    warp applied to every source point, correspondences by nearest neighbours within 3σ."""
+def _register_large(x, y, fit):
+    """Sets over ``MAX_POINTS``: ``fit`` (the registration of two sets) on farthest-point subsets of
+    ``MAX_POINTS``, its warp (the kernel's, or the pose of a rigid transform) applied to every source
+    point in blocks, correspondences by nearest neighbours within 3σ plus a point spacing. Memory is
+    O((n + m) · MAX_POINTS) whatever the sizes."""
     from dataclasses import replace
 
     from scipy.spatial import cKDTree
 
     ix = farthest_points(x, min(len(x), MAX_POINTS))
     iy = farthest_points(y, min(len(y), MAX_POINTS))
-    sub = _register_nonrigid(x[ix], y[iy], "alpha", fixed_s2, w, auto_w, reflection, lam, s2g, "weights", max_iter,
-                             tol, n_steps, warn)
-    points = sub.warp(x)
+    sub = fit(x[ix], y[iy])
+    points = np.concatenate([sub.warp(x[i:i + WARP_BLOCK]) for i in range(0, len(x), WARP_BLOCK)])
     reach = 3.0 * np.sqrt(sub.sigma2) + np.sqrt(_spacing2(y))
     dist, near = cKDTree(y).query(points)
     corr = np.where(dist <= reach, near, -1)
