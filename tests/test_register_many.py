@@ -113,12 +113,20 @@ def test_a_permutation_of_the_pairs_permutes_the_results(both):
         assert again[j].diagnostics["candidates"][0][1:] == batched[i].diagnostics["candidates"][0][1:]
 
 
-def test_a_pair_alone_equals_the_pair_padded_in_a_batch(both):
-    """Padding (the 30-point pair inside a batch padded to 48 points, and alone at 32) changes nothing."""
+def test_sets_over_max_points_go_through_register_in_their_place(both, monkeypatch):
+    """A pair over ``MAX_POINTS`` is registered by register (its subsets path) even with backend="jax": here
+    the bound is lowered to 40 points so that the 45-point pair takes that path, and the other stays batched,
+    alone: padded to 32 points instead of 48 in the full batch, its fit is the same."""
+    from shapelib.pointsets import _batch
+
     _, batched = both
-    alone = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", batch_size=1)[0]
-    np.testing.assert_allclose(alone.points, batched[0].points, atol=1e-9)
-    assert alone.n_iter == batched[0].n_iter
+    monkeypatch.setattr(_batch, "MAX_POINTS", 40)
+    got = _quiet(shapelib.register_many, [PAIRS[2], PAIRS[0]], backend="jax", device="cpu")
+    ref = _quiet(shapelib.register, *PAIRS[2])
+    np.testing.assert_array_equal(got[0].points, ref.points)  # register itself, bit for bit
+    assert got[0].diagnostics["candidates"] == ref.diagnostics["candidates"]
+    np.testing.assert_allclose(got[1].points, batched[0].points, atol=1e-9)
+    assert got[1].n_iter == batched[0].n_iter
 
 
 def test_three_d_pairs_on_jax_equal_register():
