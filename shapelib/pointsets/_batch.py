@@ -242,7 +242,7 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
                               sigma2_metric=s2g, max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn)
     todo = [i for i in range(len(sets)) if max(len(sets[i][0]), len(sets[i][1])) <= MAX_POINTS]
     t_search = t_host = 0.0
-    dev_name = str(jax_device(device)) if todo or timings is not None else None
+    dev_name = str(jax_device(device)) if todo else None
     if todo:
         d = sets[todo[0]][0].shape[1]
         rots = start_rotations(d, reflection)
