@@ -6,8 +6,8 @@ The batched path is the search of :mod:`shapelib.pointsets._nonrigid` with the e
 :mod:`shapelib.pointsets._coherent_em`, rewritten as array code over a batch of fits:
 
 1. **Padding.** The normalised sets of a batch of pairs are padded to the batch's largest ``n``
-   and ``m`` (rounded up by :func:`shapelib.solver.batched.bucket`, so that a few compiled
-   programs serve every size). A padded target point has no Gaussian term (``P_ij = 0`` for every
+   and ``m`` (rounded up to a multiple of 8, or above 256 points by
+   :func:`shapelib.solver.batched.bucket`, so that a few compiled programs serve every size). A padded target point has no Gaussian term (``P_ij = 0`` for every
    ``i``: it takes no posterior and adds nothing to the objective); a padded source point has
    ``P_ij = 0`` for every ``j``, so ``P1_i = 0``, ``B_i = 0`` and its coefficient ``W_i = 0``. The
    outlier term, the mean of the start σ² and the log-likelihood use the true ``n``, ``m`` and
@@ -100,8 +100,10 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
     batch_size : int, optional
         ``backend="jax"``: pairs per device call (default: from the device's memory, at most 4096).
     timings : dict, optional
-        Filled with the seconds spent: ``"search"`` (the device's EM, transfers included) and
-        ``"assembly"`` (the results on the host), and ``"device"`` (the JAX device's name).
+        Filled with the seconds spent: ``"prep"`` (normalisation and the target's leave-one-out σ²
+        on the host, once per distinct target), ``"search"`` (the batched EM on the device, padding
+        and transfers included) and ``"assembly"`` (the results on the host), and ``"device"`` (the
+        JAX device's name).
 
     Returns
     -------
@@ -161,7 +163,7 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
         t0 = time.perf_counter()
         out = [register(x, y, transform="nonrigid", **opts) for x, y in sets]
         if timings is not None:
-            timings.update(search=time.perf_counter() - t0, assembly=0.0, device="numpy (CPU)")
+            timings.update(prep=0.0, search=time.perf_counter() - t0, assembly=0.0, device="numpy (CPU)")
         return out
     for name, default in _JAX_DEFAULTS.items():
         value = opts[name]
@@ -241,7 +243,8 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
         results[i] = register(*sets[i], w="auto" if w is None else w, reflection=reflection, lam=lam,
                               sigma2_metric=s2g, max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn)
     todo = [i for i in range(len(sets)) if max(len(sets[i][0]), len(sets[i][1])) <= MAX_POINTS]
-    t_search = t_host = 0.0
+    t_prep = t_search = t_host = 0.0
+    target_s2 = {}
     dev_name = str(jax_device(device)) if todo else None
     if todo:
         d = sets[todo[0]][0].shape[1]
@@ -255,7 +258,12 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
         for start in range(0, len(todo), batch_size):
             idx = todo[start:start + batch_size]
             t0 = time.perf_counter()
-            prep = [_nonrigid_frame(*sets[i], None) for i in idx]
+            prep = []
+            for i in idx:  # the target's leave-one-out σ² once per distinct target (a matrix's pairs share them)
+                key = (sets[i][1].shape, sets[i][1].tobytes())
+                prep.append(_nonrigid_frame(*sets[i], None, target_s2=target_s2.get(key)))
+                target_s2[key] = prep[-1][2]
+            tp = time.perf_counter()
             fits = _search(prep, rots, w=W_SCREEN if w is None else w, grid=grid, lam=lam, s2g=s2g,
                            max_iter=max_iter, tol=tol, device=device)
             t1 = time.perf_counter()
@@ -264,11 +272,18 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
                                               reflection=reflection, s2g=s2g, kernel="weights",
                                               em_opts=dict(em_opts, s2_floor=SIGMA2_FLOOR * s2_eval),
                                               n_steps=n_steps, warn=warn, stacklevel=4)
-            t_search += t1 - t0
+            t_prep += tp - t0
+            t_search += t1 - tp
             t_host += time.perf_counter() - t1
     if timings is not None:
-        timings.update(search=t_search, assembly=t_host, device=dev_name)
+        timings.update(prep=t_prep, search=t_search, assembly=t_host, device=dev_name)
     return results
+
+
+def _pad_size(n):
+    """The padded size of a batch's sets: a multiple of 8 up to 256 points (at most 7 padded points: the
+    E-step's cost grows as n · m), :func:`~shapelib.solver.batched.bucket` above (few compiled sizes)."""
+    return int(-(-n // 8) * 8) if n <= 256 else bucket(n)
 
 
 def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device):
@@ -278,7 +293,7 @@ def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device):
     d = prep[0][0][0].shape[1]
     ns = np.array([len(p[0][0]) for p in prep])
     ms = np.array([len(p[0][1]) for p in prep])
-    bp, n_pad, m_pad = bucket(b), bucket(ns.max()), bucket(ms.max())
+    bp, n_pad, m_pad = bucket(b), _pad_size(ns.max()), _pad_size(ms.max())
     xs, ys = np.zeros((bp, n_pad, d)), np.zeros((bp, m_pad, d))
     umask, ymask = np.zeros((bp, n_pad), bool), np.zeros((bp, m_pad), bool)
     vol, floor, nreal = np.ones(bp), np.ones(bp), np.ones(bp)

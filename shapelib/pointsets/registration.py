@@ -570,14 +570,17 @@ def _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, transform, metric, s2
                               _n_steps=n_steps, _kernel=kernel, _start=start)
 
 
-def _nonrigid_frame(x, y, fixed_s2):
+def _nonrigid_frame(x, y, fixed_s2, target_s2=None):
     """The normalised sets of the non-rigid search and the σ² they need: ``(xn, yn, mx, sx, my, sy)``,
     the fixed σ² in normalised units (or None) and ``s2_eval`` (the given σ² or the target's
-    leave-one-out σ²: the objective's, and the scale of EM's σ² floor)."""
+    leave-one-out σ²: the objective's, and the scale of EM's σ² floor; ``target_s2`` if it is known)."""
     frame = _frames(x, y, "nonrigid")
     sy, yn = frame[5], frame[1]
     fs2 = None if fixed_s2 is None else fixed_s2 / sy ** 2
-    s2_eval = fs2 if fs2 is not None else fit_mixture(yn, warn=False).sigma2
+    if fs2 is not None:
+        s2_eval = fs2
+    else:
+        s2_eval = fit_mixture(yn, warn=False).sigma2 if target_s2 is None else target_s2
     return frame, fs2, s2_eval
 
 
