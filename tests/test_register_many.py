@@ -164,6 +164,7 @@ def test_bad_pairs_are_refused_naming_the_pair(pairs, match):
     (dict(backend="jax", metric="fisher_rao"), "metric='fisher_rao' is not batched"),
     (dict(backend="jax", kernel="means"), "kernel='means' is not batched"),
     (dict(backend="jax", sigma2=0.1), "sigma2=0.1 is not batched"),
+    (dict(backend="jax", sigma2=np.array([0.1, 0.2])), "sigma2=array"),
     (dict(backend="numpy", device="gpu"), "device"),
     (dict(backend="jax", device="tpu"), "device"),
     (dict(backend="jax", batch_size=0), "batch_size"),

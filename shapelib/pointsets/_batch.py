@@ -167,7 +167,7 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
         return out
     for name, default in _JAX_DEFAULTS.items():
         value = opts[name]
-        if not (value == default or (name == "sigma2" and value is None)):
+        if not ((isinstance(value, str) and value == default) or (name == "sigma2" and value is None)):
             raise ValueError(f'{name}={value!r} is not batched on JAX (backend="jax" runs {name}={default!r}); '
                              f'register these pairs with backend="numpy"')
     if device not in DEVICES:
