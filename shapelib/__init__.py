@@ -39,6 +39,7 @@ from .pointsets import (
     RegistrationResult,
     RegistrationWarning,
     register,
+    register_many,
     EMWarning,
     MixtureFit,
     fit_mixture,
@@ -119,6 +120,7 @@ __all__ = [
     "MixtureFit",
     "EMWarning",
     "register",
+    "register_many",
     "RegistrationResult",
     "RegistrationWarning",
     "read_point_sets",  # shapelib.io, loaded on first use

@@ -23,7 +23,8 @@ MATH_MODULES = (
     "shapelib.distances",
     "shapelib.solver.batched",
     "shapelib.pointsets.checks", "shapelib.pointsets.density", "shapelib.pointsets.pose", "shapelib.pointsets.em",
-    "shapelib.pointsets.registration", "shapelib.pointsets.invariant", "shapelib.pointsets.outline",
+    "shapelib.pointsets.registration", "shapelib.pointsets._batch", "shapelib.pointsets.invariant",
+    "shapelib.pointsets.outline",
     "shapelib.retrieval", "shapelib.statistics.linear_model", "shapelib.statistics.allometry",
 )
 MODULES = MATH_MODULES + ("shapelib.datasets", "shapelib.plotting")

@@ -276,6 +276,7 @@ AREAS = (
          shapelib.MixtureFit
          shapelib.EMWarning
          shapelib.register
+         shapelib.register_many
          shapelib.RegistrationResult
          shapelib.RegistrationWarning
          shapelib.trace_outline

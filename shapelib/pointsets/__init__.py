@@ -9,7 +9,7 @@ equal-weight isotropic mixture of eq. (5) with one component per point. Modules:
 * ``shapelib.pointsets.pose``: the pose search over every rotation (:func:`align`);
 * ``shapelib.pointsets.em``: σ² (and the means of a compact mixture) from the points (:func:`fit_mixture`);
 * ``shapelib.pointsets.registration``: registration, rigid to non-rigid, by the information
-  geometry (:func:`register`).
+  geometry (:func:`register`; many pairs at once, batched on JAX: :func:`register_many`).
 """
 
 from .checks import as_point_set, as_point_sets
@@ -17,7 +17,8 @@ from .density import bhattacharyya_affinity, density_distance, density_inner, he
 from .em import EMWarning, MixtureFit, fit_mixture
 from .pose import Pose, PoseSearchWarning, align
 from .registration import RegistrationResult, RegistrationWarning, register
+from ._batch import register_many
 
 __all__ = ["as_point_set", "as_point_sets", "bhattacharyya_affinity", "density_distance", "density_inner",
            "hellinger_sq", "l2_distance_sq", "align", "Pose", "PoseSearchWarning", "fit_mixture", "MixtureFit",
-           "EMWarning", "register", "RegistrationResult", "RegistrationWarning"]
+           "EMWarning", "register", "register_many", "RegistrationResult", "RegistrationWarning"]

@@ -555,7 +555,7 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
     tick(2, 2)
     if warn and not st.ok:
         warnings.warn(f"register: EM stopped after {max_iter} iterations without converging (sigma2 = "
-                      f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning, stacklevel=3)
+                      f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning, stacklevel=4)
     a = pn.matrix * (sy / sx)  # the pose in the input units: x -> A (x − m_x)/s_x · s_y + t̃ s_y + m_y
     t = my + sy * pn.translation - a @ mx
     pose = Pose(matrix=a, translation=t, points=x @ a.T + t, value=pn.value, objective=pn.objective,
@@ -583,21 +583,48 @@ def _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, transform, metric, s2
                               _n_steps=n_steps, _kernel=kernel, _start=start)
 
 
+def _nonrigid_frame(x, y, fixed_s2, target_s2=None):
+    """The normalised sets of the non-rigid search and the σ² they need: ``(xn, yn, mx, sx, my, sy)``,
+    the fixed σ² in normalised units (or None) and ``s2_eval`` (the given σ² or the target's
+    leave-one-out σ²: the objective's, and the scale of EM's σ² floor; ``target_s2`` if it is known)."""
+    frame = _frames(x, y, "nonrigid")
+    sy, yn = frame[5], frame[1]
+    fs2 = None if fixed_s2 is None else fixed_s2 / sy ** 2
+    if fs2 is not None:
+        s2_eval = fs2
+    else:
+        s2_eval = fit_mixture(yn, warn=False).sigma2 if target_s2 is None else target_s2
+    return frame, fs2, s2_eval
+
+
 def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, max_iter, tol, n_steps,
                        warn, tick):
     """Non-rigid: the search of :mod:`shapelib.pointsets._nonrigid` over starts and outlier weights."""
     from . import _nonrigid
 
-    xn, yn, mx, sx, my, sy = _frames(x, y, "nonrigid")
-    fs2 = None if fixed_s2 is None else fixed_s2 / sy ** 2
-    spacing2 = _spacing2(yn)
-    s2_eval = fs2 if fs2 is not None else fit_mixture(yn, warn=False).sigma2
+    frame, fs2, s2_eval = _nonrigid_frame(x, y, fixed_s2)
+    xn, yn = frame[:2]
     # the search runs with the α-order metric's weight kernel (a smooth Gaussian kernel that carries a
     # rotation, a scale and a bend coherently); another metric or kernel deforms from the pose it finds
     search_kernel = _nonrigid.with_kernel(lambda u: _kernel(u, s2g, "alpha", "weights"), invariant=True)
     em_opts = dict(lam=lam, fixed_s2=fs2, max_iter=max_iter, tol=tol, s2_floor=SIGMA2_FLOOR * s2_eval)
     fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=search_kernel, w=None if auto_w else w,
                                       reflection=reflection, progress=tick, **em_opts)
+    return _nonrigid_result(x, y, frame, s2_eval, fits, rots, metric=metric, reflection=reflection, s2g=s2g,
+                            kernel=kernel, em_opts=em_opts, n_steps=n_steps, warn=warn, stacklevel=5)
+
+
+def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2g, kernel, em_opts, n_steps, warn,
+                     stacklevel):
+    """The :class:`RegistrationResult` of the search's ``fits`` (best first, as
+    :func:`shapelib.pointsets._nonrigid.fit_all` gives them): the reliability reasons, the pose (the
+    fit's similarity part), the refit with another metric or kernel, the warnings. :func:`register` and
+    :func:`shapelib.register_many` (``backend="jax"``) both build their results here."""
+    from . import _nonrigid
+
+    xn, yn, mx, sx, my, sy = frame
+    max_iter = em_opts["max_iter"]
+    spacing2 = _spacing2(yn)
     f0, k, st = fits[0]
     start = (rots[k], np.zeros(x.shape[1]))  # x -> u = ((x − m_x)/s_x) A0ᵀ + t0, the fit's frame
     reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2)
@@ -619,10 +646,11 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
                 sigma2=st.s2 * sy ** 2, n_starts=len(rots), n_iter=st.it)
     if warn and not st.ok:
         warnings.warn(f"register: EM stopped after {max_iter} iterations without converging (sigma2 = "
-                      f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning, stacklevel=3)
+                      f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning,
+                      stacklevel=stacklevel)
     if warn and reasons:
         warnings.warn("register: the registration is probably wrong: " + "; ".join(reasons), RegistrationWarning,
-                      stacklevel=3)
+                      stacklevel=stacklevel)
     return _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, "nonrigid", metric, s2g, kernel, n_steps,
                    reasons=reasons, diagnostics=diagnostics, start=(*start, mx, sx))
 

@@ -1,0 +1,177 @@
+"""register_many: the batched search on JAX (its CPU backend here) equals register one pair at a time
+(the same start, the same fit to rounding, the same reliability), the padding of sets of different
+sizes changes nothing, a permutation of the pairs permutes the results, and bad input is refused
+naming the parameter and the pair."""
+
+import os
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+from tests.conftest import import_or_missing
+
+import shapelib
+
+if "jax" not in sys.modules:  # compile time dominates these small problems: XLA's cheapest code generation
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
+
+
+def _outline(n, phase=0.0):
+    """A fish-like closed outline sampled at ``n`` points."""
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False) + phase
+    return np.column_stack([np.cos(t) + 0.45 * np.cos(2 * t), 0.55 * np.sin(t) + 0.12 * np.sin(2 * t)])
+
+
+def _bend(x):
+    return x + np.column_stack([0.05 * np.sin(2 * x[:, 1]), 0.25 * x[:, 0] ** 2])
+
+
+def _rot(angle):
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+def _pairs():
+    rng = np.random.default_rng(3)
+    bent = (_outline(30), _bend(_outline(30)))
+    # a bent outline of other samples, turned by 120 degrees, scaled and moved: the search must find the start
+    turned = (_outline(40), 1.3 * _bend(_outline(36, phase=0.05)) @ _rot(2 * np.pi / 3).T + [2.0, -1.0])
+    # clutter on the target: 6 uniform points in its box
+    clutter = (_outline(45), np.vstack([_bend(_outline(38, phase=0.02)), rng.uniform(-1.4, 1.4, (6, 2))]))
+    return [bent, turned, clutter]
+
+
+PAIRS = _pairs()
+
+
+def _quiet(fn, *args, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", shapelib.RegistrationWarning)
+        return fn(*args, **kw)
+
+
+@pytest.fixture(scope="module")
+def both():
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    one_by_one = [_quiet(shapelib.register, x, y) for x, y in PAIRS]
+    batched = _quiet(shapelib.register_many, PAIRS, backend="jax", device="cpu")
+    return one_by_one, batched
+
+
+def test_the_numpy_backend_is_register_one_by_one():
+    res = _quiet(shapelib.register_many, PAIRS[:1], backend="numpy")
+    ref = _quiet(shapelib.register, *PAIRS[0])
+    np.testing.assert_array_equal(res[0].points, ref.points)
+    assert res[0].diagnostics["candidates"] == ref.diagnostics["candidates"]
+
+
+def test_the_jax_batch_equals_register_one_by_one(both):
+    one_by_one, batched = both
+    assert len(batched) == len(PAIRS)
+    for i, (ref, got) in enumerate(zip(one_by_one, batched)):
+        size = ref._frame[1]  # the target's RMS radius: the normalised units
+        assert np.abs(got.points - ref.points).max() / size < 1e-6, i
+        # the same start rotation and outlier weight won, with the same objective (to rounding)
+        np.testing.assert_allclose(got._start[0], ref._start[0], atol=1e-12)
+        assert got.w == ref.w
+        assert [k for _, k, _ in got.diagnostics["candidates"]] == [k for _, k, _ in ref.diagnostics["candidates"]]
+        np.testing.assert_allclose([f for f, _, _ in got.diagnostics["candidates"]],
+                                   [f for f, _, _ in ref.diagnostics["candidates"]], rtol=1e-8, atol=1e-8)
+        assert got.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
+        assert (got.n_iter, got.converged, got.reliable, got.reasons) == \
+            (ref.n_iter, ref.converged, ref.reliable, ref.reasons), i
+        np.testing.assert_array_equal(got.correspondence, ref.correspondence)
+        np.testing.assert_array_equal(got.target_correspondence, ref.target_correspondence)
+        assert got.objective == pytest.approx(ref.objective, rel=1e-6)
+        np.testing.assert_allclose(got.pose.matrix, ref.pose.matrix, atol=1e-8)
+
+
+def test_the_batch_registers_what_it_should(both):
+    """Independently of register: the bent outline is matched point for point, the turned one lands on
+    its target (turned by 120 degrees), the clutter is left to the outlier component."""
+    _, (bent, turned, clutter) = both
+    np.testing.assert_allclose(bent.points, PAIRS[0][1], atol=1e-3)
+    np.testing.assert_array_equal(bent.correspondence, np.arange(30))
+    angle = np.degrees(np.arctan2(turned.pose.matrix[1, 0], turned.pose.matrix[0, 0]))
+    assert abs(angle - 120.0) < 10.0 and turned.pose.scale == pytest.approx(1.3, rel=0.1)
+    near = np.min(np.linalg.norm(turned.points[:, None] - PAIRS[1][1][None], axis=2), axis=1)
+    assert near.max() < 0.1 * turned._frame[1]
+    assert np.all(clutter.target_correspondence[:38] >= 0) and np.sum(clutter.target_correspondence[38:] >= 0) <= 1
+    # (the turned pair is flagged: the starts at 112.5 and 135 degrees reach distinct fits of nearly equal
+    # objective; test_the_jax_batch_equals_register_one_by_one checks that register flags it the same way)
+    assert bent.reliable and clutter.reliable and not turned.reliable
+
+
+def test_a_permutation_of_the_pairs_permutes_the_results(both):
+    _, batched = both
+    order = [2, 0, 1]
+    again = _quiet(shapelib.register_many, [PAIRS[i] for i in order], backend="jax", device="cpu")
+    for j, i in enumerate(order):
+        np.testing.assert_allclose(again[j].points, batched[i].points, atol=1e-9)
+        assert again[j].diagnostics["candidates"][0][1:] == batched[i].diagnostics["candidates"][0][1:]
+
+
+def test_sets_over_max_points_go_through_register_in_their_place(both, monkeypatch):
+    """A pair over ``MAX_POINTS`` is registered by register (its subsets path) even with backend="jax": here
+    the bound is lowered to 40 points so that the 45-point pair takes that path, and the other stays batched,
+    alone: padded to 32 points instead of 48 in the full batch, its fit is the same."""
+    from shapelib.pointsets import _batch
+
+    _, batched = both
+    monkeypatch.setattr(_batch, "MAX_POINTS", 40)
+    got = _quiet(shapelib.register_many, [PAIRS[2], PAIRS[0]], backend="jax", device="cpu")
+    ref = _quiet(shapelib.register, *PAIRS[2])
+    np.testing.assert_array_equal(got[0].points, ref.points)  # register itself, bit for bit
+    assert got[0].diagnostics["candidates"] == ref.diagnostics["candidates"]
+    np.testing.assert_allclose(got[1].points, batched[0].points, atol=1e-9)
+    assert got[1].n_iter == batched[0].n_iter
+
+
+def test_three_d_pairs_on_jax_equal_register():
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(24, 3)) * [1.0, 0.7, 0.4]
+    y = (x + 0.05 * np.sin(2 * x)) @ np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]).T
+    ref = _quiet(shapelib.register, x, y[:20])
+    got = _quiet(shapelib.register_many, [(x, y[:20])], backend="jax", device="cpu")[0]
+    assert np.abs(got.points - ref.points).max() / ref._frame[1] < 1e-6
+    np.testing.assert_allclose(got._start[0], ref._start[0], atol=1e-12)
+    assert (got.n_iter, got.reliable) == (ref.n_iter, ref.reliable)
+
+
+def test_an_empty_list_gives_an_empty_list():
+    assert shapelib.register_many([]) == []
+    assert shapelib.register_many([], backend="jax") == []
+
+
+@pytest.mark.parametrize("pairs, match", [
+    ([(np.eye(3, 2), np.eye(3, 2)), (np.zeros((3, 3)) + np.arange(3)[:, None], np.eye(3))], r"pairs\[1\].*d = 3"),
+    ([(np.eye(3, 2), np.eye(3, 2) * 2), (np.arange(4.0), np.eye(3, 2))], r"pairs\[1\] source"),
+    ([(np.eye(3, 2), np.eye(3, 2) * 2), (np.eye(3, 2), np.eye(3))], r"pairs\[1\].*same dimension"),
+    ([(np.eye(3, 2), np.eye(3, 2) * 2, np.eye(3, 2))], r"pairs\[0\].*\(source, target\) pair"),
+    ([(np.eye(3, 2), [[0.0, np.nan], [1.0, 1.0]])], r"pairs\[0\] target"),
+    (5, r"pairs must be a sequence"),
+])
+def test_bad_pairs_are_refused_naming_the_pair(pairs, match):
+    with pytest.raises(ValueError, match=match):
+        shapelib.register_many(pairs)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(backend="torch"), "backend"),
+    (dict(backend="jax", metric="fisher_rao"), "metric='fisher_rao' is not batched"),
+    (dict(backend="jax", kernel="means"), "kernel='means' is not batched"),
+    (dict(backend="jax", sigma2=0.1), "sigma2=0.1 is not batched"),
+    (dict(backend="jax", sigma2=np.array([0.1, 0.2])), "sigma2=array"),
+    (dict(backend="numpy", device="gpu"), "device"),
+    (dict(backend="jax", device="tpu"), "device"),
+    (dict(backend="jax", batch_size=0), "batch_size"),
+    (dict(backend="jax", w="many"), "w must be"),
+    (dict(backend="jax", max_iter=0), "max_iter"),
+    (dict(backend="jax", lam=-1.0), "lam"),
+])
+def test_bad_options_are_refused_naming_the_option(kw, match):
+    with pytest.raises(ValueError, match=match):
+        shapelib.register_many(PAIRS[:1], **kw)
