@@ -164,16 +164,27 @@ FULL_200_POINTS = (0.0025, 0.005)
 
 def scores(args) -> int:
     """``--scores``: every full-test figure the retrieval guide quotes (module docstring)."""
-    import json
-
     from benchmarks._machine import RECORD_DIR
-    from shapelib.solver.linalg import one_blas_thread
 
     every = mpeg7_classes()
     classes = every if args.full else [every[i] for i in np.round(np.linspace(0, 69, args.classes)).astype(int)]
-    res = {"loadavg_start": loadavg(), "mode": "scores", "classes": len(classes), "points": args.points}
+    res = full_scores(classes, points=args.points, partial=Path("/tmp") / "bench_retrieval_scores.json"
+                      if args.full else None)
+    if args.record:
+        print("recorded", record("bench_retrieval", res, path=RECORD_DIR / "bench_retrieval_full.json"))
+    return 0
+
+
+def full_scores(classes, *, points: int = 100, per_class: int | None = None, partial: Path | None = None) -> dict:
+    """The ``--scores`` results on these MPEG-7 classes (``per_class``: their first shapes only, for a smoke
+    test; ``partial``: a file rewritten after each matrix)."""
+    import json
+
+    from shapelib.solver.linalg import one_blas_thread
+
+    res = {"loadavg_start": loadavg(), "mode": "scores", "classes": len(classes), "points": points}
     with Clock() as c:
-        data = load_mpeg7(classes=classes, n_points=args.points)
+        data = load_mpeg7(classes=classes, n_points=points, per_class=per_class)
     outlines, labels = list(data.shapes), np.asarray(data.labels)
     n = len(outlines)
     half = len(classes) // 2
@@ -182,7 +193,10 @@ def scores(args) -> int:
     res.update(n_shapes=n, pairs=n * (n - 1) // 2, trace={"wall": c.wall, "cpu": c.cpu}, rerank=FULL_RERANK,
                rerank_chosen_on=f"classes 1–{half}", halves=list(halves))
     print(f"{n} outlines ({len(classes)} classes) traced in {c.wall:.1f} s wall, {c.cpu:.1f} s CPU", flush=True)
-    partial = Path("/tmp") / f"bench_retrieval_scores_{n}.json"
+
+    def save():
+        if partial is not None:
+            partial.write_text(json.dumps(res, indent=1))
 
     def matrix(xs, metric, sigma2):
         row = {"metric": metric, "sigma2": sigma2, "points": len(xs[0])}
@@ -219,20 +233,18 @@ def scores(args) -> int:
                                               for method, kw in FULL_RERANK.items()}}
                 print(f"  re-ranked: {row['reranked']}; halves: {row['halves']}", flush=True)
             sweep.append(row)
-            partial.write_text(json.dumps(res, indent=1))
-    if args.points != 200:
-        xs200 = [inv.normalise_points(o)[0] for o in load_mpeg7(classes=classes, n_points=200).shapes]
+            save()
+    if points != 200:
+        xs200 = [inv.normalise_points(o)[0] for o in load_mpeg7(classes=classes, n_points=200, per_class=per_class).shapes]
         res["points_200"] = [matrix(xs200, "fisher_rao_bound", sigma2)[0] for sigma2 in FULL_200_POINTS]
-        partial.write_text(json.dumps(res, indent=1))
+        save()
     with Clock() as c:
         P = sl.procrustes_outline_matrix(np.stack(outlines))
     res["procrustes"] = {"wall": c.wall, "cpu": c.cpu, "raw": sl.bullseye(P, labels).value}
     print(f"procrustes: {c.cpu:.1f} s CPU, bull's-eye {100 * res['procrustes']['raw']:.2f} %")
     res["loadavg_end"] = loadavg()
-    partial.write_text(json.dumps(res, indent=1))
-    if args.record:
-        print("recorded", record("bench_retrieval", res, path=RECORD_DIR / "bench_retrieval_full.json"))
-    return 0
+    save()
+    return res
 
 
 def registration(args) -> int:

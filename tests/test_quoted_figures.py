@@ -349,3 +349,16 @@ def test_a_planted_wrong_figure_fails_with_its_page_line_and_number():
     assert not unsourced(guide, "docs/guide/pointsets.md")
     assert planted != guide and [m.split(": ")[1] for m in unsourced(planted, "docs/guide/pointsets.md")] == [
         "0.019 against " + re.search(r"0\.019 against (\d\.\d{3})", planted).group(1)]
+
+
+def test_the_study_notebooks_quote_the_published_figures_of_the_list():
+    """The MPEG-7 notebook's table and report text type other methods' scores in; they are those of the list."""
+    published = _published()
+    for path in sorted((ROOT / "notebooks").glob("*.py")):
+        text = path.read_text()
+        for figure in re.findall(r"(?<![\w.{])\d+\.\d+ %", text):
+            assert figure in published, (path.name, figure)
+        table = re.search(r"published = pd\.DataFrame\(\[(.*?)\], columns", text, flags=re.S)
+        if table:
+            numbers = re.findall(r",\s*(\d+\.\d+)(?=[,)])", table.group(1))
+            assert len(numbers) >= 6 and all(f"{x} %" in published for x in numbers), (path.name, numbers)
