@@ -116,7 +116,7 @@ ERROR = re.compile(r"(?<![\w.,·^-])(0\.\d{3}) against (?:[\w-]+'s )?(0\.\d{3})(
 
 
 def prose(text: str, suffix: str = ".md") -> list[tuple[int, str]]:
-    """The lines of a page without its code: fenced blocks, inline code, MyST directives' options; for a
+    """The lines of a page without its code (fenced blocks and directives, inline code); for a
     gallery example (``.py``), its docstring and comment lines only."""
     out, fenced = [], False
     if suffix == ".py":
