@@ -27,16 +27,20 @@ With ``--registration`` it measures instead the registration distance
   bull's-eye of the rigid bound and of the registration distance, raw and re-ranked
   (:func:`shapelib.rerank`, ``--rerank-k``, ``--rerank-mu``), in separate columns.
 
-With ``--full --fisher-rao-only`` it computes only what the published full-test scores need: the
-Fisher–Rao bound matrix modulo similarity on all 1,400 shapes at σ² = 0.005 and 0.01 (no α matrix,
-no engine), its bull's-eye raw and re-ranked (:func:`shapelib.rerank`, ``tpg`` k = 8, μ = 1.2,
-20 steps; ``lcdp`` k = 10, μ = 0.8, 10 steps: the parameters chosen on classes 1–35), recorded in
-``bench_retrieval_full.json`` beside the subset record.
+With ``--full --scores`` it computes every full-test figure the retrieval guide quotes, in one run, on
+all 1,400 shapes (no engine, one process): the Fisher–Rao and α bound matrices modulo similarity at
+σ² = 0.0025, 0.005, 0.01, 0.02 and 0.04 (100 points; spectra and pair search timed apart), the
+Fisher–Rao bound with 200 points at σ² = 0.0025 and 0.005, Procrustes on the outlines, and for the
+Fisher–Rao bound at σ² = 0.005 and 0.01 the bull's-eye raw and re-ranked (:func:`shapelib.rerank`,
+``tpg`` k = 8, μ = 1.2, 20 steps; ``lcdp`` k = 10, μ = 0.8, 10 steps: the parameters chosen on classes
+1–35) on all 70 classes and on classes 1–35 and 36–70 (each half its own collection, in the order of
+:func:`shapelib.datasets.mpeg7_classes`), with the time of each re-ranking of the full matrix (one
+BLAS thread). Recorded in ``bench_retrieval_full.json`` beside the subset record.
 
 Not a test: numbers depend on the machine and its load (recorded).
 
     python benchmarks/bench_retrieval.py [--classes 20] [--full] [--sigma2 0.01] [--record]
-    python benchmarks/bench_retrieval.py --full --fisher-rao-only --record
+    python benchmarks/bench_retrieval.py --full --scores --record
     python benchmarks/bench_retrieval.py --registration --rate-only --rate-pairs 150
     python benchmarks/bench_retrieval.py --registration --full --shortlist 80 --workers 16 --store reg.zarr
 """
@@ -79,8 +83,9 @@ def main(argv=None) -> int:
     ap.add_argument("--sigma2", type=float, default=0.01)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--record", action="store_true")
-    ap.add_argument("--fisher-rao-only", action="store_true",
-                    help="only the Fisher–Rao bound at σ² = 0.005 and 0.01, raw and re-ranked (see above)")
+    ap.add_argument("--scores", action="store_true",
+                    help="every full-test score the retrieval guide quotes: both bounds at five σ², 200 points, "
+                         "Procrustes, raw and re-ranked on all classes and on each half (see above)")
     ap.add_argument("--registration", action="store_true", help="the registration distance instead (see above)")
     ap.add_argument("--rate-pairs", type=int, default=100, help="pairs timed for the rate (both directions each)")
     ap.add_argument("--rate-only", action="store_true", help="only the rate and the projections")
@@ -93,8 +98,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.registration:
         return registration(args)
-    if args.fisher_rao_only:
-        return fisher_rao_only(args)
+    if args.scores:
+        return scores(args)
     every = mpeg7_classes()
     classes = every if args.full else [every[i] for i in np.round(np.linspace(0, 69, args.classes)).astype(int)]
     res = {"loadavg_start": loadavg(), "classes": len(classes), "points": args.points, "sigma2": args.sigma2}
@@ -151,36 +156,95 @@ def main(argv=None) -> int:
 FULL_RERANK = {"tpg": {"k": 8, "mu": 1.2, "n_iter": 20}, "lcdp": {"k": 10, "mu": 0.8, "n_iter": 10}}
 
 
-def fisher_rao_only(args) -> int:
-    """``--fisher-rao-only``: the Fisher–Rao bound at σ² = 0.005 and 0.01, raw and re-ranked bull's-eye."""
+#: σ² of the sweep (of each outline's RMS radius²); the re-ranked ones; the 200-point ones
+FULL_SIGMA2 = (0.0025, 0.005, 0.01, 0.02, 0.04)
+FULL_RERANKED = (0.005, 0.01)
+FULL_200_POINTS = (0.0025, 0.005)
+
+
+def scores(args) -> int:
+    """``--scores``: every full-test figure the retrieval guide quotes (module docstring)."""
     from benchmarks._machine import RECORD_DIR
 
     every = mpeg7_classes()
     classes = every if args.full else [every[i] for i in np.round(np.linspace(0, 69, args.classes)).astype(int)]
-    res = {"loadavg_start": loadavg(), "mode": "fisher_rao_only", "classes": len(classes), "points": args.points}
-    with Clock() as c:
-        data = load_mpeg7(classes=classes, n_points=args.points)
-    outlines, labels = list(data.shapes), data.labels
-    n = len(outlines)
-    res.update(n_shapes=n, pairs=n * (n - 1) // 2, trace={"wall": c.wall, "cpu": c.cpu}, rerank=FULL_RERANK)
-    print(f"{n} outlines ({len(classes)} classes) traced in {c.wall:.1f} s wall, {c.cpu:.1f} s CPU")
-    xs = [inv.normalise_points(o)[0] for o in outlines]
-    runs = []
-    for sigma2 in (0.005, 0.01):
-        with Clock() as c:
-            sp = inv.polar_spectra(xs, sigma2=sigma2, kind=inv.spectrum_kind("fisher_rao_bound"))
-            D = inv.distances_from_spectra(xs, sp, metric="fisher_rao_bound", exact=False)
-        row = {"sigma2": sigma2, "wall": c.wall, "cpu": c.cpu, "raw": sl.bullseye(D, labels).value}
-        for method, kw in FULL_RERANK.items():
-            row[f"re-ranked {method}"] = sl.bullseye(sl.rerank(D, method=method, **kw), labels).value
-        runs.append(row)
-        print(f"Fisher–Rao bound, σ² = {sigma2}: {c.cpu:.1f} s CPU; bull's-eye "
-              + ", ".join(f"{k} {100 * v:.2f} %" for k, v in row.items() if k not in ("sigma2", "wall", "cpu")))
-    res["fisher_rao_bound"] = runs
-    res["loadavg_end"] = loadavg()
+    res = full_scores(classes, points=args.points, partial=Path("/tmp") / "bench_retrieval_scores.json"
+                      if args.full else None)
     if args.record:
         print("recorded", record("bench_retrieval", res, path=RECORD_DIR / "bench_retrieval_full.json"))
     return 0
+
+
+def full_scores(classes, *, points: int = 100, per_class: int | None = None, partial: Path | None = None) -> dict:
+    """The ``--scores`` results on these MPEG-7 classes (``per_class``: their first shapes only, for a smoke
+    test; ``partial``: a file rewritten after each matrix)."""
+    import json
+
+    from shapelib.solver.linalg import one_blas_thread
+
+    res = {"loadavg_start": loadavg(), "mode": "scores", "classes": len(classes), "points": points}
+    with Clock() as c:
+        data = load_mpeg7(classes=classes, n_points=points, per_class=per_class)
+    outlines, labels = list(data.shapes), np.asarray(data.labels)
+    n = len(outlines)
+    half = len(classes) // 2
+    halves = {f"classes 1–{half}": np.flatnonzero(np.isin(labels, classes[:half])),
+              f"classes {half + 1}–{len(classes)}": np.flatnonzero(np.isin(labels, classes[half:]))}
+    res.update(n_shapes=n, pairs=n * (n - 1) // 2, trace={"wall": c.wall, "cpu": c.cpu}, rerank=FULL_RERANK,
+               rerank_chosen_on=f"classes 1–{half}", halves=list(halves))
+    print(f"{n} outlines ({len(classes)} classes) traced in {c.wall:.1f} s wall, {c.cpu:.1f} s CPU", flush=True)
+
+    def save():
+        if partial is not None:
+            partial.write_text(json.dumps(res, indent=1))
+
+    def matrix(xs, metric, sigma2):
+        row = {"metric": metric, "sigma2": sigma2, "points": len(xs[0])}
+        with Clock() as c:
+            sp = inv.polar_spectra(xs, sigma2=sigma2, kind=inv.spectrum_kind(metric))
+        row["spectra"] = {"wall": c.wall, "cpu": c.cpu, "rings": sp.coefficients.shape[1],
+                          "frequencies": sp.coefficients.shape[2]}
+        with Clock() as c:
+            D = inv.distances_from_spectra(xs, sp, metric=metric, exact=False)
+        row["search"] = {"wall": c.wall, "cpu": c.cpu}
+        row["cpu"] = row["spectra"]["cpu"] + row["search"]["cpu"]
+        row["raw"] = sl.bullseye(D, labels).value
+        print(f"{metric}, σ² = {sigma2}, {row['points']} points: {row['spectra']['cpu']:.1f} s CPU spectra + "
+              f"{row['search']['cpu']:.1f} s CPU pairs; bull's-eye {100 * row['raw']:.2f} %", flush=True)
+        return row, D
+
+    xs = [inv.normalise_points(o)[0] for o in outlines]
+    sweep = []
+    res["sweep"] = sweep
+    for metric in ("fisher_rao_bound", "alpha_bound"):
+        for sigma2 in FULL_SIGMA2:
+            row, D = matrix(xs, metric, sigma2)
+            if metric == "fisher_rao_bound" and sigma2 in FULL_RERANKED:
+                row["reranked"] = {}
+                for method, kw in FULL_RERANK.items():
+                    with Clock() as c, one_blas_thread():
+                        R = sl.rerank(D, method=method, **kw)
+                    row["reranked"][method] = {"all": sl.bullseye(R, labels).value, "wall": c.wall, "cpu": c.cpu}
+                row["halves"] = {}
+                for name, idx in halves.items():
+                    sub, lab = D[np.ix_(idx, idx)], labels[idx]
+                    row["halves"][name] = {"raw": sl.bullseye(sub, lab).value,
+                                           **{method: sl.bullseye(sl.rerank(sub, method=method, **kw), lab).value
+                                              for method, kw in FULL_RERANK.items()}}
+                print(f"  re-ranked: {row['reranked']}; halves: {row['halves']}", flush=True)
+            sweep.append(row)
+            save()
+    if points != 200:
+        xs200 = [inv.normalise_points(o)[0] for o in load_mpeg7(classes=classes, n_points=200, per_class=per_class).shapes]
+        res["points_200"] = [matrix(xs200, "fisher_rao_bound", sigma2)[0] for sigma2 in FULL_200_POINTS]
+        save()
+    with Clock() as c:
+        P = sl.procrustes_outline_matrix(np.stack(outlines))
+    res["procrustes"] = {"wall": c.wall, "cpu": c.cpu, "raw": sl.bullseye(P, labels).value}
+    print(f"procrustes: {c.cpu:.1f} s CPU, bull's-eye {100 * res['procrustes']['raw']:.2f} %")
+    res["loadavg_end"] = loadavg()
+    save()
+    return res
 
 
 def registration(args) -> int:

@@ -145,6 +145,48 @@ def test_a_recorded_benchmark_run_renders_as_its_table(docs_ext, tmp_path):
 
 
 @requires_data
+def test_the_full_retrieval_scores_are_the_library_s_and_render_as_tables(docs_ext, tmp_path):
+    """``bench_retrieval.py --scores`` on a few shapes: each recorded score is the bull's-eye of the library's own
+    matrix (``invariant_distance_matrix``, ``procrustes_outline_matrix``; a half of the classes scored on its
+    rows and columns), and the performance page's tables show every one as recorded."""
+    from shapelib.datasets import load_mpeg7
+
+    spec = importlib.util.spec_from_file_location("bench_retrieval", ROOT / "benchmarks" / "bench_retrieval.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    machine = importlib.import_module("benchmarks._machine")
+    classes = ["apple", "bat", "fork", "spoon"]
+    res = bench.full_scores(classes, per_class=6)
+    machine.record("bench_retrieval", res, argv=["--scores"], path=tmp_path / "bench_retrieval_full.json")
+    tables = {t.key: t for t in docs_ext.benchmark_tables("bench_retrieval_full", data_dir=tmp_path).tables}
+
+    data = load_mpeg7(classes=classes, per_class=6, n_points=100)
+    labels = np.asarray(data.labels)
+    rows = {(r["metric"], r["points"], r["sigma2"]): r for r in [*res["sweep"], *res["points_200"]]}
+    assert len(rows) == 12 and res["n_shapes"] == 24
+    for metric, sigma2 in (("fisher_rao_bound", 0.005), ("alpha_bound", 0.04)):
+        D = shapelib.invariant_distance_matrix(list(data.shapes), metric=metric, sigma2=sigma2)
+        assert rows[metric, 100, sigma2]["raw"] == shapelib.bullseye(D, labels).value
+    D = shapelib.invariant_distance_matrix(list(data.shapes), metric="fisher_rao_bound", sigma2=0.01)
+    first = np.isin(labels, classes[:2])
+    assert rows["fisher_rao_bound", 100, 0.01]["halves"]["classes 1–2"]["raw"] == shapelib.bullseye(
+        D[np.ix_(first, first)], labels[first]).value
+    tpg = shapelib.rerank(D, method="tpg", **bench.FULL_RERANK["tpg"])
+    assert rows["fisher_rao_bound", 100, 0.01]["reranked"]["tpg"]["all"] == shapelib.bullseye(tpg, labels).value
+    P = shapelib.procrustes_outline_matrix(np.stack(data.shapes))
+    assert res["procrustes"]["raw"] == shapelib.bullseye(P, labels).value
+
+    # the tables: one score row per distance, one column per σ², the re-ranked rows per σ² and half
+    scores = tables["scores"]
+    assert scores.header[1:] == [f"σ² = {s:g}" for s in bench.FULL_SIGMA2]
+    assert len(scores.rows) == 3 and f"{100 * res['procrustes']['raw']:.2f} %" in scores.note
+    shown = {cell for row in scores.rows for cell in row[1:] if cell}
+    assert shown == {f"{100 * r['raw']:.2f} %" for r in rows.values()}
+    assert len(tables["rerank"].rows) == 3 * len(bench.FULL_RERANKED)
+    assert len(tables["times"].rows) == 3
+
+
+@requires_data
 def test_an_executed_notebook_becomes_a_page_with_its_parameters_and_no_build_paths(docs_ext, tmp_path):
     name = "fig04_line_bending"
     _, status, _, msg = run_all.run_one(name, quick=True, force=True, results_dir=tmp_path)
