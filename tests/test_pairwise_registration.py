@@ -152,3 +152,16 @@ def test_cli_writes_the_library_matrix_and_says_the_shortlist(tmp_path, capsys, 
     assert "registered only each query's 1 nearest" in capsys.readouterr().err
     assert main(["distances", str(f), "--metric", "registration", "--sigma2", "0.1", "-o", str(out)]) != 0
     assert "--sigma2" in capsys.readouterr().err
+
+
+def test_the_engine_batches_a_block_on_jax_and_equals_the_numpy_matrix(direct):
+    """backend="jax": every pair of a block (both directions) goes to the device in one batch
+    (JAX's CPU backend here); the matrix equals the one-by-one registrations."""
+    from tests.conftest import import_or_missing
+
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    r = sl.pairwise_distances(SETS[:4], metric="registration", n_jobs=1, progress=False, return_result=True,
+                              backend="jax", **OPTS)
+    np.testing.assert_allclose(r.matrix, direct[:4, :4], rtol=1e-6, atol=1e-9)
+    with pytest.raises(ValueError, match="backend"):
+        registration_distance(STAR, TRIFOIL, backend="cuda")

@@ -11,16 +11,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .registration import register
 
-__all__ = ["registration_distance", "registration_misfits", "REGISTRATION_COMBINE"]
+__all__ = ["registration_distance", "registration_misfits", "registration_misfits_many", "REGISTRATION_COMBINE"]
 
 #: how :func:`registration_distance` combines the two directions
 REGISTRATION_COMBINE = ("mean", "max")
 
 
 def registration_misfits(u, v, *, reflection: bool = True, lam: float = 2.0, sigma2_metric: float = 1.0,
-                         max_iter: int = 150, tol: float = 1e-5) -> tuple:
+                         max_iter: int = 150, tol: float = 1e-5, backend: str = "numpy") -> tuple:
     r"""The two directed misfits of :func:`registration_distance`, with their convergence.
 
     Returns ``(m_uv, m_vu, converged, n_iter)``: :math:`m(u \to v)`, :math:`m(v \to u)` (below),
@@ -40,28 +39,60 @@ def registration_misfits(u, v, *, reflection: bool = True, lam: float = 2.0, sig
     >>> bool(max(m_xy, m_yx) < 1e-3), converged
     (True, True)
     """
-    unit = []
-    for name, x in (("u", u), ("v", v)):
-        x = np.asarray(x, dtype=np.float64)
-        if x.ndim != 2 or not np.all(np.isfinite(x)):
-            raise ValueError(f"{name} must be a finite (n, d) point set; got shape {x.shape}")
-        x = x - x.mean(axis=0)
-        radius = float(np.sqrt(np.mean(np.sum(x * x, axis=1))))
-        if radius <= 0:
-            raise ValueError(f"{name}: all points coincide")
-        unit.append(x / radius)  # unit mean squared radius: σ² in the target's units is the misfit
-    out = []
-    for a, b in ((unit[0], unit[1]), (unit[1], unit[0])):
-        # w = 0: every target point must be explained, so that no misfit hides as "outliers"
-        r = register(a, b, transform="nonrigid", reflection=reflection, lam=lam, sigma2_metric=sigma2_metric,
-                     w=0.0, max_iter=max_iter, tol=tol, warn=False)
-        out.append((float(r.sigma2), bool(r.converged), int(r.n_iter)))
-    (m_uv, c_uv, n_uv), (m_vu, c_vu, n_vu) = out
-    return m_uv, m_vu, c_uv and c_vu, n_uv + n_vu
+    return registration_misfits_many([(u, v)], reflection=reflection, lam=lam, sigma2_metric=sigma2_metric,
+                                     max_iter=max_iter, tol=tol, backend=backend)[0]
+
+
+def _unit(x, name):
+    """``x`` centred and scaled to unit mean squared radius (σ² in its units is then the misfit)."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim != 2 or not np.all(np.isfinite(x)):
+        raise ValueError(f"{name} must be a finite (n, d) point set; got shape {x.shape}")
+    x = x - x.mean(axis=0)
+    radius = float(np.sqrt(np.mean(np.sum(x * x, axis=1))))
+    if radius <= 0:
+        raise ValueError(f"{name}: all points coincide")
+    return x / radius
+
+
+def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.0, sigma2_metric: float = 1.0,
+                              max_iter: int = 150, tol: float = 1e-5, backend: str = "numpy") -> list:
+    r""":func:`registration_misfits` of many pairs, the registrations of both directions of every pair
+    run by one :func:`shapelib.register_many` call (``backend="jax"``: batched on the JAX device).
+
+    Returns a list of ``(m_uv, m_vu, converged, n_iter)``, one per pair, as
+    :func:`registration_misfits` gives them (the two backends agree within rounding):
+
+    .. math:: m(x \to y) = \frac{\sigma^2_{\mathrm{EM}}(x \to y)}{\frac1m \sum_j \|y_j - \bar y\|^2}
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapelib.pointsets.registration_distance import registration_misfits_many
+    >>> t = np.linspace(0, 2 * np.pi, 20, endpoint=False)
+    >>> x = np.c_[np.cos(t), 0.6 * np.sin(t)]
+    >>> out = registration_misfits_many([(x, 2 * x + 1), (x, x[::-1])])
+    >>> [bool(max(m[0], m[1]) < 1e-3) for m in out]
+    [True, True]
+    """
+    from ._batch import register_many
+
+    units = []
+    for k, pair in enumerate(pairs):
+        if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+            raise ValueError(f"pairs[{k}] must be a (u, v) pair of point sets")
+        units.append((_unit(pair[0], f"pairs[{k}] u" if len(pairs) > 1 else "u"),
+                      _unit(pair[1], f"pairs[{k}] v" if len(pairs) > 1 else "v")))
+    # w = 0: every target point must be explained, so that no misfit hides as "outliers"
+    res = register_many([p for a, b in units for p in ((a, b), (b, a))], backend=backend, reflection=reflection,
+                        lam=lam, sigma2_metric=sigma2_metric, w=0.0, max_iter=max_iter, tol=tol, warn=False)
+    return [(float(r1.sigma2), float(r2.sigma2), bool(r1.converged and r2.converged), int(r1.n_iter + r2.n_iter))
+            for r1, r2 in zip(res[::2], res[1::2])]
 
 
 def registration_distance(u, v, *, combine: str = "mean", reflection: bool = True, lam: float = 2.0,
-                          sigma2_metric: float = 1.0, max_iter: int = 150, tol: float = 1e-5) -> float:
+                          sigma2_metric: float = 1.0, max_iter: int = 150, tol: float = 1e-5,
+                          backend: str = "numpy") -> float:
     r"""The misfit left after registering two point sets onto each other, scale-free and symmetrised.
 
     :func:`shapelib.register` (``transform="nonrigid"``: a similarity pose searched over every
@@ -94,6 +125,10 @@ def registration_distance(u, v, *, combine: str = "mean", reflection: bool = Tru
         Also search mirror images in the pose (default True: outlines of one class may face either way).
     lam, sigma2_metric, max_iter, tol
         Passed to :func:`shapelib.register`.
+    backend : {"numpy", "jax"}
+        Passed to :func:`shapelib.register_many`: ``"jax"`` runs both registrations batched on the JAX
+        device; with ``pairwise_distances(..., metric="registration", backend="jax")`` every pair of a
+        block goes to the device as one batch.
 
     Returns
     -------
@@ -144,5 +179,5 @@ def registration_distance(u, v, *, combine: str = "mean", reflection: bool = Tru
     if combine not in REGISTRATION_COMBINE:
         raise ValueError(f"combine must be one of {REGISTRATION_COMBINE}; got {combine!r}")
     m_uv, m_vu, _, _ = registration_misfits(u, v, reflection=reflection, lam=lam, sigma2_metric=sigma2_metric,
-                                            max_iter=max_iter, tol=tol)
+                                            max_iter=max_iter, tol=tol, backend=backend)
     return 0.5 * (m_uv + m_vu) if combine == "mean" else max(m_uv, m_vu)
