@@ -43,6 +43,10 @@ Not a test: numbers depend on the machine and its load (recorded).
     python benchmarks/bench_retrieval.py --full --scores --record
     python benchmarks/bench_retrieval.py --registration --rate-only --rate-pairs 150
     python benchmarks/bench_retrieval.py --registration --full --shortlist 80 --workers 16 --store reg.zarr
+    python benchmarks/bench_retrieval.py --registration --full --backend jax --store reg.zarr   # a GPU machine
+
+``--backend jax`` batches the registrations on the JAX device (:func:`shapelib.register_many`): the
+rate over all ``--rate-pairs`` pairs in one batch, and the engine's blocks one batch each.
 """
 
 from __future__ import annotations
@@ -93,6 +97,8 @@ def main(argv=None) -> int:
                     help="rigid nearest registered per query (0: all pairs); the bull's-eye counts the 40 nearest as a "
                          "set, so a shortlist of 40 or fewer only reorders them and cannot change the raw score")
     ap.add_argument("--store", default=None, help="zarr store of the registration matrix (resumable)")
+    ap.add_argument("--backend", choices=("numpy", "jax"), default="numpy",
+                    help="registrations one by one (numpy) or batched on the JAX device (jax: a GPU when JAX sees one)")
     ap.add_argument("--rerank-k", type=int, default=10)
     ap.add_argument("--rerank-mu", type=float, default=0.8)
     args = ap.parse_args(argv)
@@ -249,24 +255,29 @@ def full_scores(classes, *, points: int = 100, per_class: int | None = None, par
 
 def registration(args) -> int:
     """``--registration``: the rate of the registrations, the projections, the shortlisted matrix."""
-    from shapelib.pointsets.registration_distance import registration_misfits
+    from shapelib.pointsets.registration_distance import registration_misfits_many
     from shapelib.rerank import RERANK_METHODS
     from shapelib.solver.linalg import one_blas_thread
 
     every = mpeg7_classes()
     classes = every if args.full else [every[i] for i in np.round(np.linspace(0, 69, args.classes)).astype(int)]
-    res = {"loadavg_start": loadavg(), "classes": len(classes), "points": args.points, "mode": "registration"}
+    res = {"loadavg_start": loadavg(), "classes": len(classes), "points": args.points, "mode": "registration",
+           "backend": args.backend}
+    if args.backend == "jax":
+        from benchmarks.bench_registration_batch import _device_info
+
+        res["device"] = _device_info(None)
     data = load_mpeg7(classes=classes, n_points=args.points)
     outlines, labels = list(data.shapes), data.labels
     n = len(outlines)
     rng = np.random.default_rng(0)
     pairs = [tuple(rng.choice(n, size=2, replace=False)) for _ in range(args.rate_pairs)]
-    n_iter, not_converged = [], 0
+    if args.backend == "jax":  # compile the batch's programs outside the timing
+        registration_misfits_many([(outlines[i], outlines[j]) for i, j in pairs[:2]], backend="jax")
     with Clock() as c, one_blas_thread():
-        for i, j in pairs:
-            *_, converged, it = registration_misfits(outlines[i], outlines[j])
-            n_iter.append(it)
-            not_converged += not converged
+        out = registration_misfits_many([(outlines[i], outlines[j]) for i, j in pairs], backend=args.backend)
+    n_iter = [m[3] for m in out]
+    not_converged = sum(not m[2] for m in out)
     # CPU seconds (one thread: BLAS on one, no other work in this process) are what a loaded machine cannot
     # inflate; the wall time is recorded beside them
     per = c.cpu / (2 * len(pairs))
@@ -288,8 +299,9 @@ def registration(args) -> int:
     if not args.rate_only:
         with Clock() as c:
             r = sl.pairwise_distances(outlines, metric="registration", n_jobs=args.workers, store=args.store,
-                                      return_result=True, **({"shortlist": args.shortlist, "shortlist_sigma2": args.sigma2}
-                                                             if args.shortlist else {}))
+                                      return_result=True, backend=args.backend,
+                                      **({"shortlist": args.shortlist, "shortlist_sigma2": args.sigma2}
+                                         if args.shortlist else {}))
         res["matrix"] = {"wall": c.wall, "summary": r.summary(), "log": {k: v for k, v in r.log.items()
                                                                          if isinstance(v, (int, float, str, dict))}}
         print(r.summary(), f"({c.wall:.0f} s wall)")

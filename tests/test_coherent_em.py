@@ -62,3 +62,27 @@ def test_the_compiled_em_stops_at_its_tolerance_like_the_loop(sets):
     assert fact.ok and dense.ok and fact.why == "tolerance"
     assert fact.it == dense.it < 500
     np.testing.assert_allclose(fact.theta, dense.theta, rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("w", [0.0, 0.3])
+@pytest.mark.parametrize("s2", [1.0, 1e-4])
+def test_the_objective_is_the_negative_log_posterior(sets, w, s2):
+    """F against scipy's log-density of the mixture plus the uniform component, summed directly."""
+    from scipy.special import logsumexp
+    from scipy.stats import multivariate_normal
+
+    from shapelib.pointsets._coherent_em import objective
+
+    theta, y = sets
+    u = theta - 0.05
+    g = np.exp(-sq_dist(u, u) / (4 * 0.5))
+    kernel = Kernel.of(g)
+    st = EMState(u=u, kernel=kernel, coef=np.zeros_like(u) + 0.01, s2=s2, w=w)
+    volume = 36.0
+    comp = np.array([multivariate_normal(mean=t, cov=s2 * np.eye(2)).logpdf(y) for t in st.theta])  # (n, m)
+    terms = [logsumexp(comp, axis=0) + np.log((1 - w) / len(u))]
+    if w > 0:
+        terms.append(np.full(len(y), np.log(w / volume)))
+    ll = logsumexp(np.stack(terms), axis=0).sum()
+    energy = np.sum(st.coef * (g @ st.coef))
+    assert objective(st, y, lam=2.0, volume=volume) == pytest.approx(-ll + 0.5 * 2.0 * energy, rel=1e-10)

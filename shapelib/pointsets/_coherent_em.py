@@ -51,7 +51,6 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.special import logsumexp
 
 #: eigenvalues of the weight kernel below this fraction of the largest are dropped
 EIG_RTOL = 1e-10
@@ -273,12 +272,42 @@ def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12):
     return st
 
 
+@njit(cache=True, fastmath=False)
+def _neg_loglik(theta, y, s2, log_wn, log_wv):
+    """``−Σ_j log[(1 − w)/n Σ_i N(y_j; θ_i, σ²I) + w/V]`` with ``log_wn = log((1 − w)/n)`` and
+    ``log_wv = log(w/V)`` (−inf without outliers), each column's sum scaled by its largest term."""
+    n, d = theta.shape
+    m = y.shape[0]
+    half = 0.5 / s2
+    lognorm = -0.5 * d * math.log(2.0 * math.pi * s2)
+    dist = np.empty(n)
+    total = 0.0
+    for j in range(m):
+        rmin = np.inf
+        for i in range(n):
+            r = 0.0
+            for k in range(d):
+                t = y[j, k] - theta[i, k]
+                r += t * t
+            dist[i] = r
+            if r < rmin:
+                rmin = r
+        acc = 0.0
+        for i in range(n):
+            acc += math.exp(-(dist[i] - rmin) * half)
+        mix = log_wn + lognorm - rmin * half + math.log(acc)
+        if log_wv > -np.inf:  # log(exp(mix) + exp(log_wv))
+            hi, lo = (mix, log_wv) if mix > log_wv else (log_wv, mix)
+            mix = hi + math.log1p(math.exp(lo - hi))
+        total -= mix
+    return total
+
+
 def objective(st, y, *, lam, volume):
     """``F`` of the module docstring: the negative log-posterior, comparable between starts and w."""
     n, d = st.u.shape
-    theta = st.theta
-    logn = -sq_dist(theta, y) / (2 * st.s2) - 0.5 * d * np.log(2 * np.pi * st.s2)
-    mix = logsumexp(logn, axis=0) + np.log((1 - st.w) / n)
-    ll = np.logaddexp(mix, np.log(st.w / volume)) if st.w > 0 else mix
+    log_wv = np.log(st.w / volume) if st.w > 0 else -np.inf
+    nll = _neg_loglik(np.ascontiguousarray(st.theta, dtype=float), np.ascontiguousarray(y, dtype=float),
+                      float(st.s2), float(np.log((1 - st.w) / n)), float(log_wv))
     prior = 0.0 if st.kernel is None else 0.5 * lam * st.kernel.energy(st.coef)
-    return float(-ll.sum() + prior)
+    return float(nll + prior)
