@@ -319,7 +319,7 @@ def registration(args) -> int:
             print(f"  {name:24s} " + "  ".join(f"{col} {100 * v:.2f} %" for col, v in row.items()))
     res["loadavg_end"] = loadavg()
     if args.record:
-        print("recorded", record("bench_retrieval_registration", res))
+        print("recorded", record("bench_retrieval", res, path=RECORD_DIR / "bench_retrieval_registration.json"))
     return 0
 
 

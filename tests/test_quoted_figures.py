@@ -55,7 +55,7 @@ PAGE_RECORDS = {
     "README.md": ["bench_retrieval_full", "bench_registration"],
     "docs/index.md": ["bench_retrieval_full", "bench_registration"],
     "docs/performance.md": "sections",
-    "docs/guide/retrieval.md": ["bench_retrieval_full"],
+    "docs/guide/retrieval.md": ["bench_retrieval_full", "bench_retrieval_registration"],
     "docs/guide/pointsets.md": ["bench_registration", "bench_registration_3d", "bench_registration_large",
                                 "bench_registration_batch"],
     "docs/guide/solver.md": ["bench_geodesic", "bench_solvers"],
