@@ -232,3 +232,15 @@ def test_progress_is_reported_for_every_start_and_fit_and_checked():
     assert calls == [(1, 2), (2, 2)]
     with pytest.raises(ValueError, match="progress must be a callable"):
         sl.register(x, x, progress=3)
+
+
+def test_the_command_line_takes_the_em_options_its_message_names(tmp_path, capsys):
+    x = fish(40)
+    src, dst = tmp_path / "a.csv", tmp_path / "b.csv"
+    for path, pts in ((src, x), (dst, warp(x, 0.2))):
+        path.write_text("x,y\n" + "\n".join(f"{a},{b}" for a, b in pts) + "\n")
+    assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.csv"), "--max-iter", "2"]) == EXIT_UNCONVERGED
+    assert "raise --max-iter or loosen --tol" in capsys.readouterr().err
+    assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.csv"), "--max-iter", "400", "--tol", "1e-4"]) == 0
+    assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.csv"), "--max-iter", "0"]) == 1
+    assert "max_iter" in capsys.readouterr().err

@@ -91,6 +91,7 @@ def cmd_register(args) -> int:
         try:
             res = register(source, target, transform=args.transform, metric=args.metric,
                            sigma2=_sigma2(args.sigma2), w=_w(args.w), reflection=args.reflection,
+                           max_iter=args.max_iter, tol=args.tol,
                            progress=None if bar is None else bar.update_to)
         finally:
             if bar is not None:
@@ -124,7 +125,8 @@ def cmd_register(args) -> int:
         save_figure(fig, args.plot)
         print(f"figure -> {args.plot}")
     if not (res.converged and res.reliable):
-        why = "; ".join(res.reasons) if not res.reliable else "EM stopped before its tolerance"
+        why = "; ".join([*res.reasons] + ([] if res.converged else
+                                          ["EM stopped before its tolerance: raise --max-iter or loosen --tol"]))
         print(f"{PROG} register: the registration probably failed ({why}); exit status {EXIT_UNCONVERGED}",
               file=sys.stderr)
         return EXIT_UNCONVERGED
@@ -152,5 +154,9 @@ def register(add) -> None:
     p.add_argument("--w", default="auto", metavar="W",
                    help="outlier weight in [0, 1), or 'auto' (default): chosen from the data")
     p.add_argument("--reflection", action="store_true", help="also try mirror images of the source")
+    p.add_argument("--max-iter", type=int, default=150, metavar="N",
+                   help="EM iterations of each fit (default 150)")
+    p.add_argument("--tol", type=float, default=1e-5, metavar="TOL",
+                   help="EM stops when sigma2 changes by less than TOL, relative (default 1e-5)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (drawn on a terminal only)")
     p.set_defaults(func=cmd_register)
