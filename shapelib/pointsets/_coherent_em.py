@@ -83,6 +83,21 @@ PRUNE = 37.0
 
 
 @njit(cache=True, fastmath=False)
+def _column(theta, y, j, dist):
+    """``dist[i] = |y_j − θ_i|²`` for every ``i``; returns the smallest."""
+    rmin = np.inf
+    for i in range(theta.shape[0]):
+        r = 0.0
+        for k in range(theta.shape[1]):
+            t = y[j, k] - theta[i, k]
+            r += t * t
+        dist[i] = r
+        if r < rmin:
+            rmin = r
+    return rmin
+
+
+@njit(cache=True, fastmath=False)
 def _estep(theta, y, s2, c):
     """The sums the M-step needs, without the (n, m) matrix: ``P1 = Σ_j P_ij`` (n,), ``Pᵀ1`` (m,),
     ``P y`` (n, d) and ``Σ_ij P_ij |y_j − θ_i|²``, with ``c`` the outlier term of ``P``'s
@@ -99,15 +114,7 @@ def _estep(theta, y, s2, c):
     sse = 0.0
     half = 0.5 / s2
     for j in range(m):
-        rmin = np.inf
-        for i in range(n):
-            r = 0.0
-            for k in range(d):
-                t = y[j, k] - theta[i, k]
-                r += t * t
-            dist[i] = r
-            if r < rmin:
-                rmin = r
+        rmin = _column(theta, y, j, dist)
         if c == 0.0 and rmin * half > 708.0:
             continue  # every term underflows and no outlier term: the point takes no posterior
         den = c * math.exp(rmin * half) if c > 0.0 else 0.0
@@ -283,15 +290,7 @@ def _neg_loglik(theta, y, s2, log_wn, log_wv):
     dist = np.empty(n)
     total = 0.0
     for j in range(m):
-        rmin = np.inf
-        for i in range(n):
-            r = 0.0
-            for k in range(d):
-                t = y[j, k] - theta[i, k]
-                r += t * t
-            dist[i] = r
-            if r < rmin:
-                rmin = r
+        rmin = _column(theta, y, j, dist)
         acc = 0.0
         for i in range(n):
             acc += math.exp(-(dist[i] - rmin) * half)
