@@ -121,20 +121,28 @@ def summarise_range(levels: dict, samples: list[int], methods=METHODS, families=
             fam[f"{shape}_{kind}"] = entry
     out["families"] = fam
     if "shapelib" in methods:
-        flags, errs = [], []
+        flags, errs, warned = [], [], []
         for n in names:
             cell = levels[n]["shapelib"]
-            for s, e, r in zip(cell["samples"], cell["errors"], cell.get("reliable", [None] * len(cell["errors"]))):
+            none = [None] * len(cell["errors"])
+            for s, e, r, c in zip(cell["samples"], cell["errors"], cell.get("reliable", none),
+                                  cell.get("converged", none)):
                 if s in samples and r is not None:
-                    flags.append(bool(r))
+                    flags.append(not r)
                     errs.append(e)
+                    warned.append(None if c is None else (not r or not c))
+
+        def rates(flagged):
+            bad = [f for f, e in zip(flagged, errs) if e > FAILURE]
+            good = [f for f, e in zip(flagged, errs) if e < GOOD]
+            return {"registrations": len(flagged), "errors_above_0.05": len(bad),
+                    "catch_rate": float(np.mean(bad)) if bad else None, "errors_below_0.02": len(good),
+                    "false_alarm_rate": float(np.mean(good)) if good else None}
+
         if flags:
-            bad = [not r for r, e in zip(flags, errs) if e > FAILURE]
-            good = [not r for r, e in zip(flags, errs) if e < GOOD]
-            out["reliable_flag"] = {"registrations": len(flags), "errors_above_0.05": len(bad),
-                                    "catch_rate": float(np.mean(bad)) if bad else None,
-                                    "errors_below_0.02": len(good),
-                                    "false_alarm_rate": float(np.mean(good)) if good else None}
+            out["reliable_flag"] = rates(flags)
+        if warned and None not in warned:  # a RegistrationWarning: not reliable, or EM stopped at max_iter
+            out["any_warning"] = rates(warned)
         for shape in shapes:
             base = f"{shape}_rot_1"
             if base in st:
@@ -156,6 +164,57 @@ def summarise(levels: dict, samples: list[int] | None = None, **kw) -> dict:
     return {f"{min(r)}-{max(r)}": summarise_range(levels, r, **kw) for r in ranges}
 
 
+def parse_methods(ap, text: str) -> list[str]:
+    """``--methods``: the comma-separated names (default every method), unknown ones an argparse error."""
+    methods = [m for m in text.split(",") if m] or list(METHODS)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        ap.error(f"--methods: unknown {', '.join(unknown)}; known: {', '.join(METHODS)}")
+    return methods
+
+
+def run_levels(levels, samples, methods, case_of, *, time_limit=None, dim=2, width=20) -> dict:
+    """Every level × sample × method, BLAS on one thread: ``{level: {method: cell}}``.
+
+    ``case_of(level, sample)`` gives ``(source, target, truth)``; a method's error is
+    ``mean_i |moved_i − truth_i|`` over the first ``len(truth)`` points of the moved source. A cell
+    holds per-sample ``samples``, ``errors``, ``times``, ``exceptions`` (shapelib also ``reliable``
+    and ``converged``) and the level's statistics.
+    """
+    from threadpoolctl import threadpool_limits
+
+    out = {}
+    with threadpool_limits(limits=1, user_api="blas"):
+        warm_up(methods, dim=dim)
+        for name in levels:
+            row = {m: {"samples": [], "errors": [], "times": [], "exceptions": []} for m in methods}
+            if "shapelib" in row:
+                row["shapelib"].update(reliable=[], converged=[])
+            for sample in samples:
+                source, target, truth = case_of(name, sample)
+                for m in methods:
+                    moved, seconds, info = run(m, source, target, time_limit)
+                    cell = row[m]
+                    cell["samples"].append(sample)
+                    cell["errors"].append(float(np.mean(np.linalg.norm(moved[:len(truth)] - truth, axis=1))))
+                    cell["times"].append(seconds)
+                    cell["exceptions"].append(info["exception"])
+                    if m == "shapelib":
+                        cell["reliable"].append(info.get("reliable"))
+                        cell["converged"].append(info.get("converged"))
+            for m in methods:
+                row[m].update(_level_stats(row[m], list(range(len(samples)))))
+            out[name] = row
+            print(f"{name:{width}s} " + "  ".join(f"{m} {row[m]['error']:.4f}/{row[m]['failures']}f/"
+                                                 f"{row[m]['time_median_s']:.3f}s" for m in methods), flush=True)
+    return out
+
+
+def _tps_rpm_case(name, sample):
+    case = load_tps_rpm_case(name, sample=sample)
+    return case["x1"], case["y2a"], case["y2"]
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", default="1", help="N (samples 1 to N) or A-B, within 1 to 10 (default 1)")
@@ -174,44 +233,17 @@ def main(argv=None) -> dict:
     except ValueError as exc:
         ap.error(str(exc))
     wanted = [w for w in args.levels.split(",") if w]
-    methods = [m for m in args.methods.split(",") if m] or list(METHODS)
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown:
-        ap.error(f"--methods: unknown {', '.join(unknown)}; known: {', '.join(METHODS)}")
+    methods = parse_methods(ap, args.methods)
     if args.record and (wanted or args.methods):
         ap.error("--record: a partial run is not the benchmark")
     levels = [lv for lv in TPS_RPM_LEVELS if not wanted or any(w in lv for w in wanted)]
-    from threadpoolctl import threadpool_limits
-
     report = {"samples": samples, "methods": methods, "settings": {m: DESCRIPTIONS[m] for m in methods},
               "failure_threshold": FAILURE, "time_limit_s": args.time_limit or None,
               "normalisation": "peers: each set to zero mean and unit RMS radius, the result mapped back with the "
                                "target's mean and scale; shapelib: raw inputs",
               "on_exception": "a failure; its error is that of the unmoved source; the exception's class is recorded",
-              "loadavg_before": loadavg(), "levels": {}}
-    with threadpool_limits(limits=1, user_api="blas"):
-        warm_up(methods)
-        for name in levels:
-            row = {m: {"samples": [], "errors": [], "times": [], "exceptions": []} for m in methods}
-            if "shapelib" in row:
-                row["shapelib"]["reliable"] = []
-            for sample in samples:
-                case = load_tps_rpm_case(name, sample=sample)
-                n = len(case["y2"])
-                for m in methods:
-                    moved, seconds, info = run(m, case["x1"], case["y2a"], args.time_limit or None)
-                    cell = row[m]
-                    cell["samples"].append(sample)
-                    cell["errors"].append(float(np.mean(np.linalg.norm(moved[:n] - case["y2"], axis=1))))
-                    cell["times"].append(seconds)
-                    cell["exceptions"].append(info["exception"])
-                    if m == "shapelib":
-                        cell["reliable"].append(info.get("reliable"))
-            for m in methods:
-                row[m].update(_level_stats(row[m], list(range(len(samples)))))
-            report["levels"][name] = row
-            print(f"{name:20s} " + "  ".join(f"{m} {row[m]['error']:.4f}/{row[m]['failures']}f/"
-                                              f"{row[m]['time_median_s']:.3f}s" for m in methods), flush=True)
+              "loadavg_before": loadavg()}
+    report["levels"] = run_levels(levels, samples, methods, _tps_rpm_case, time_limit=args.time_limit or None)
     report["loadavg_after"] = loadavg()
     report["summary"] = summarise(report["levels"], samples, methods=methods)
     print(json.dumps(report["summary"], indent=1))

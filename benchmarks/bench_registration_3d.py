@@ -37,8 +37,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._machine import loadavg, record  # noqa: E402
-from benchmarks._peers import DESCRIPTIONS, METHODS, run, warm_up  # noqa: E402
-from benchmarks.bench_registration import _level_stats, parse_samples, summarise  # noqa: E402
+from benchmarks._peers import DESCRIPTIONS, METHODS  # noqa: E402
+from benchmarks.bench_registration import parse_methods, parse_samples, run_levels, summarise  # noqa: E402
 
 SURFACES = ("sphere", "torus", "superquadric")
 FAMILIES = ("def", "noise", "outlier", "occlusion", "rot")
@@ -132,41 +132,21 @@ def main(argv=None) -> dict:
     if args.points < 20:
         ap.error("--points: at least 20")
     wanted = [w for w in args.levels.split(",") if w]
-    methods = [m for m in args.methods.split(",") if m] or list(METHODS)
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown:
-        ap.error(f"--methods: unknown {', '.join(unknown)}; known: {', '.join(METHODS)}")
+    methods = parse_methods(ap, args.methods)
     if args.record and (wanted or args.methods):
         ap.error("--record: a partial run is not the benchmark")
     levels = [lv for lv in LEVEL_NAMES if not wanted or any(w in lv for w in wanted)]
-    from threadpoolctl import threadpool_limits
+
+    def case_of(name, sample):
+        case = make_case(name, sample, args.points)
+        return case["x"], case["y"], case["truth"]
 
     report = {"samples": samples, "points": args.points, "methods": methods,
               "settings": {m: DESCRIPTIONS[m] for m in methods}, "levels_spec": LEVELS_3D,
               "base_amplitude": BASE_AMPLITUDE, "time_limit_s": args.time_limit or None,
-              "failure_threshold": 0.05, "loadavg_before": loadavg(), "levels": {}}
-    with threadpool_limits(limits=1, user_api="blas"):
-        warm_up(methods, dim=3)
-        for name in levels:
-            row = {m: {"samples": [], "errors": [], "times": [], "exceptions": []} for m in methods}
-            if "shapelib" in row:
-                row["shapelib"]["reliable"] = []
-            for sample in samples:
-                case = make_case(name, sample, args.points)
-                for m in methods:
-                    moved, seconds, info = run(m, case["x"], case["y"], args.time_limit or None)
-                    cell = row[m]
-                    cell["samples"].append(sample)
-                    cell["errors"].append(float(np.mean(np.linalg.norm(moved - case["truth"], axis=1))))
-                    cell["times"].append(seconds)
-                    cell["exceptions"].append(info["exception"])
-                    if m == "shapelib":
-                        cell["reliable"].append(info.get("reliable"))
-            for m in methods:
-                row[m].update(_level_stats(row[m], list(range(len(samples)))))
-            report["levels"][name] = row
-            print(f"{name:24s} " + "  ".join(f"{m} {row[m]['error']:.4f}/{row[m]['failures']}f/"
-                                              f"{row[m]['time_median_s']:.3f}s" for m in methods), flush=True)
+              "failure_threshold": 0.05, "loadavg_before": loadavg()}
+    report["levels"] = run_levels(levels, samples, methods, case_of, time_limit=args.time_limit or None, dim=3,
+                                  width=24)
     report["loadavg_after"] = loadavg()
     report["summary"] = summarise(report["levels"], samples, methods=methods, shapes=SURFACES)
     print(json.dumps(report["summary"], indent=1))

@@ -17,12 +17,14 @@ def _load(name):
     return mod
 
 
-def _cell(errors, times, exceptions=None, reliable=None):
+def _cell(errors, times, exceptions=None, reliable=None, converged=None):
     n = len(errors)
     c = {"samples": list(range(1, n + 1)), "errors": list(errors), "times": list(times),
          "exceptions": list(exceptions or [None] * n)}
     if reliable is not None:
         c["reliable"] = list(reliable)
+    if converged is not None:
+        c["converged"] = list(converged)
     return c
 
 
@@ -31,10 +33,12 @@ def test_summarise_counts_failures_flags_and_ranges_of_a_hand_made_record():
     # shapelib: samples 1-5 good (0.01), 6-10 bad (0.1); flagged unreliable on samples 5, 6, 7, 8
     sl_err = [0.01] * 5 + [0.1] * 5
     sl_rel = [True] * 4 + [False] * 4 + [True] * 2
+    # EM stopped at max_iter on samples 1 (good) and 9 (bad, not flagged unreliable)
+    sl_conv = [False] + [True] * 7 + [False, True]
     levels = {
-        "fish_def_1": {"shapelib": _cell(sl_err, [1.0] * 10, reliable=sl_rel),
+        "fish_def_1": {"shapelib": _cell(sl_err, [1.0] * 10, reliable=sl_rel, converged=sl_conv),
                        "cpd": _cell([0.02] * 10, [0.1] * 10, exceptions=[None] * 9 + ["LinAlgError"])},
-        "chinese_rot_1": {"shapelib": _cell([0.0] * 10, [3.0] * 10, reliable=[True] * 10),
+        "chinese_rot_1": {"shapelib": _cell([0.0] * 10, [3.0] * 10, reliable=[True] * 10, converged=[True] * 10),
                           "cpd": _cell([0.2] * 10, [0.3] * 10)},
     }
     s = bench.summarise(levels, list(range(1, 11)), methods=("shapelib", "cpd"))
@@ -52,6 +56,12 @@ def test_summarise_counts_failures_flags_and_ranges_of_a_hand_made_record():
     flag = whole["reliable_flag"]
     assert flag["errors_above_0.05"] == 5 and flag["catch_rate"] == pytest.approx(3 / 5)
     assert flag["errors_below_0.02"] == 15 and flag["false_alarm_rate"] == pytest.approx(1 / 15)
+    # any warning: not reliable or EM not converged (sample 9 caught too, sample 1 a second false alarm)
+    warn = whole["any_warning"]
+    assert warn["catch_rate"] == pytest.approx(4 / 5) and warn["false_alarm_rate"] == pytest.approx(2 / 15)
+    assert "any_warning" not in bench.summarise({"fish_def_1": {"shapelib": _cell(sl_err, [1.0] * 10, reliable=sl_rel),
+                                                                "cpd": _cell([0.02] * 10, [0.1] * 10)}},
+                                                list(range(1, 11)), methods=("shapelib", "cpd"))["1-10"]
     fam = whole["families"]["fish_def"]
     assert fam["best_peer"] == "cpd" and fam["mean_error"]["shapelib"] == pytest.approx(0.055)
     assert set(whole["families"]) == {"fish_def", "chinese_rot"}

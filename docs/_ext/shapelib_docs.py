@@ -439,19 +439,26 @@ def _registration_peers(r: dict, title: str, cases: str) -> list[Table]:
                             key="families"))
     rng_rows = []
     for rng, s in summary.items():
-        flag = s.get("reliable_flag")
+        flag, warn = s.get("reliable_flag"), s.get("any_warning")
+
+        def pct(rates, key):
+            return "—" if not rates or rates[key] is None else f"{100 * rates[key]:.0f} %"
+
         rng_rows.append([rng, f"{s.get('shapelib_le_every_peer', '—')} of {s['levels']}",
                          str(len(s.get("shapelib_above_best_peer_plus_0.01", []))),
-                         "—" if not flag or flag["catch_rate"] is None else f"{100 * flag['catch_rate']:.0f} %",
-                         "—" if not flag or flag["false_alarm_rate"] is None else f"{100 * flag['false_alarm_rate']:.0f} %"]
+                         pct(flag, "catch_rate"), pct(flag, "false_alarm_rate"),
+                         f"{pct(warn, 'catch_rate')} / {pct(warn, 'false_alarm_rate')}"]
                         + [f"{s['methods'][m]['mean_error']:.4f} · {s['methods'][m]['failures']} · "
                            f"{_ms(s['methods'][m]['median_time_s'])}" for m in methods])
     tables.append(Table(f"{title}: summary by samples", ["samples", "shapelib ≤ every peer", "levels above best peer + 0.01",
-                                                          "flag catch rate", "flag false alarms", *header], rng_rows,
+                                                          "flag catch rate", "flag false alarms",
+                                                          "any warning: catch / false alarms", *header], rng_rows,
                         "Levels where shapelib's mean error is at most every peer's; levels where it exceeds the best "
                         "peer's by more than 0.01; shapelib's reliable flag: of the registrations with error > 0.05 the "
                         "share flagged unreliable, of those below 0.02 the share flagged (— where the result has no "
-                        "flag); then each method's mean error over the levels · failed registrations · median time.",
+                        "flag); the same for any RegistrationWarning (not reliable, or EM stopped at max_iter; — where "
+                        "the record has no convergence); then each method's mean error over the levels · failed "
+                        "registrations · median time.",
                         key="summary"))
     return tables
 
