@@ -59,6 +59,7 @@ bench: setup
 	$(PY) benchmarks/bench_registration.py --samples 10 --record
 	$(PY) benchmarks/bench_registration_3d.py --record
 	$(PY) benchmarks/bench_registration_batch.py --record
+	$(PY) benchmarks/bench_registration_large.py --record
 
 # mutation testing of one module of the numerical core, or of those changed since a commit, against the tests
 # that cover it (benchmarks/mutation_targets.toml; minutes per module; not part of `make test`):
