@@ -3,6 +3,7 @@ a constant, an argument) its tests notice.
 
     python benchmarks/mutation.py shapelib/geometry/gmm.py [more modules]   # or: make mutate MODULE=...
     python benchmarks/mutation.py --since <commit>                          # or: make mutate SINCE=...
+    python benchmarks/mutation.py --renote          # the record's survivors' reasons again from the notes
 
 Each module is mutated in a scratch copy of the repository (build/mutation/<module>/, so the checkout
 is never touched) and only the test files that cover it are run against each mutant (the mapping is
@@ -138,6 +139,17 @@ def write_record(runs: list[dict], argv: list[str]) -> Path:
     return RECORD
 
 
+def renote() -> Path:
+    """Rewrite the reasons of the recorded survivors from benchmarks/mutation_notes.toml (no mutants run)."""
+    data = json.loads(RECORD.read_text())
+    why = notes()
+    for m in data["results"]["modules"]:
+        for s in m["survivors"]:
+            s["why"] = why.get(s["mutant"], "not yet looked at")
+    RECORD.write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n")
+    return RECORD
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
@@ -149,7 +161,12 @@ def main(argv=None) -> int:
     p.add_argument("--timeout-multiplier", type=float, default=10.0,
                    help="a mutant whose tests run this many times longer than unmutated is killed (timeout)")
     p.add_argument("--record", action="store_true", help="write the scores into docs/_data/benchmarks/mutation.json")
+    p.add_argument("--renote", action="store_true",
+                   help="only rewrite the recorded survivors' reasons from benchmarks/mutation_notes.toml")
     a = p.parse_args(argv)
+    if a.renote:
+        print(f"reasons rewritten in {renote()}")
+        return 0
     known = targets()
     modules = list(a.modules)
     if a.since:
