@@ -40,7 +40,7 @@ SCRATCH = ROOT / "build" / "mutation"
 RECORD = RECORD_DIR / "mutation.json"
 #: the numerical core: what `--since` looks at
 CORE = ("shapelib/geometry/", "shapelib/solver/", "shapelib/pointsets/", "shapelib/statistics/",
-        "shapelib/comparison/", "shapelib/retrieval.py")
+        "shapelib/comparison/", "shapelib/retrieval.py", "shapelib/rerank.py")
 KILLED = {"killed", "timeout"}
 
 
@@ -81,6 +81,23 @@ def _mutmut(args: list[str], cwd: Path, log=None) -> subprocess.CompletedProcess
                           stderr=subprocess.STDOUT if log is not None else subprocess.PIPE)
 
 
+_DIFFS = """
+import json, sys
+from mutmut.mutation.diff_apply import find_mutant, get_diff_for_mutant
+names = json.load(sys.stdin)
+path = find_mutant(names[0]).path if names else None
+print(json.dumps({n: get_diff_for_mutant(n, path=path) for n in names}))
+"""
+
+
+def _diffs(names: list[str], work: Path) -> dict[str, str]:
+    """The diff of each mutant, from one process (``mutmut show`` per mutant starts one each)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    out = subprocess.run([sys.executable, "-c", _DIFFS], cwd=work, env=env, input=json.dumps(names), text=True,
+                         capture_output=True, check=True).stdout
+    return json.loads(out)
+
+
 def run_module(module: str, tests: list[str], *, max_children: int, timeout_multiplier: float) -> dict:
     """Mutate ``module`` in a scratch copy, run ``tests`` against every mutant; the counts and the survivors."""
     slug = module.removesuffix(".py").replace("/", ".")
@@ -106,13 +123,12 @@ def run_module(module: str, tests: list[str], *, max_children: int, timeout_mult
     for s in status.values():
         counts[s] = counts.get(s, 0) + 1
     survivors = []
-    for name, s in sorted(status.items()):
-        if s in KILLED:
-            continue
-        diff = _mutmut(["show", name], work).stdout
-        body = "\n".join(line for line in diff.splitlines()
+    left = sorted(name for name, s in status.items() if s not in KILLED)
+    diffs = _diffs(left, work)
+    for name in left:
+        body = "\n".join(line for line in diffs[name].splitlines()
                          if line.startswith(("+", "-")) and not line.startswith(("+++", "---")))
-        survivors.append({"mutant": name, "status": s, "diff": body,
+        survivors.append({"mutant": name, "status": status[name], "diff": body,
                           "why": why.get(name, "not yet looked at")})
     killed = sum(counts.get(s, 0) for s in KILLED)
     return {"module": module, "tests": tests, "date": machine()["date"], "tool": f"mutmut {_version()}",
