@@ -254,12 +254,13 @@ def test_bad_input_is_named(rng):
 
 def test_near_form_in_chunks_and_at_a_wide_sigma(rng):
     """The cancellation-free ‖p_u − p_v‖² against the 60-digit sum: pairs taken one chunk at a time
-    (a chunk smaller than one pair's K² terms), and l2_distance at σ = 100 where landmarks move by
-    about 1 (within √2 σ, so the near form applies; the plain difference has lost 6 digits there)."""
+    (a chunk smaller than one pair's K² terms), and l2_distance at σ = 1000 where landmarks move by
+    about 1 (within √2 σ, so the near form applies; the plain difference has lost 8 digits there)."""
     u = rng.normal(size=(4, 3, 2))
     v = u + 1e-5 * rng.normal(size=u.shape)
     got = _l2_sq_near(u, v, 0.7, chunk=4)
     np.testing.assert_allclose(got, [_decimal_l2_sq(u[p], v[p], 0.7) for p in range(4)], rtol=1e-12)
-    u = rng.normal(size=(5, 2))
-    v = u + 0.5 * rng.normal(size=u.shape)
-    assert l2_distance(u, v, sigma2=1e4) == pytest.approx(np.sqrt(_decimal_l2_sq(u, v, 1e4)), rel=1e-12)
+    wide = np.random.default_rng(4)
+    u = wide.normal(size=(5, 2))
+    v = u + 0.5 * wide.normal(size=u.shape)
+    assert l2_distance(u, v, sigma2=1e6) == pytest.approx(np.sqrt(_decimal_l2_sq(u, v, 1e6)), rel=1e-12)
