@@ -18,6 +18,7 @@ docs/_data/benchmarks/mutation.json (``--record``), which the performance page r
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import importlib.metadata
 import json
 import os
@@ -52,6 +53,15 @@ def targets() -> dict[str, list[str]]:
 def notes() -> dict[str, str]:
     """Mutant name -> why it survives (benchmarks/mutation_notes.toml), where someone has looked."""
     return tomllib.loads(NOTES.read_text()).get("survivors", {}) if NOTES.is_file() else {}
+
+
+def reason(why: dict[str, str], name: str) -> str:
+    """The note for mutant ``name``: its own, else the first glob key that matches it (a note for every
+    mutant of a function no test reaches, ``shapelib.x.x_f__mutmut_*``), else "not yet looked at"."""
+    if name in why:
+        return why[name]
+    return next((text for key, text in why.items() if "*" in key and fnmatch.fnmatchcase(name, key)),
+                "not yet looked at")
 
 
 def changed_since(commit: str) -> list[str]:
@@ -129,7 +139,7 @@ def run_module(module: str, tests: list[str], *, max_children: int, timeout_mult
         body = "\n".join(line for line in diffs[name].splitlines()
                          if line.startswith(("+", "-")) and not line.startswith(("+++", "---")))
         survivors.append({"mutant": name, "status": status[name], "diff": body,
-                          "why": why.get(name, "not yet looked at")})
+                          "why": reason(why, name)})
     killed = sum(counts.get(s, 0) for s in KILLED)
     return {"module": module, "tests": tests, "date": machine()["date"], "tool": f"mutmut {_version()}",
             "loadavg_start": load_start, "loadavg_end": loadavg(), "seconds": round(seconds, 1),
@@ -161,7 +171,7 @@ def renote() -> Path:
     why = notes()
     for m in data["results"]["modules"]:
         for s in m["survivors"]:
-            s["why"] = why.get(s["mutant"], "not yet looked at")
+            s["why"] = reason(why, s["mutant"])
     RECORD.write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n")
     return RECORD
 
