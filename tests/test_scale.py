@@ -159,7 +159,9 @@ def test_fisher_rao_scale_threshold_message_and_given_ratio():
     with pytest.raises(ValueError, match="too small"):  # two landmarks have a spacing too
         check_fisher_rao_scale(SQUARE3[:2], sigma2=0.15 ** 2)
     assert check_fisher_rao_scale(SQUARE3[:1], sigma2=1e-12) is None  # one landmark: nothing to resolve
-    assert check_fisher_rao_scale(np.zeros((3, 2)), sigma2=1e-12) is None  # coincident: spacing 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # coincident: spacing 0, ratio inf without a division by zero
+        assert check_fisher_rao_scale(np.zeros((3, 2)), sigma2=1e-12) is None
 
 
 def test_check_scale_facts_and_messages_small_and_large():
