@@ -177,3 +177,19 @@ def test_pairs_a_hair_apart_are_degenerate_with_their_closed_form(n_components, 
         fit = fit_mixture(x, n_components=n_components)
     assert (fit.stop_reason, fit.converged, fit.n_iter) == ("degenerate", False, 1)
     assert fit.sigma2 == pytest.approx(s2, rel=1e-6)
+
+
+def test_em_likelihood_and_standard_error_of_far_apart_clusters():
+    """Three clusters 100 σ apart: the reported log-likelihood is Σ log((1/3) Σ_j N(x_i; μ_j, σ²I)) by
+    scipy's normal densities, and the observed-information error of σ² is that of one Gaussian,
+    σ² √(2/(n d)) (the means' block decouples; the overlap of the clusters is e⁻¹²⁵⁰)."""
+    from scipy.special import logsumexp
+    from scipy.stats import multivariate_normal
+
+    rng = np.random.default_rng(5)
+    centres = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 100.0]])
+    x = centres[np.arange(300) % 3] + rng.normal(size=(300, 2))
+    fit = fit_mixture(x, n_components=3)
+    dens = np.stack([multivariate_normal(m, fit.sigma2 * np.eye(2)).logpdf(x) for m in fit.means], axis=1)
+    assert fit.log_likelihood == pytest.approx(float(np.sum(logsumexp(dens, axis=1) - np.log(3))), rel=1e-10)
+    assert fit.standard_error == pytest.approx(fit.sigma2 * np.sqrt(2 / (300 * 2)), rel=1e-4)
