@@ -189,6 +189,8 @@ def test_check_scale_facts_and_messages_small_and_large():
                       "blob and distances between shapes nearly vanish. " + fix)
     with pytest.warns(ScaleWarning, match="0.05 times"):  # two landmarks are measured too
         check_scale(SQUARE3[:2], 0.15 ** 2)
+    with pytest.warns(ScaleWarning, match="0.05 times the mean nearest-landmark spacing 0.3:"):  # below 1 too
+        check_scale(SQUARE3 / 10, 0.015 ** 2)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert check_scale(SQUARE3[:1], 1e-6) == float("inf")  # one landmark: no spacing, no warning
