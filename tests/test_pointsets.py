@@ -240,3 +240,38 @@ def test_density_functions_name_the_point_set_at_fault(rng):
         density_distance(x, rng.normal(size=(3, 3)), sigma2=0.3)
     with pytest.raises(ValueError, match=r"^metric must be one of \('alpha', 'fisher_rao'\); got 'l2'$"):
         density_distance(x, x + 1, sigma2=0.3, metric="l2")
+
+
+def test_point_set_errors_say_which_points_and_sets():
+    """Each refusal of as_point_set / as_point_sets: its words, the default names, and the facts
+    (indices from 0) a caller may act on."""
+    from shapelib import InputError
+
+    with pytest.raises(InputError, match=r"^points must be a numeric \(n, d\) array of points: could not convert"):
+        as_point_set("abc")
+    with pytest.raises(InputError, match=r"^points has 1 point\(s\); a point set needs at least 2$"):
+        as_point_set([[0.0, 0.0]])
+    with pytest.raises(ValueError, match=r"^outline\b"):
+        as_point_set(np.zeros((3, 4)), name="outline")
+    with pytest.raises(InputError, match=r"^points: point 1 has a non-finite coordinate 0 \((np\.float64\()?nan\)?\); 2 point\(s\) "
+                                         r"in all are not finite$") as exc:
+        as_point_set([[0.0, 0.0], [np.nan, 1.0], [2.0, np.inf]])
+    assert exc.value.facts == {"points": (1,)}
+    with pytest.raises(InputError, match=r"^points: point 2 repeats point 0 at \(0, 0\)") as exc:
+        as_point_set([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0]])  # one y for all: the repeat is found by x too
+    assert exc.value.facts == {"points": (0, 2)}
+    with pytest.raises(InputError, match=r"^point sets must be a list of \(n, d\) point sets or an \(N, n, d\) array; "
+                                         r"got shape \(3, 2\)$"):
+        as_point_sets(np.zeros((3, 2)))
+    with pytest.raises(InputError, match=r"got shape \(1, 3, 2, 1\)$"):
+        as_point_sets(np.zeros((1, 3, 2, 1)))
+    with pytest.raises(InputError, match=r"^point sets must be a list of \(n, d\) point sets; got int$"):
+        as_point_sets(5)
+    with pytest.raises(InputError, match=r"^point sets is empty: give at least one point set$"):
+        as_point_sets([])
+    with pytest.raises(InputError, match=r"^point sets\[0\] has 2 point\(s\); a point set needs at least 3$"):
+        as_point_sets([[[0.0, 0.0], [1.0, 1.0]]], min_points=3)
+    assert [s.shape for s in as_point_sets([[[0.0, 0.0], [1.0, 1.0]]])] == [(2, 2)]
+    with pytest.raises(InputError, match=r"^sets\[2\] has d = 3 coordinates per point but sets\[0\] has d = 2") as exc:
+        as_point_sets([pear(5), pear(6), np.eye(4, 3)], name="sets")
+    assert exc.value.facts == {"sets": (0, 2)}
