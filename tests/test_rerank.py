@@ -124,3 +124,27 @@ def test_bad_input_names_the_parameter(bad, name):
 
 def test_public():
     assert sl.rerank is rerank and set(RERANK_METHODS) >= {"tpg", "lcdp"}
+
+
+def test_input_checks_say_where_and_accept_the_edges():
+    """The offending entry is named (row, column from 0); two items, k = 2 and k = n, one iteration
+    are allowed; a boolean or non-numeric mu or n_iter is refused."""
+    d = np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 1.5], [2.0, 1.5, 0.0]])
+    bad = d.copy()
+    bad[1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"^D must be finite \(first non-finite entry at row 1, column 2\)$"):
+        rerank(bad)
+    bad = d.copy()
+    bad[2, 0] = -0.5
+    with pytest.raises(ValueError, match=r"^D must be a dissimilarity, ≥ 0 \(D\[2, 0\] = -0.5\)$"):
+        rerank(bad)
+    bad[2, 0] = 0.5  # entries in (0, 1) are fine
+    assert rerank(bad, k=2).shape == (3, 3)
+    with pytest.raises(ValueError, match=r"^D must compare at least 2 items; got shape \(1, 1\)$"):
+        rerank(np.zeros((1, 1)))
+    for method in RERANK_METHODS:
+        assert rerank(d[:2, :2], method=method, k=2).shape == (2, 2)
+        assert rerank(d, method=method, k=3, n_iter=1).shape == (3, 3)
+    for kw in ({"k": 1}, {"k": 4}, {"mu": True}, {"mu": "0.5"}, {"n_iter": True}, {"n_iter": 1.0}, {"n_iter": 0}):
+        with pytest.raises(ValueError, match=rf"^{next(iter(kw))} must be"):
+            rerank(d, **{"k": 3, **kw})
