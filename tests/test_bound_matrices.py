@@ -79,9 +79,9 @@ def test_alpha_near_pairs_match_a_60_digit_sum(rng, d):
     a = alpha_bound_matrix(x, sigma2=s2)
     for j in (1, 2, 3):
         exact = np.sqrt(_decimal_l2_sq(x[0], x[j], s2))
-        assert a[0, j] == pytest.approx(exact, rel=1e-12)
-        assert l2_distance(x[0], x[j], sigma2=s2) == pytest.approx(exact, rel=1e-12)
-    assert _l2_sq_near(x[:1], x[2:3], s2)[0] == pytest.approx(_decimal_l2_sq(x[0], x[2], s2), rel=1e-12)
+        assert a[0, j] == pytest.approx(exact, rel=1e-12, abs=0)  # abs=0: approx's default 1e-12 would swamp 1e-9
+        assert l2_distance(x[0], x[j], sigma2=s2) == pytest.approx(exact, rel=1e-12, abs=0)
+    assert _l2_sq_near(x[:1], x[2:3], s2)[0] == pytest.approx(_decimal_l2_sq(x[0], x[2], s2), rel=1e-12, abs=0)
 
 
 @pytest.mark.parametrize("d", [2, 3])
@@ -263,4 +263,4 @@ def test_near_form_in_chunks_and_at_a_wide_sigma(rng):
     wide = np.random.default_rng(4)
     u = wide.normal(size=(5, 2))
     v = u + 0.5 * wide.normal(size=u.shape)
-    assert l2_distance(u, v, sigma2=1e6) == pytest.approx(np.sqrt(_decimal_l2_sq(u, v, 1e6)), rel=1e-12)
+    assert l2_distance(u, v, sigma2=1e6) == pytest.approx(np.sqrt(_decimal_l2_sq(u, v, 1e6)), rel=1e-12, abs=0)

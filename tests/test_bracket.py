@@ -212,7 +212,7 @@ def test_extrapolation_needs_the_last_three_finite_strictly_shrinking_gaps():
     gives nothing, and so does a last difference of 0 (no geometric convergence to fit)."""
     for gaps in ([1.01, 0.26, 0.0725], [np.inf, 1.01, 0.26, 0.0725]):
         limit, order = extrapolate_doublings(gaps)
-        assert limit == pytest.approx(0.01, rel=1e-12) and order == pytest.approx(2.0, rel=1e-12)
+        assert limit == pytest.approx(0.01, rel=1e-12, abs=0) and order == pytest.approx(2.0, rel=1e-12)
     assert extrapolate_doublings([np.inf, 0.26, 0.0725]) == (None, None)
     assert extrapolate_doublings([0.26, 0.0725]) == (None, None)
     with warnings.catch_warnings():

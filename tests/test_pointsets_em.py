@@ -176,7 +176,7 @@ def test_pairs_a_hair_apart_are_degenerate_with_their_closed_form(n_components, 
     with pytest.warns(EMWarning, match=r"\(degenerate\) after 1 iterations"):
         fit = fit_mixture(x, n_components=n_components)
     assert (fit.stop_reason, fit.converged, fit.n_iter) == ("degenerate", False, 1)
-    assert fit.sigma2 == pytest.approx(s2, rel=1e-6)
+    assert fit.sigma2 == pytest.approx(s2, rel=1e-6, abs=0)  # abs=0: approx would accept any value within 1e-12
 
 
 def test_em_likelihood_and_standard_error_of_far_apart_clusters():
