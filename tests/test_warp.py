@@ -56,7 +56,7 @@ def test_grid_laplacian_of_a_quadratic_and_the_axes():
     xx, yy = np.meshgrid(x, y, indexing="ij")
     lap = _laplacian(len(x), len(y), x[1] - x[0], y[1] - y[0]) @ (xx ** 2 + 3 * yy ** 2).ravel()
     np.testing.assert_allclose(lap.reshape(len(x), len(y))[1:-1, 1:-1], 8.0, rtol=1e-10)
-    axes = _axes(np.array([[0.0, 5.0], [2.0, -1.0], [1.0, 0.0]]), 7, 0.5)
+    axes = _axes(np.array([[1.0, 5.0], [2.0, -1.0], [0.0, 3.0]]), 7, 0.5)
     np.testing.assert_allclose(axes[0], np.linspace(-0.5, 2.5, 7))
     np.testing.assert_allclose(axes[1], np.linspace(-1.5, 5.5, 7))
 
