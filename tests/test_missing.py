@@ -113,3 +113,22 @@ def test_estimate_missing_counts_refusals_and_nothing_missing(rng):
     z[1, 1, 0] = np.inf
     with pytest.raises(ValueError, match=r"^shapes have infinite coordinates; only NaN marks a missing landmark$"):
         sl.estimate_missing(z)
+
+
+def test_the_methods_on_a_population_without_shape_variation(rng):
+    """Complete specimens that are similarity copies of one shape, and a sheared copy missing a
+    landmark: the thin-plate spline bends the mean affinely onto the present landmarks, so it returns
+    the sheared landmark exactly (a similarity fit of the mean would not: a shear is no similarity)."""
+    base = rng.normal(size=(7, 2))
+    copies = []
+    for k in range(5):
+        c, s = np.cos(0.3 * k), np.sin(0.3 * k)
+        copies.append((1 + 0.1 * k) * base @ np.array([[c, -s], [s, c]]).T + k)
+    shear = base @ np.array([[1.0, 0.4], [0.0, 1.0]]).T
+    x = np.stack(copies + [shear])
+    x[5, 3] = np.nan
+    tps = sl.estimate_missing(x)
+    np.testing.assert_allclose(tps.shapes[5, 3], shear[3], atol=1e-8)
+    have = np.arange(7) != 3
+    assert np.linalg.norm(_fit_onto(base[have], shear[have])(base[3:4])[0] - shear[3]) > 1e-2
+    assert tps.method == "tps" and sl.estimate_missing(x, method="regression").method == "regression"
