@@ -109,6 +109,8 @@ def test_estimate_missing_counts_refusals_and_nothing_missing(rng):
     with pytest.raises(ValueError, match=r"^specimen 0: 2 landmark\(s\) present; at least 3 are needed to place the "
                                          r"others$"):
         sl.estimate_missing(z)
+    with pytest.raises(ValueError, match=r"^shapes must be an \(N, K, d\) array; got shape \(5, 2\)$"):
+        sl.estimate_missing(x[0])
     z = x.copy()
     z[1, 1, 0] = np.inf
     with pytest.raises(ValueError, match=r"^shapes have infinite coordinates; only NaN marks a missing landmark$"):
