@@ -134,3 +134,8 @@ def test_the_methods_on_a_population_without_shape_variation(rng):
     have = np.arange(7) != 3
     assert np.linalg.norm(_fit_onto(base[have], shear[have])(base[3:4])[0] - shear[3]) > 1e-2
     assert tps.method == "tps" and sl.estimate_missing(x, method="regression").method == "regression"
+    x[2, :2] = np.nan  # two landmarks of a second specimen: 3 in 2 specimens, 4 complete ones left
+    assert sl.estimate_missing(x).summary() == ("3 missing landmark(s) in 2 specimen(s) estimated by thin-plate "
+                                                "spline from the mean of 4 complete specimens")
+    assert sl.estimate_missing(x, method="regression").summary() == (
+        "3 missing landmark(s) in 2 specimen(s) estimated by multivariate regression on 4 complete specimens")
