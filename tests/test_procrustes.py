@@ -188,3 +188,67 @@ def test_check_pose_warns_with_the_amounts_and_returns_them():
                                          r"aligning them \(rotations and translations\) moves 3 of 3 shapes by more "
                                          r"than 0.1 % of their size, shapes\[2\] by .* %\. Align them first"):
         check_pose(np.stack([RECT, RECT, _turned(0.6)]), metric="fisher_rao")
+
+
+def test_optimal_rotation_of_a_mirror_image_against_a_brute_force_search(rng):
+    """y a mirror image of x: the best proper rotation (no reflection), found by scanning the angle
+    and polishing with a bounded search, gives the same R and the same Σ s = max_θ tr(R(θ)ᵀ yᵀx);
+    with reflection allowed the mirror itself, with Σ s the sum of the singular values."""
+    from scipy.optimize import minimize_scalar
+
+    from shapelib.geometry.procrustes import optimal_rotation
+
+    x = rng.normal(size=(7, 2))
+    x -= x.mean(axis=0)
+    y = x * [1.0, -1.0] @ np.array([[np.cos(0.4), -np.sin(0.4)], [np.sin(0.4), np.cos(0.4)]])
+
+    def rot(t):
+        return np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+
+    def fit(t):
+        return np.trace(rot(t).T @ y.T @ x)
+
+    grid = np.linspace(-np.pi, np.pi, 721)
+    t0 = grid[np.argmax([fit(t) for t in grid])]
+    best = minimize_scalar(lambda t: -fit(t), bounds=(t0 - 0.01, t0 + 0.01), method="bounded",
+                           options={"xatol": 1e-12})
+    r, tr = optimal_rotation(x, y)
+    assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-12)
+    assert tr == pytest.approx(-best.fun, rel=1e-10)
+    np.testing.assert_allclose(r, rot(best.x), atol=1e-6)
+    r, tr = optimal_rotation(x, y, reflection=True)
+    assert np.linalg.det(r) == pytest.approx(-1.0, abs=1e-12)
+    assert tr == pytest.approx(np.linalg.svd(y.T @ x, compute_uv=False).sum(), rel=1e-12)
+    np.testing.assert_allclose(y @ r, x, atol=1e-12)
+
+
+def test_procrustes_functions_name_their_arguments_and_sizes_without_overflow():
+    """Errors name x, y and shapes; a zero-size y cannot be scaled; centroid sizes of coordinates near
+    1e200 and 1e-200 (whose squares overflow and underflow) keep their closed form L / √2 for two
+    landmarks L apart; procrustes_align maps a similarity copy back without reflecting by default."""
+    from shapelib.geometry.procrustes import center, check_pose
+
+    flat = np.zeros(3)
+    sq = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    for f in (center, preshape):
+        with pytest.raises(ValueError, match=r"^x\b"):
+            f(flat)
+    with pytest.raises(ValueError, match=r"^x\b"):
+        procrustes_align(flat, sq)
+    with pytest.raises(ValueError, match=r"^y\b"):
+        procrustes_align(sq, flat)
+    with pytest.raises(ValueError, match=r"^shapes\b"):
+        pose_align(flat)
+    with pytest.raises(ValueError, match=r"^shapes\b"):
+        check_pose(flat, metric="alpha")
+    with pytest.raises(ValueError, match=r"^y has zero centroid size \(all landmarks coincide\); cannot scale it$"):
+        procrustes_align(sq, np.ones((4, 2)))
+    for big in (1e200, 1e-200):
+        two = np.array([[0.0, 0.0], [big, 0.0]])
+        assert centroid_size(two) == pytest.approx(big / np.sqrt(2), rel=1e-14, abs=0)
+    c, s = np.cos(0.5), np.sin(0.5)
+    copy = 2.5 * (sq - 3.0) @ np.array([[c, -s], [s, c]]).T
+    np.testing.assert_allclose(procrustes_align(sq, copy), sq, atol=1e-12)
+    mirror = sq * [-1.0, 1.0] + [0.3, 0.0]
+    assert np.abs(procrustes_align(sq, mirror) - sq).max() > 0.1  # no reflection unless asked
+    np.testing.assert_allclose(procrustes_align(sq, mirror, reflection=True), sq, atol=1e-12)
