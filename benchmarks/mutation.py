@@ -3,6 +3,7 @@ a constant, an argument) its tests notice.
 
     python benchmarks/mutation.py shapelib/geometry/gmm.py [more modules]   # or: make mutate MODULE=...
     python benchmarks/mutation.py --since <commit>                          # or: make mutate SINCE=...
+    python benchmarks/mutation.py --renote          # the record's survivors' reasons again from the notes
 
 Each module is mutated in a scratch copy of the repository (build/mutation/<module>/, so the checkout
 is never touched) and only the test files that cover it are run against each mutant (the mapping is
@@ -17,6 +18,7 @@ docs/_data/benchmarks/mutation.json (``--record``), which the performance page r
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import importlib.metadata
 import json
 import os
@@ -39,7 +41,7 @@ SCRATCH = ROOT / "build" / "mutation"
 RECORD = RECORD_DIR / "mutation.json"
 #: the numerical core: what `--since` looks at
 CORE = ("shapelib/geometry/", "shapelib/solver/", "shapelib/pointsets/", "shapelib/statistics/",
-        "shapelib/comparison/", "shapelib/retrieval.py")
+        "shapelib/comparison/", "shapelib/retrieval.py", "shapelib/rerank.py")
 KILLED = {"killed", "timeout"}
 
 
@@ -51,6 +53,15 @@ def targets() -> dict[str, list[str]]:
 def notes() -> dict[str, str]:
     """Mutant name -> why it survives (benchmarks/mutation_notes.toml), where someone has looked."""
     return tomllib.loads(NOTES.read_text()).get("survivors", {}) if NOTES.is_file() else {}
+
+
+def reason(why: dict[str, str], name: str) -> str:
+    """The note for mutant ``name``: its own, else the first glob key that matches it (a note for every
+    mutant of a function no test reaches, ``shapelib.x.x_f__mutmut_*``), else "not yet looked at"."""
+    if name in why:
+        return why[name]
+    return next((text for key, text in why.items() if "*" in key and fnmatch.fnmatchcase(name, key)),
+                "not yet looked at")
 
 
 def changed_since(commit: str) -> list[str]:
@@ -80,6 +91,23 @@ def _mutmut(args: list[str], cwd: Path, log=None) -> subprocess.CompletedProcess
                           stderr=subprocess.STDOUT if log is not None else subprocess.PIPE)
 
 
+_DIFFS = """
+import json, sys
+from mutmut.mutation.diff_apply import find_mutant, get_diff_for_mutant
+names = json.load(sys.stdin)
+path = find_mutant(names[0]).path if names else None
+print(json.dumps({n: get_diff_for_mutant(n, path=path) for n in names}))
+"""
+
+
+def _diffs(names: list[str], work: Path) -> dict[str, str]:
+    """The diff of each mutant, from one process (``mutmut show`` per mutant starts one each)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    out = subprocess.run([sys.executable, "-c", _DIFFS], cwd=work, env=env, input=json.dumps(names), text=True,
+                         capture_output=True, check=True).stdout
+    return json.loads(out)
+
+
 def run_module(module: str, tests: list[str], *, max_children: int, timeout_multiplier: float) -> dict:
     """Mutate ``module`` in a scratch copy, run ``tests`` against every mutant; the counts and the survivors."""
     slug = module.removesuffix(".py").replace("/", ".")
@@ -105,14 +133,13 @@ def run_module(module: str, tests: list[str], *, max_children: int, timeout_mult
     for s in status.values():
         counts[s] = counts.get(s, 0) + 1
     survivors = []
-    for name, s in sorted(status.items()):
-        if s in KILLED:
-            continue
-        diff = _mutmut(["show", name], work).stdout
-        body = "\n".join(line for line in diff.splitlines()
+    left = sorted(name for name, s in status.items() if s not in KILLED)
+    diffs = _diffs(left, work)
+    for name in left:
+        body = "\n".join(line for line in diffs[name].splitlines()
                          if line.startswith(("+", "-")) and not line.startswith(("+++", "---")))
-        survivors.append({"mutant": name, "status": s, "diff": body,
-                          "why": why.get(name, "not yet looked at")})
+        survivors.append({"mutant": name, "status": status[name], "diff": body,
+                          "why": reason(why, name)})
     killed = sum(counts.get(s, 0) for s in KILLED)
     return {"module": module, "tests": tests, "date": machine()["date"], "tool": f"mutmut {_version()}",
             "loadavg_start": load_start, "loadavg_end": loadavg(), "seconds": round(seconds, 1),
@@ -138,6 +165,17 @@ def write_record(runs: list[dict], argv: list[str]) -> Path:
     return RECORD
 
 
+def renote() -> Path:
+    """Rewrite the reasons of the recorded survivors from benchmarks/mutation_notes.toml (no mutants run)."""
+    data = json.loads(RECORD.read_text())
+    why = notes()
+    for m in data["results"]["modules"]:
+        for s in m["survivors"]:
+            s["why"] = reason(why, s["mutant"])
+    RECORD.write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n")
+    return RECORD
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
@@ -149,7 +187,12 @@ def main(argv=None) -> int:
     p.add_argument("--timeout-multiplier", type=float, default=10.0,
                    help="a mutant whose tests run this many times longer than unmutated is killed (timeout)")
     p.add_argument("--record", action="store_true", help="write the scores into docs/_data/benchmarks/mutation.json")
+    p.add_argument("--renote", action="store_true",
+                   help="only rewrite the recorded survivors' reasons from benchmarks/mutation_notes.toml")
     a = p.parse_args(argv)
+    if a.renote:
+        print(f"reasons rewritten in {renote()}")
+        return 0
     known = targets()
     modules = list(a.modules)
     if a.since:

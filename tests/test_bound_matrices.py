@@ -79,9 +79,9 @@ def test_alpha_near_pairs_match_a_60_digit_sum(rng, d):
     a = alpha_bound_matrix(x, sigma2=s2)
     for j in (1, 2, 3):
         exact = np.sqrt(_decimal_l2_sq(x[0], x[j], s2))
-        assert a[0, j] == pytest.approx(exact, rel=1e-12)
-        assert l2_distance(x[0], x[j], sigma2=s2) == pytest.approx(exact, rel=1e-12)
-    assert _l2_sq_near(x[:1], x[2:3], s2)[0] == pytest.approx(_decimal_l2_sq(x[0], x[2], s2), rel=1e-12)
+        assert a[0, j] == pytest.approx(exact, rel=1e-12, abs=0)  # abs=0: approx's default 1e-12 would swamp 1e-9
+        assert l2_distance(x[0], x[j], sigma2=s2) == pytest.approx(exact, rel=1e-12, abs=0)
+    assert _l2_sq_near(x[:1], x[2:3], s2)[0] == pytest.approx(_decimal_l2_sq(x[0], x[2], s2), rel=1e-12, abs=0)
 
 
 @pytest.mark.parametrize("d", [2, 3])
@@ -250,3 +250,17 @@ def test_bad_input_is_named(rng):
     with pytest.raises(ValueError, match=r"shapes\[2\]"):
         fisher_rao_bound_matrix(bad, sigma2=0.5)
     np.testing.assert_array_equal(bound_block("alpha_bound", x, sigma2=0.5), alpha_bound_matrix(x, sigma2=0.5))
+
+
+def test_near_form_in_chunks_and_at_a_wide_sigma(rng):
+    """The cancellation-free ‖p_u − p_v‖² against the 60-digit sum: pairs taken one chunk at a time
+    (a chunk smaller than one pair's K² terms), and l2_distance at σ = 1000 where landmarks move by
+    about 1 (within √2 σ, so the near form applies; the plain difference has lost 8 digits there)."""
+    u = rng.normal(size=(4, 3, 2))
+    v = u + 1e-5 * rng.normal(size=u.shape)
+    got = _l2_sq_near(u, v, 0.7, chunk=4)
+    np.testing.assert_allclose(got, [_decimal_l2_sq(u[p], v[p], 0.7) for p in range(4)], rtol=1e-12)
+    wide = np.random.default_rng(4)
+    u = wide.normal(size=(5, 2))
+    v = u + 0.5 * wide.normal(size=u.shape)
+    assert l2_distance(u, v, sigma2=1e6) == pytest.approx(np.sqrt(_decimal_l2_sq(u, v, 1e6)), rel=1e-12, abs=0)

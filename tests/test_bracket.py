@@ -204,3 +204,71 @@ def test_extrapolate_doublings_is_exact_for_power_laws(p):
     for bad in ([1e-3, 5e-4], [3e-3, 2e-3, 1.5e-3 + 1e-3], [3e-3, 2e-3, 1e-3], [1e-3, np.nan, 5e-4, 2e-4],
                 [3e-3, 3e-3, 3e-3]):
         assert extrapolate_doublings(bad) == (None, None)  # too few, rising, not shrinking geometrically, NaN, flat
+
+
+def test_extrapolation_needs_the_last_three_finite_strictly_shrinking_gaps():
+    """Aitken's limit of g(n) = 0.01 + n⁻² (n = 1, 2, 4) is 0.01 with order 2, from exactly three gaps
+    or the last three of more; an infinite earlier gap is not among them, an infinite one among them
+    gives nothing, and so does a last difference of 0 (no geometric convergence to fit)."""
+    for gaps in ([1.01, 0.26, 0.0725], [np.inf, 1.01, 0.26, 0.0725]):
+        limit, order = extrapolate_doublings(gaps)
+        assert limit == pytest.approx(0.01, rel=1e-12, abs=0) and order == pytest.approx(2.0, rel=1e-12)
+    assert extrapolate_doublings([np.inf, 0.26, 0.0725]) == (None, None)
+    assert extrapolate_doublings([0.26, 0.0725]) == (None, None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert extrapolate_doublings([1.0, 0.5, 0.5]) == (None, None)
+
+
+def test_refine_path_of_two_points_and_integer_input():
+    """The straight segment from 0 to 2 in one step: its midpoint is added (1, not a rounded 0 or 2)."""
+    fine = refine_path(np.array([[[0, 0]], [[2, 0]]]))
+    np.testing.assert_array_equal(fine[:, 0, 0], [0.0, 1.0, 2.0])
+    fine = refine_path(np.array([[[0, 0]], [[1, 0]]]))
+    np.testing.assert_array_equal(fine[:, 0, 0], [0.0, 0.5, 1.0])
+    with pytest.raises(ValueError, match=r"^path must have shape \(n \+ 1, K, d\) with n >= 1"):
+        refine_path(np.zeros((1, 3, 2)))
+
+
+def test_level_options_defaults_and_names():
+    """level_tol defaults to rtol / 10 and is used as given otherwise; min_shrink 0 is allowed; the
+    coarse Fisher-Rao grid from rtol = BRACKET_SPACING_RTOL on; each bad option is named."""
+    from shapelib.geometry.quadrature import DEFAULT_SPACING
+    from shapelib.solver.bracket import BRACKET_SPACING, BRACKET_SPACING_RTOL, _check_levels
+
+    ok = dict(rtol=1e-3, n_steps=8, max_n_steps=64, level_iter=5, level_tol=None, min_shrink=0.0, grid_spacing=None)
+    assert _check_levels(**ok) == (1e-3, 8, 64, 5, pytest.approx(1e-4), 0.0, BRACKET_SPACING)
+    assert _check_levels(**{**ok, "level_tol": 0.5})[4] == 0.5
+    assert _check_levels(**{**ok, "rtol": BRACKET_SPACING_RTOL})[6] == BRACKET_SPACING
+    assert _check_levels(**{**ok, "rtol": BRACKET_SPACING_RTOL / 2})[6] == DEFAULT_SPACING
+    for bad in ("rtol", "n_steps", "max_n_steps", "level_iter", "level_tol"):
+        with pytest.raises(ValueError, match=rf"^{bad}\b"):
+            _check_levels(**{**ok, bad: -1})
+
+
+def test_level_stop_reasons():
+    """After a level: within rtol; stalled when the gap shrank by less than min_shrink; stalled when
+    the gaps extrapolate above rtol; max_n_steps when doubling would pass it; else go on."""
+    from shapelib.solver.bracket import _level_stop
+
+    def levels(*pairs):
+        return [{"rel_gap": g, "n_steps": n} for g, n in pairs]
+
+    kw = dict(rtol=1e-3, min_shrink=0.1, max_n=32)
+    assert _level_stop(levels((0.1, 8), (0.095, 16)), 0.1, **kw) == "stalled"  # 0.095 ≥ 0.9 · 0.1
+    assert _level_stop(levels((0.1, 8), (0.05, 16)), 0.1, **kw) is None  # halved, 2 · 16 = 32 allowed
+    assert _level_stop(levels((0.1, 16), (0.05, 32)), 0.1, **kw) == "max_n_steps"
+    assert _level_stop(levels((1.01, 2), (0.26, 4), (0.0725, 8)), 0.26, **kw) == "stalled"  # limit 0.01
+    assert _level_stop(levels((1.01, 2), (0.26, 4), (0.0725, 8)), 0.26, **{**kw, "rtol": 0.02}) is None
+    assert _level_stop(levels((1e-3, 8)), None, **kw) == "rtol"
+
+
+def test_lower_bound_passes_its_grid_on(rng):
+    """The Fisher-Rao bound on a coarse grid is fisher_rao_lower_bound on that grid, not the default."""
+    u = rng.normal(size=(6, 2))
+    v = u + 0.3 * rng.normal(size=u.shape)
+    coarse = lower_bound(u, v, metric="fisher_rao", sigma2=0.5, grid_spacing=0.9, grid_margin=3.0)
+    want = shapelib.fisher_rao_lower_bound(u, v, sigma2=0.5, grid_spacing=0.9, grid_margin=3.0)
+    assert coarse == want
+    assert coarse != lower_bound(u, v, metric="fisher_rao", sigma2=0.5)
+    assert coarse != lower_bound(u, v, metric="fisher_rao", sigma2=0.5, grid_spacing=0.9)

@@ -67,3 +67,32 @@ def test_bad_shapes():
         l2_distance(np.zeros((3, 2)), np.zeros((2, 2)), sigma2=1.0)
     with pytest.raises(ValueError, match="dimension"):
         gmm_density(np.zeros((1, 3)), np.zeros((2, 2)), sigma2=1.0)
+
+
+def test_point_set_errors_name_the_argument():
+    """Each function names the point set at fault, and both when their dimensions differ."""
+    flat = np.zeros(3)
+    with pytest.raises(ValueError, match=r"^a must be a 2-D array"):
+        gaussian_overlap(flat, np.zeros((2, 2)), sigma2=1.0)
+    with pytest.raises(ValueError, match=r"^b must be a 2-D array"):
+        gaussian_overlap(np.zeros((2, 2)), flat, sigma2=1.0)
+    with pytest.raises(ValueError, match=r"^a and b must have the same dimension; got \(1, 2\) and \(2, 3\)$"):
+        gaussian_overlap(np.zeros((1, 2)), np.zeros((2, 3)), sigma2=1.0)
+    with pytest.raises(ValueError, match=r"^x must be a 2-D array"):
+        gmm_log_density(flat, np.zeros((2, 2)), sigma2=1.0)
+    with pytest.raises(ValueError, match=r"^theta must be a 2-D array"):
+        gmm_log_density(np.zeros((2, 2)), flat, sigma2=1.0)
+    with pytest.raises(ValueError, match=r"^x and theta must have the same dimension"):
+        gmm_density(np.zeros((1, 3)), np.zeros((2, 2)), sigma2=1.0)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_overlap_is_the_density_of_the_difference(rng, d):
+    """∫ N(x; a, σ²I) N(x; b, σ²I) dx = N(a − b; 0, 2σ²I): scipy's multivariate normal, in 2-D and 3-D
+    (where the normalising power d/2 is not 1)."""
+    from scipy.stats import multivariate_normal
+
+    a, b = rng.normal(size=(3, d)), rng.normal(size=(4, d))
+    s2 = 0.3
+    want = np.array([[multivariate_normal(np.zeros(d), 2 * s2 * np.eye(d)).pdf(p - q) for q in b] for p in a])
+    np.testing.assert_allclose(gaussian_overlap(a, b, sigma2=s2), want, rtol=1e-12)

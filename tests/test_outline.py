@@ -110,3 +110,82 @@ def test_load_mpeg7_outlines_and_labels():
         load_mpeg7(classes=["unicorn"])
     with pytest.raises(ValueError, match="per_class"):
         load_mpeg7(classes=["deer"], per_class=21)
+
+
+#: the 0.5 iso-line around an n × n block of pixels runs through the midpoints between pixel centres
+#: and cuts each corner by a diagonal of √½: perimeter 4(n − 1) + 2√2, area n² − ½ (a pixel: a
+#: diamond of perimeter 2√2 and area ½); the same around a block of background pixels (a hole)
+
+
+def _perimeter(n):
+    return 4 * (n - 1) + 2 * np.sqrt(2)
+
+
+def test_blocks_and_holes_have_their_closed_form_lengths_and_areas():
+    """Two blocks (10 and 5 pixels): kept length and area of the larger; a block of 20 with a 2 × 2
+    and a one-pixel hole: the holes are holes (the pixel's area ½ too), the longer first."""
+    from shapelib.pointsets.outline import _length, _signed_area
+
+    img = np.zeros((40, 40), bool)
+    img[5:15, 5:15] = True
+    img[25:30, 25:30] = True
+    top = outline_topology(img)
+    assert (top.n_parts, top.n_holes) == (2, 0)
+    assert top.kept_length == pytest.approx(_perimeter(10) / (_perimeter(10) + _perimeter(5)), rel=1e-12)
+    assert top.kept_area == pytest.approx(99.5 / (99.5 + 24.5), rel=1e-12)
+    outer, _ = outline_components(img)
+    assert _length(outer[0]) == pytest.approx(_perimeter(10), rel=1e-12)
+    assert _signed_area(outer[0]) == pytest.approx(99.5, rel=1e-12)
+    img = np.zeros((40, 40), bool)
+    img[5:25, 5:25] = True
+    img[10, 10] = False
+    img[15:17, 15:17] = False
+    outer, holes = outline_components(img)
+    assert len(outer) == 1 and len(holes) == 2
+    np.testing.assert_allclose([_length(h) for h in holes], [_perimeter(2), _perimeter(1)], rtol=1e-12)
+    np.testing.assert_allclose([_signed_area(h) for h in holes], [-3.5, -0.5], rtol=1e-12)
+    top = outline_topology(img)
+    assert (top.n_parts, top.n_holes) == (1, 2)
+    total = _perimeter(20) + _perimeter(2) + _perimeter(1)
+    assert top.kept_length == pytest.approx(_perimeter(20) / total, rel=1e-12)
+
+
+def test_grey_images_are_cut_at_half_their_maximum():
+    """Grey levels 200 and 100 in two blocks: only the 200 block is above half the maximum (100 is
+    not); a grey image whose maximum is below 1 is cut the same way; NaN and an empty or all-dark
+    image are refused, naming the image."""
+    grey = np.zeros((40, 40))
+    grey[5:15, 5:15] = 200.0
+    grey[25:30, 25:30] = 100.0
+    want = outline_topology(grey == 200.0)
+    assert outline_topology(grey) == want and want.n_parts == 1
+    assert outline_topology(grey / 250.0) == want  # maximum 0.8
+    assert outline_topology(grey.astype(int)) == want
+    with pytest.raises(ValueError, match=r"^image contains non-finite values$"):
+        outline_topology(np.where(grey > 150, np.nan, grey))
+    for dark in (np.zeros((5, 5)), np.zeros((0, 0)), np.zeros((5, 5), bool)):
+        with pytest.raises(ValueError, match=r"^image has no foreground pixel \(nothing to trace\)$"):
+            outline_topology(dark)
+    with pytest.raises(ValueError, match=r"^image must be a 2-D array: "):
+        outline_topology([[1.0, 2.0], [3.0]])
+    with pytest.raises(ValueError, match=r"^image must be a 2-D binary image; got shape \(2, 3, 4\)$"):
+        outline_topology(np.ones((2, 3, 4)))
+
+
+def test_resample_closed_small_and_degenerate_polygons():
+    """A triangle shorter than 1 in three samples, a there-and-back segment in four, a repeated first
+    point; and each refusal in its words."""
+    tri = np.array([[0.0, 0.0], [0.15, 0.0], [0.0, 0.2]])  # sides 0.15, 0.25, 0.2: perimeter 0.6, steps 0.2
+    np.testing.assert_allclose(resample_closed(tri, 3), [[0.0, 0.0], [0.12, 0.04], [0.0, 0.2]], atol=1e-15)
+    np.testing.assert_allclose(resample_closed([[0, 0], [2, 0]], 4), [[0, 0], [1, 0], [2, 0], [1, 0]])
+    np.testing.assert_allclose(resample_closed([[0, 0], [0, 0], [2, 0]], 4), [[0, 0], [1, 0], [2, 0], [1, 0]])
+    with pytest.raises(ValueError, match=r"^n\b"):
+        resample_closed(tri, 0)
+    with pytest.raises(ValueError, match=r"^n must be at least 3; got 2$"):
+        resample_closed(tri, 2)
+    with pytest.raises(ValueError, match=r"^points must be an \(m, d\) array with m >= 2; got shape \(1, 2\)$"):
+        resample_closed([[1.0, 2.0]], 4)
+    with pytest.raises(ValueError, match=r"^points contain non-finite values$"):
+        resample_closed([[0.0, 0.0], [np.inf, 1.0]], 4)
+    with pytest.raises(ValueError, match=r"^the polygon has zero length \(all points coincide\)$"):
+        resample_closed([[1.0, 1.0], [1.0, 1.0], [1.0, 1.0]], 4)

@@ -98,7 +98,7 @@ def test_gradients_match_finite_differences(d, which):
     else:
         def f(a, b, **kw):
             return hellinger_sq(a, b, grid_spacing=0.5, grid_margin=5.0, **kw)
-    s2 = 0.5
+    s2 = 0.3  # not 0.5, where 1/(2σ²) = 2σ² and a misplaced factor would pass
     _, g = f(x, y, sigma2=s2, grad=True)
     eps = 1e-6
     fd = np.zeros_like(x)
@@ -199,3 +199,79 @@ def test_align_rejects_bad_options():
         align(pear(), pear(), sigma2=0)
     with pytest.raises(sl.InputError, match="source has d = 2 coordinates per point and target d = 3"):
         align(pear(), np.eye(3), sigma2=0.1)
+
+
+def test_alpha_density_distance_is_the_closed_form_l2(rng):
+    """‖p_x − p_y‖ with ⟨p_x, p_y⟩ = (1/(nm)) Σ (4πσ²)^(−d/2) exp(−|x_i − y_j|²/4σ²), summed here point
+    by point: the default metric, and the one named alpha; unequal point counts."""
+    import math
+
+    x, y, s2 = rng.normal(size=(3, 2)), rng.normal(size=(4, 2)), 0.3
+
+    def inner(a, b):
+        return sum(math.exp(-((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2) / (4 * s2)) for p in a for q in b) \
+            / (4 * math.pi * s2) / (len(a) * len(b))
+
+    want = math.sqrt(inner(x, x) + inner(y, y) - 2 * inner(x, y))
+    assert density_distance(x, y, sigma2=s2) == pytest.approx(want, rel=1e-12)
+    assert density_distance(x, y, sigma2=s2, metric="alpha") == pytest.approx(want, rel=1e-12)
+    assert density_inner(x, y, sigma2=s2) == pytest.approx(inner(x, y), rel=1e-12)
+
+
+def test_fisher_rao_density_distance_and_affinity_use_the_grid_given(rng):
+    """On a coarse grid: 4 arcsin(H/2) and 1 − H²/2 of hellinger_sq on that grid, not the default."""
+    x, y = rng.normal(size=(3, 2)), rng.normal(size=(4, 2))
+    grid = dict(grid_spacing=0.9, grid_margin=3.0)
+    h2 = hellinger_sq(x, y, sigma2=0.3, **grid)
+    assert h2 != hellinger_sq(x, y, sigma2=0.3) and h2 != hellinger_sq(x, y, sigma2=0.3, grid_spacing=0.9)
+    assert h2 != hellinger_sq(x, y, sigma2=0.3, grid_margin=3.0)
+    assert density_distance(x, y, sigma2=0.3, metric="fisher_rao", **grid) == pytest.approx(
+        4 * np.arcsin(np.sqrt(h2) / 2), rel=1e-14)
+    assert bhattacharyya_affinity(x, y, sigma2=0.3, **grid) == pytest.approx(1 - h2 / 2, rel=1e-14)
+
+
+def test_density_functions_name_the_point_set_at_fault(rng):
+    x = rng.normal(size=(3, 2))
+    with pytest.raises(ValueError, match=r"^x\b"):
+        density_distance(np.zeros(3), x, sigma2=0.3)
+    with pytest.raises(ValueError, match=r"^y\b"):
+        density_distance(x, np.zeros(3), sigma2=0.3)
+    with pytest.raises(ValueError, match=r"\bx\b.*\by\b"):
+        density_distance(x, rng.normal(size=(3, 3)), sigma2=0.3)
+    with pytest.raises(ValueError, match=r"^metric must be one of \('alpha', 'fisher_rao'\); got 'l2'$"):
+        density_distance(x, x + 1, sigma2=0.3, metric="l2")
+
+
+def test_point_set_errors_say_which_points_and_sets():
+    """Each refusal of as_point_set / as_point_sets: its words, the default names, and the facts
+    (indices from 0) a caller may act on."""
+    from shapelib import InputError
+
+    with pytest.raises(InputError, match=r"^points must be a numeric \(n, d\) array of points: could not convert"):
+        as_point_set("abc")
+    with pytest.raises(InputError, match=r"^points has 1 point\(s\); a point set needs at least 2$"):
+        as_point_set([[0.0, 0.0]])
+    with pytest.raises(ValueError, match=r"^outline\b"):
+        as_point_set(np.zeros((3, 4)), name="outline")
+    with pytest.raises(InputError, match=r"^points: point 1 has a non-finite coordinate 0 \((np\.float64\()?nan\)?\); 2 point\(s\) "
+                                         r"in all are not finite$") as exc:
+        as_point_set([[0.0, 0.0], [np.nan, 1.0], [2.0, np.inf]])
+    assert exc.value.facts == {"points": (1,)}
+    with pytest.raises(InputError, match=r"^points: point 2 repeats point 0 at \(0, 0\)") as exc:
+        as_point_set([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0]])  # one y for all: the repeat is found by x too
+    assert exc.value.facts == {"points": (0, 2)}
+    with pytest.raises(InputError, match=r"^point sets must be a list of \(n, d\) point sets or an \(N, n, d\) array; "
+                                         r"got shape \(3, 2\)$"):
+        as_point_sets(np.zeros((3, 2)))
+    with pytest.raises(InputError, match=r"got shape \(1, 3, 2, 1\)$"):
+        as_point_sets(np.zeros((1, 3, 2, 1)))
+    with pytest.raises(InputError, match=r"^point sets must be a list of \(n, d\) point sets; got int$"):
+        as_point_sets(5)
+    with pytest.raises(InputError, match=r"^point sets is empty: give at least one point set$"):
+        as_point_sets([])
+    with pytest.raises(InputError, match=r"^point sets\[0\] has 2 point\(s\); a point set needs at least 3$"):
+        as_point_sets([[[0.0, 0.0], [1.0, 1.0]]], min_points=3)
+    assert [s.shape for s in as_point_sets([[[0.0, 0.0], [1.0, 1.0]]])] == [(2, 2)]
+    with pytest.raises(InputError, match=r"^sets\[2\] has d = 3 coordinates per point but sets\[0\] has d = 2") as exc:
+        as_point_sets([pear(5), pear(6), np.eye(4, 3)], name="sets")
+    assert exc.value.facts == {"sets": (0, 2)}

@@ -1,12 +1,14 @@
 """σ² from the data: equal-weight EM on points sampled from a known mixture, and the leave-one-out
 σ² of one component per point (first-order condition, scale equivariance, bootstrap spread)."""
 
+import warnings
+
 import numpy as np
 import pytest
 
 import shapelib as sl
 from shapelib.pointsets import fit_mixture
-from shapelib.pointsets.em import _loglik
+from shapelib.pointsets.em import EMWarning, _loglik
 
 CENTRES = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0], [3.0, 3.0]])
 
@@ -108,3 +110,86 @@ def test_em_rejects_bad_input():
         fit_mixture(np.arange(10.0).reshape(5, 2) ** 2, n_components=6)
     with pytest.raises(sl.InputError, match="points: point 1 repeats point 0"):
         fit_mixture([[0, 0], [0, 0], [1, 1]])
+
+
+def _three_clusters(n=90, seed=0):
+    rng = np.random.default_rng(seed)
+    centres = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0]])
+    return centres[np.arange(n) % 3] + rng.normal(scale=0.4, size=(n, 2))
+
+
+@pytest.mark.parametrize("n_components", [3, None])
+def test_a_fit_cut_short_says_so_warns_at_the_caller_and_has_no_error_bar(n_components):
+    """One iteration is not convergence: stop reason max_iter, converged False, one iteration, an
+    EMWarning at the caller's line (not with warn=False); the EM fit then has no standard error."""
+    x = _three_clusters()
+    with pytest.warns(EMWarning, match=r"^fit_mixture: EM stopped without converging \(max_iter\) after 1 iterations$") \
+            as caught:
+        fit = fit_mixture(x, n_components=n_components, max_iter=1)
+    assert not caught[0].filename.endswith(("/em.py", "\\em.py"))  # the caller's line, not fit_mixture's
+    assert (fit.converged, fit.stop_reason, fit.n_iter) == (False, "max_iter", 1)
+    if n_components is not None:
+        assert np.isnan(fit.standard_error)
+    assert fit.summary().endswith("; 1 iterations; NOT converged (max_iter)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        quiet = fit_mixture(x, n_components=n_components, max_iter=1, warn=False)
+        done = fit_mixture(x, n_components=n_components)
+    assert quiet.sigma2 == fit.sigma2
+    assert done.converged and done.stop_reason == "tolerance" and 1 < done.n_iter < 2000
+    assert done.summary().endswith(f"; {done.n_iter} iterations; converged (tolerance)")
+
+
+def test_summaries_name_the_method_and_the_interval():
+    """σ² ± se, the 95 % interval σ² exp(∓1.96 se/σ²), the method, the likelihood."""
+    x = _three_clusters()
+    em = fit_mixture(x, n_components=3)
+    lo, hi = em.sigma2 * np.exp(-1.96 * em.standard_error / em.sigma2), em.sigma2 * np.exp(1.96 * em.standard_error / em.sigma2)
+    assert em.summary().split("\n")[0] == (f"sigma2 = {em.sigma2:.6g} +/- {em.standard_error:.3g} (95% {lo:.4g} .. "
+                                           f"{hi:.4g}); EM, 3 equal-weight components")
+    assert em.summary().split("\n")[1].startswith(f"log-likelihood {em.log_likelihood:.6g}; ")
+    loo = fit_mixture(x)
+    assert loo.summary().split("\n")[0].endswith("; leave-one-out likelihood, one component per point")
+    assert loo.method == "leave_one_out" and em.method == "em" and loo.n_components == len(x)
+
+
+def test_fit_mixture_names_each_bad_option():
+    x = _three_clusters(9)
+    for kw, name in [({"tol": -1.0}, "tol"), ({"max_iter": 0}, "max_iter"), ({"n_components": 0}, "n_components"),
+                     ({"n_components": 2, "n_init": 0}, "n_init")]:
+        with pytest.raises(ValueError, match=rf"^{name}\b"):
+            fit_mixture(x, **kw)
+    with pytest.raises(ValueError, match=r"^n_components must be at most the number of points 9; got 10$"):
+        fit_mixture(x, n_components=10)
+    with pytest.raises(ValueError, match=r"^points\b"):
+        fit_mixture(np.zeros(3))
+    assert fit_mixture(x, n_components=9).method == "leave_one_out"  # one component per point
+
+
+@pytest.mark.parametrize("n_components, s2", [(None, 1e-18), (6, 2.5e-19)])
+def test_pairs_a_hair_apart_are_degenerate_with_their_closed_form(n_components, s2):
+    """Six pairs of points δ = (1e-9, 1e-9) apart among points spread ~1: one component per point puts
+    each point's partner at |δ|² = 2e-18 (σ² = |δ|²/d), one per pair sits at its midpoint (|δ/2|²/d);
+    both are far below 1e-14 of the spread, so the fit stops as degenerate, not converged."""
+    x = np.repeat(np.random.default_rng(0).normal(size=(6, 2)), 2, axis=0)
+    x[1::2] += 1e-9
+    with pytest.warns(EMWarning, match=r"\(degenerate\) after 1 iterations"):
+        fit = fit_mixture(x, n_components=n_components)
+    assert (fit.stop_reason, fit.converged, fit.n_iter) == ("degenerate", False, 1)
+    assert fit.sigma2 == pytest.approx(s2, rel=1e-6, abs=0)  # abs=0: approx would accept any value within 1e-12
+
+
+def test_em_likelihood_and_standard_error_of_far_apart_clusters():
+    """Three clusters 100 σ apart: the reported log-likelihood is Σ log((1/3) Σ_j N(x_i; μ_j, σ²I)) by
+    scipy's normal densities, and the observed-information error of σ² is that of one Gaussian,
+    σ² √(2/(n d)) (the means' block decouples; the overlap of the clusters is e⁻¹²⁵⁰)."""
+    from scipy.special import logsumexp
+    from scipy.stats import multivariate_normal
+
+    rng = np.random.default_rng(5)
+    centres = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 100.0]])
+    x = centres[np.arange(300) % 3] + rng.normal(size=(300, 2))
+    fit = fit_mixture(x, n_components=3)
+    dens = np.stack([multivariate_normal(m, fit.sigma2 * np.eye(2)).logpdf(x) for m in fit.means], axis=1)
+    assert fit.log_likelihood == pytest.approx(float(np.sum(logsumexp(dens, axis=1) - np.log(3))), rel=1e-10)
+    assert fit.standard_error == pytest.approx(fit.sigma2 * np.sqrt(2 / (300 * 2)), rel=1e-4)

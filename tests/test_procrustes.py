@@ -1,4 +1,5 @@
 import itertools
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -6,8 +7,10 @@ import pytest
 from scipy.spatial import procrustes as scipy_procrustes
 
 from shapelib.geometry.procrustes import (
+    PoseWarning,
     centroid_size,
     generalized_procrustes,
+    pose_align,
     preshape,
     procrustes_align,
     procrustes_distance,
@@ -117,3 +120,135 @@ def test_table1_procrustes_column_is_reproduced():
         rel.append(abs(ours / paper - 1))
     assert exact >= 17
     assert max(rel) < 0.005
+
+
+# ---------------------------------------------------------------------------------------------
+# pose: closed forms for a rectangle moved rigidly (centroid size √5)
+# ---------------------------------------------------------------------------------------------
+
+RECT = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]])
+
+
+def _turned(theta, shift=(0.0, 0.0)):
+    c = RECT.mean(axis=0)
+    r = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    return (RECT - c) @ r.T + c + np.asarray(shift)
+
+
+def test_pose_change_of_rigid_moves_scalings_and_points():
+    """Turned by θ about its centroid: every landmark moves 2 sin(θ/2) of its distance to the centroid,
+    so moved = 2 sin(θ/2), nothing remains; shifted by (3, 4): moved = 5 √K / S; scaled by 1.1 about
+    the centroid: nothing to move, 0.1 S remains over the mean size 1.05 S; a point v: only its
+    position, ‖p − c‖ √K / (S/2), and u's whole size remains (2)."""
+    from shapelib.geometry.procrustes import pose_change
+
+    s = np.sqrt(5.0)
+    moved, remaining = pose_change(RECT, _turned(0.6))
+    assert moved == pytest.approx(2 * np.sin(0.3), rel=1e-12) and remaining == pytest.approx(0.0, abs=1e-12)
+    moved, remaining = pose_change(RECT, RECT + [3.0, 4.0])
+    assert moved == pytest.approx(5 * 2 / s, rel=1e-12) and remaining == pytest.approx(0.0, abs=1e-12)
+    c = RECT.mean(axis=0)
+    moved, remaining = pose_change(RECT, c + 1.1 * (RECT - c))
+    assert moved == pytest.approx(0.0, abs=1e-12) and remaining == pytest.approx(0.1 / 1.05, rel=1e-12)
+    moved, remaining = pose_change(RECT, np.full((4, 2), 5.0))
+    assert moved == pytest.approx(np.linalg.norm([4.0, 4.5]) * 2 / (s / 2), rel=1e-12)
+    assert remaining == pytest.approx(2.0, rel=1e-12)
+    assert pose_change(np.zeros((3, 2)), np.zeros((3, 2))) == (0.0, 0.0)
+
+
+def test_pose_align_of_two_turned_copies_meets_halfway():
+    """A rectangle and its copy turned by θ: the mean lies halfway, each is turned by θ/2 onto it, so
+    each moves 2 sin(θ/4) of its size, and the two aligned copies coincide (sizes kept)."""
+    aligned, moved = pose_align(np.stack([RECT, _turned(0.6, shift=(0.0, 0.0))]))
+    np.testing.assert_allclose(moved, [2 * np.sin(0.15)] * 2, rtol=1e-10)
+    np.testing.assert_allclose(aligned[0], aligned[1], atol=1e-12)
+    assert centroid_size(aligned[0]) == pytest.approx(np.sqrt(5.0), rel=1e-12)
+
+
+def test_check_pose_warns_with_the_amounts_and_returns_them():
+    """A pair: the warning names the metric, the move 2 sin(0.3) = 59.1 % and what remains; a scaled
+    copy (no pose to change) and shapes within tol pass quietly; three shapes: the count and the worst."""
+    from shapelib.geometry.procrustes import check_pose
+
+    with pytest.warns(PoseWarning, match=r"^alpha depends on the pose of the shapes, and u and v are not aligned: "
+                                         r"rotating and translating v onto u moves it by 59.1 % of their size, "
+                                         r"against a shape difference of .* % that remains, so the distance measures "
+                                         r"their relative pose as well as their shapes. Align them first: v = "
+                                         r"shapelib.procrustes_align\(u, v, scaling=False\), or "
+                                         r"shapelib.pose_align\(shapes\)\[0\] for a whole set.$"):
+        assert check_pose(np.stack([RECT, _turned(0.6)]), metric="alpha") == pytest.approx(2 * np.sin(0.3))
+    c = RECT.mean(axis=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert check_pose(np.stack([RECT, c + 1.1 * (RECT - c)]), metric="alpha") == pytest.approx(0.0, abs=1e-12)
+        assert check_pose(np.stack([RECT, _turned(1e-4)]), metric="alpha") == pytest.approx(2 * np.sin(5e-5))
+        assert check_pose(np.stack([RECT, _turned(1e-4), RECT]), metric="alpha") < 1e-3
+        assert check_pose(RECT[None, :1], metric="alpha") == 0.0
+    with pytest.warns(PoseWarning, match=r"^fisher_rao depends on the pose of the shapes, and these are not aligned: "
+                                         r"aligning them \(rotations and translations\) moves 3 of 3 shapes by more "
+                                         r"than 0.1 % of their size, shapes\[2\] by .* %\. Align them first"):
+        check_pose(np.stack([RECT, RECT, _turned(0.6)]), metric="fisher_rao")
+
+
+def test_optimal_rotation_of_a_mirror_image_against_a_brute_force_search(rng):
+    """y a mirror image of x: the best proper rotation (no reflection), found by scanning the angle
+    and polishing with a bounded search, gives the same R and the same Σ s = max_θ tr(R(θ)ᵀ yᵀx);
+    with reflection allowed the mirror itself, with Σ s the sum of the singular values."""
+    from scipy.optimize import minimize_scalar
+
+    from shapelib.geometry.procrustes import optimal_rotation
+
+    x = rng.normal(size=(7, 2))
+    x -= x.mean(axis=0)
+    y = x * [1.0, -1.0] @ np.array([[np.cos(0.4), -np.sin(0.4)], [np.sin(0.4), np.cos(0.4)]])
+
+    def rot(t):
+        return np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+
+    def fit(t):
+        return np.trace(rot(t).T @ y.T @ x)
+
+    grid = np.linspace(-np.pi, np.pi, 721)
+    t0 = grid[np.argmax([fit(t) for t in grid])]
+    best = minimize_scalar(lambda t: -fit(t), bounds=(t0 - 0.01, t0 + 0.01), method="bounded",
+                           options={"xatol": 1e-12})
+    r, tr = optimal_rotation(x, y)
+    assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-12)
+    assert tr == pytest.approx(-best.fun, rel=1e-10)
+    np.testing.assert_allclose(r, rot(best.x), atol=1e-6)
+    r, tr = optimal_rotation(x, y, reflection=True)
+    assert np.linalg.det(r) == pytest.approx(-1.0, abs=1e-12)
+    assert tr == pytest.approx(np.linalg.svd(y.T @ x, compute_uv=False).sum(), rel=1e-12)
+    np.testing.assert_allclose(y @ r, x, atol=1e-12)
+
+
+def test_procrustes_functions_name_their_arguments_and_sizes_without_overflow():
+    """Errors name x, y and shapes; a zero-size y cannot be scaled; centroid sizes of coordinates near
+    1e200 and 1e-200 (whose squares overflow and underflow) keep their closed form L / √2 for two
+    landmarks L apart; procrustes_align maps a similarity copy back without reflecting by default."""
+    from shapelib.geometry.procrustes import center, check_pose
+
+    flat = np.zeros(3)
+    sq = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    for f in (center, preshape):
+        with pytest.raises(ValueError, match=r"^x\b"):
+            f(flat)
+    with pytest.raises(ValueError, match=r"^x\b"):
+        procrustes_align(flat, sq)
+    with pytest.raises(ValueError, match=r"^y\b"):
+        procrustes_align(sq, flat)
+    with pytest.raises(ValueError, match=r"^shapes\b"):
+        pose_align(flat)
+    with pytest.raises(ValueError, match=r"^shapes\b"):
+        check_pose(flat, metric="alpha")
+    with pytest.raises(ValueError, match=r"^y has zero centroid size \(all landmarks coincide\); cannot scale it$"):
+        procrustes_align(sq, np.ones((4, 2)))
+    for big in (1e200, 1e-200):
+        two = np.array([[0.0, 0.0], [big, 0.0]])
+        assert centroid_size(two) == pytest.approx(big / np.sqrt(2), rel=1e-14, abs=0)
+    c, s = np.cos(0.5), np.sin(0.5)
+    copy = 2.5 * (sq - 3.0) @ np.array([[c, -s], [s, c]]).T
+    np.testing.assert_allclose(procrustes_align(sq, copy), sq, atol=1e-12)
+    mirror = sq * [-1.0, 1.0] + [0.3, 0.0]
+    assert np.abs(procrustes_align(sq, mirror) - sq).max() > 0.1  # no reflection unless asked
+    np.testing.assert_allclose(procrustes_align(sq, mirror, reflection=True), sq, atol=1e-12)

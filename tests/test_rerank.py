@@ -124,3 +124,41 @@ def test_bad_input_names_the_parameter(bad, name):
 
 def test_public():
     assert sl.rerank is rerank and set(RERANK_METHODS) >= {"tpg", "lcdp"}
+
+
+def test_input_checks_say_where_and_accept_the_edges():
+    """The offending entry is named (row, column from 0); two items, k = 2 and k = n, one iteration
+    are allowed; a boolean or non-numeric mu or n_iter is refused."""
+    d = np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 1.5], [2.0, 1.5, 0.0]])
+    bad = d.copy()
+    bad[1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"^D must be finite \(first non-finite entry at row 1, column 2\)$"):
+        rerank(bad)
+    bad = d.copy()
+    bad[2, 0] = -0.5
+    with pytest.raises(ValueError, match=r"^D must be a dissimilarity, ≥ 0 \(D\[2, 0\] = -0.5\)$"):
+        rerank(bad)
+    bad[2, 0] = 0.5  # entries in (0, 1) are fine
+    assert rerank(bad, k=2).shape == (3, 3)
+    with pytest.raises(ValueError, match=r"^D must compare at least 2 items; got shape \(1, 1\)$"):
+        rerank(np.zeros((1, 1)))
+    for method in RERANK_METHODS:
+        assert rerank(d[:2, :2], method=method, k=2).shape == (2, 2)
+        assert rerank(d, method=method, k=3, n_iter=1).shape == (3, 3)
+    for kw in ({"k": 1}, {"k": 4}, {"mu": True}, {"mu": "0.5"}, {"n_iter": True}, {"n_iter": 1.0}, {"n_iter": 0}):
+        with pytest.raises(ValueError, match=rf"^{next(iter(kw))} must be"):
+            rerank(d, **{"k": 3, **kw})
+
+
+def test_affinity_of_duplicated_items_has_its_closed_form():
+    """Items 0 and 1 coincide, item 2 is 0.3 away: with k = 2 their neighbour distances κ are 0, 0
+    and 0.3; a zero κ is raised to 1e-3 of the smallest positive one, so a = exp(−(d / (μ (κ_i +
+    κ_j)/2))²): 1 between the twins, exp(−(0.3 / (0.25 · 0.3003))²) to the third. All items equal:
+    every affinity is 1."""
+    from shapelib.rerank import _affinity, _neighbours
+
+    d = np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.3], [0.3, 0.3, 0.0]])
+    a = _affinity(d, _neighbours(d, 2), 0.5)
+    far = np.exp(-(0.3 / (0.5 * 0.5 * (0.3e-3 + 0.3))) ** 2)
+    np.testing.assert_allclose(a, [[1.0, 1.0, far], [1.0, 1.0, far], [far, far, 1.0]], rtol=1e-12)
+    np.testing.assert_array_equal(_affinity(np.zeros((3, 3)), _neighbours(np.zeros((3, 3)), 2), 0.5), 1.0)

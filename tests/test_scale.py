@@ -112,3 +112,154 @@ def test_fisher_rao_grid_is_refused_before_it_is_built():
         quadrature.make_grid(np.zeros((1, 2)), sigma2=1.0, max_entries=10)
     with pytest.raises(ValueError, match="non-finite"):
         quadrature.make_grid(np.array([[0.0, np.nan]]), sigma2=1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# the scale checks on shapes whose spacing and extent are known by construction
+# ---------------------------------------------------------------------------------------------
+
+SQUARE3 = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 3.0], [0.0, 3.0]])  # spacing 3, extent 3
+
+
+def test_landmark_spacing_is_the_nearest_not_the_second_nearest_and_names_its_input():
+    """A 1 x 2 rectangle: nearest neighbours 1 apart, second nearest 2; two landmarks 5 apart."""
+    assert landmark_spacing([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.0, 2.0]]) == 1.0
+    assert landmark_spacing(np.array([[0.0, 0.0], [3.0, 4.0]])) == 5.0
+    with pytest.raises(ValueError, match=r"^shapes need at least 2 landmarks"):
+        landmark_spacing([[1.0, 2.0]])
+    for bad in (np.zeros((3, 1)), np.zeros((2, 3, 1))):
+        with pytest.raises(ValueError, match=r"^shapes\b"):
+            landmark_spacing(bad)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # coincident landmarks: spacing 0, no division by zero
+        assert sigma_ratio([[1.0, 1.0], [1.0, 1.0]], sigma2=0.5) == float("inf")
+
+
+def test_fisher_rao_scale_threshold_message_and_given_ratio():
+    """σ/h below 1/√(8 ln(1/ε)) = 1/√(8 · 52 ln 2) ≈ 0.059 (ε = 2⁻⁵²) is refused, with the σ² that
+    would do, (0.059 h)², and h² for σ at one spacing; a given ratio is used as it is."""
+    from shapelib.geometry.scale import FISHER_RAO_RATIO_MIN, check_fisher_rao_scale
+
+    rmin = 1 / np.sqrt(8 * 52 * np.log(2.0))
+    assert FISHER_RAO_RATIO_MIN == pytest.approx(rmin, rel=1e-15)
+    want = (r"^fisher_rao: sigma2 = 0.0225 is too small for these landmarks: sigma = 0.15 is 0.05 times their mean "
+            r"nearest-landmark spacing 3, below 0.059, .* Use sigma2 >= {:.3g} \(sigma at one spacing: 9\), or "
+            r"bring the shapes to a scale that fits sigma2 \(shapelib.to_centroid_size\)$").format((rmin * 3) ** 2)
+    with pytest.raises(ValueError, match=want):
+        check_fisher_rao_scale(SQUARE3, sigma2=0.15 ** 2)
+    with pytest.raises(ValueError, match=want):  # the ratio given, not measured on the (other) shapes
+        check_fisher_rao_scale(SQUARE3 * 100, sigma2=0.15 ** 2, ratio=0.05)
+    assert check_fisher_rao_scale(SQUARE3 * 100, sigma2=1e-8, ratio=0.06) is None
+    with pytest.raises(ValueError, match=r"^alpha: sigma2"):
+        check_fisher_rao_scale(SQUARE3, sigma2=0.15 ** 2, metric="alpha")
+    assert check_fisher_rao_scale(SQUARE3, sigma2=0.18 ** 2) is None  # σ/h = 0.06
+    assert check_fisher_rao_scale(SQUARE3 / 10, sigma2=0.018 ** 2) is None  # the same below h = 1
+    with pytest.raises(ValueError, match="too small"):
+        check_fisher_rao_scale(SQUARE3 / 10, sigma2=0.015 ** 2)
+    with pytest.raises(ValueError, match="too small"):  # two landmarks have a spacing too
+        check_fisher_rao_scale(SQUARE3[:2], sigma2=0.15 ** 2)
+    assert check_fisher_rao_scale(SQUARE3[:1], sigma2=1e-12) is None  # one landmark: nothing to resolve
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # coincident: spacing 0, ratio inf without a division by zero
+        assert check_fisher_rao_scale(np.zeros((3, 2)), sigma2=1e-12) is None
+
+
+def test_check_scale_facts_and_messages_small_and_large():
+    """σ = 0.15 on a square of side 3 is 0.05 spacings (small); σ = 4 exceeds its extent 3 (large),
+    also far from the origin (the extent is per coordinate over the landmarks); one shape has no
+    estimate, so the advice is just the fix."""
+    from shapelib.geometry.scale import check_scale
+
+    fix = ("Bring the shapes to a scale that fits sigma2, e.g. shapelib.to_centroid_size(shapes) (the study's "
+           "centroid size 20, where the paper's sigma2 = 0.1-1.5 give sigma = 1.1-4.5 spacings), or estimate "
+           "sigma2 from the data.")
+    with pytest.warns(ScaleWarning) as caught:
+        assert check_scale(SQUARE3, 0.15 ** 2) == pytest.approx(0.05)
+    w = caught[0].message
+    assert w.facts == {"kind": "small", "sigma2": pytest.approx(0.0225), "ratio": pytest.approx(0.05),
+                       "spacing": 3.0, "estimate": None}
+    assert str(w) == ("sigma = 0.15 (sigma2 = 0.0225) is 0.05 times the mean nearest-landmark spacing 3: the Gaussians "
+                      "of neighbouring landmarks do not overlap, so the metric sees isolated points, not a shape, and "
+                      "energies and gradients underflow. " + fix)
+    with pytest.warns(ScaleWarning) as caught:
+        assert check_scale(SQUARE3 + [100.0, 0.0], 16.0) == pytest.approx(4 / 3)
+    w = caught[0].message
+    assert w.facts == {"kind": "large", "sigma2": 16.0, "ratio": pytest.approx(4 / 3), "spacing": 3.0, "estimate": None}
+    assert str(w) == ("sigma = 4 (sigma2 = 16) exceeds the largest extent of the shapes (3): each shape is a single "
+                      "blob and distances between shapes nearly vanish. " + fix)
+    with pytest.warns(ScaleWarning, match="0.05 times"):  # two landmarks are measured too
+        check_scale(SQUARE3[:2], 0.15 ** 2)
+    with pytest.warns(ScaleWarning, match="0.05 times the mean nearest-landmark spacing 0.3:"):  # below 1 too
+        check_scale(SQUARE3 / 10, 0.015 ** 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert check_scale(SQUARE3[:1], 1e-6) == float("inf")  # one landmark: no spacing, no warning
+        assert check_scale(np.ones((3, 2)), 1.0) == float("inf")  # coincident landmarks: no extent
+        assert check_scale(SQUARE3, 1.0) == pytest.approx(1 / 3)
+
+
+def test_check_scale_keeps_quiet_at_the_shapes_own_estimate_and_advises_otherwise(rng):
+    """Sixty noisy copies of a square of side 3 (σ = 0.15, so 0.05 spacings): σ² within 1e-3 of
+    estimate_sigma2's is the data's own, not a misfit; 1 % off it warns, with the estimate, and the
+    σ² from which paths bend, (0.2 h)² = 0.36."""
+    from shapelib.geometry.scale import check_scale, estimate_sigma2
+
+    x = SQUARE3 + 0.15 * rng.normal(size=(60, 4, 2))
+    est = estimate_sigma2(x)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_scale(x, est.sigma2 * (1 + 5e-4))
+    with pytest.warns(ScaleWarning) as caught:
+        check_scale(x, est.sigma2 * 1.01)
+    w = caught[0].message
+    assert w.facts["estimate"] == est.sigma2 and w.facts["kind"] == "small"
+    spacing = landmark_spacing(x)
+    assert str(w).endswith(f": shapelib.estimate_sigma2(shapes) gives sigma2 = {est.sigma2:.3g} here (the landmarks' "
+                           f"scatter around their mean, sigma = {est.sigma_over_spacing:.2g} spacings); that is below "
+                           f"0.2 spacings too: the landmarks vary less than they are apart. At such sigma the "
+                           f"closed-form bounds (alpha_bound, fisher_rao_bound) are still exact and compare the shapes "
+                           f"landmark by landmark, while geodesics are straight lines (paths bend from sigma2 = "
+                           f"{(0.2 * spacing) ** 2:.3g}).")
+    assert spacing == pytest.approx(3.0, rel=0.1)
+    with pytest.warns(ScaleWarning) as caught:  # large: the estimate is advised too
+        check_scale(x, 16.0)
+    assert caught[0].message.facts["kind"] == "large"
+    assert f"extent of the shapes ({np.ptp(x, axis=1).max():.3g})" in str(caught[0].message)
+    assert f"shapelib.estimate_sigma2(shapes) gives sigma2 = {est.sigma2:.3g} here" in str(caught[0].message)
+
+
+def test_estimate_sigma2_fields_and_summary(rng):
+    """Counts and spacing of the estimate (two-landmark shapes too: their spacing is their length),
+    and the summary's lines for each method."""
+    from shapelib.geometry.scale import estimate_sigma2
+
+    x = SQUARE3 + 0.15 * rng.normal(size=(20, 4, 2))
+    est = estimate_sigma2(x)
+    assert (est.n_shapes, est.n_landmarks, est.dim, est.method) == (20, 4, 2, "scatter")
+    lines = est.summary().split("\n")
+    assert lines[0] == (f"sigma2 = {est.sigma2:.4g} ± {est.standard_error:.2g} (landmark scatter: the maximum-likelihood "
+                        f"variance of each landmark around the mean shape, per coordinate; 20 shapes x 4 landmarks "
+                        f"in 2-D)")
+    assert lines[1] == (f"sigma = {est.sigma:.4g} = {est.sigma_over_spacing:.3g} x the mean nearest-landmark spacing "
+                        f"{est.spacing:.4g}")
+    assert lines[3].startswith("the Gaussians of neighbouring landmarks barely overlap at this sigma (below 0.2 spacings)")
+    assert len(lines) == 4
+    pred = estimate_sigma2(x, method="predictive")
+    assert (pred.n_shapes, pred.n_landmarks, pred.dim, pred.standard_error) == (20, 4, 2, None)
+    assert pred.summary().split("\n")[0] == (f"sigma2 = {pred.sigma2:.4g} (held-out prediction: half the variance at "
+                                             f"which one shape's mixture best predicts another's landmarks; 20 shapes "
+                                             f"x 4 landmarks in 2-D)")
+    two = np.array([[0.0, 0.0], [5.0, 0.0]]) + 0.1 * rng.normal(size=(6, 2, 2))
+    assert estimate_sigma2(two).spacing == pytest.approx(np.mean(np.linalg.norm(two[:, 1] - two[:, 0], axis=1)))
+    with pytest.raises(ValueError, match=r"^shapes must contain at least 2 shape"):
+        estimate_sigma2(x[:1])
+
+
+def test_to_centroid_size_of_one_shape_and_its_errors():
+    """One shape of two landmarks 2 apart: centred ±1, centroid size √2, so at size 20 ±10√2."""
+    out = to_centroid_size(np.array([[0.0, 0.0], [2.0, 0.0]]))
+    np.testing.assert_allclose(out, [[-10 * np.sqrt(2), 0.0], [10 * np.sqrt(2), 0.0]], rtol=1e-14)
+    with pytest.raises(ValueError, match=r"^shapes must have at least 2 landmark"):
+        to_centroid_size(np.array([[1.0, 2.0]]))
+    with pytest.raises(ValueError, match=r"^size\b"):
+        to_centroid_size(SQUARE3, size=-1.0)

@@ -161,3 +161,118 @@ def test_allometry_tests_by_shape_lm_with_its_seed_and_checks_its_input(rng):
     with pytest.raises(ValueError, match="the shapes all have the same centroid size: were they scaled to unit size "
                                          "already[?] allometry needs the shapes as measured"):
         allometry(same)
+
+
+def _lm_data(rng, n=12):
+    x = rng.normal(size=n)
+    g = np.tile(["a", "b"], n // 2)
+    y = rng.normal(size=(n, 3)) + np.c_[x, x, -x] * 0.5
+    return pd.DataFrame({"x": x, "g": g}), y
+
+
+def test_table_rows_and_coefficients_against_least_squares(rng):
+    """Responses given as an (N, p) matrix, ~ x + g: every number of the table from numpy's least
+    squares on the design [1, x, g == b] (type I: x after the intercept, g after x), the residual and
+    total rows, the effect size and p from the returned null, the coefficients, fitted and residuals."""
+    data, y = _lm_data(rng)
+    n = len(y)
+    fit = shape_lm("shape~x+g", data, y, n_permutations=99)
+    design = np.c_[np.ones(n), data["x"], data["g"] == "b"].astype(float)
+
+    def rss(cols):
+        beta = np.linalg.lstsq(design[:, cols], y, rcond=None)[0]
+        return float(np.sum((y - design[:, cols] @ beta) ** 2))
+
+    total, r1, r12, r_full = float(np.sum((y - y.mean(0)) ** 2)), rss([0]), rss([0, 1]), rss([0, 1, 2])
+    t = fit.table
+    assert list(t.columns) == ["df", "sum_of_squares", "r2", "F", "p_value", "z", "ss_type", "reduced_model"]
+    assert list(t.index) == ["x", "g", "Residual", "Total"]
+    np.testing.assert_allclose(t["sum_of_squares"], [r1 - r12, r12 - r_full, r_full, total], rtol=1e-10)
+    np.testing.assert_allclose(t["r2"], np.array([r1 - r12, r12 - r_full, r_full, total]) / total, rtol=1e-10)
+    assert t["df"].tolist() == [1, 1, n - 3, n - 1]
+    np.testing.assert_allclose(t["F"][:2], np.array([r1 - r12, r12 - r_full]) / (r_full / (n - 3)), rtol=1e-10)
+    assert t.loc["x", "reduced_model"] == "1" and t.loc["g", "reduced_model"] == "x"
+    assert t.loc["x", "ss_type"] == "I (sequential)"
+    for row in ("Residual", "Total"):
+        assert t.loc[row, ["F", "p_value", "z", "ss_type", "reduced_model"]].isna().all()
+    for term in ("x", "g"):
+        null, f = fit.null[term], t.loc[term, "F"]
+        assert null.shape == (99,) and np.all(np.isfinite(null)) and np.all(null > 0)
+        assert t.loc[term, "p_value"] == (1 + np.sum(null >= f)) / 100
+        z = (np.log(f) - np.log(null).mean()) / np.log(null).std(ddof=1)
+        assert t.loc[term, "z"] == pytest.approx(z, rel=1e-12)
+    beta = np.linalg.lstsq(design, y, rcond=None)[0]
+    assert list(fit.coefficients.index) == ["Intercept", "x", "g[T.b]"]
+    np.testing.assert_allclose(fit.coefficients.to_numpy(), beta, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(fit.fitted, design @ beta - y.mean(0), atol=1e-12)
+    np.testing.assert_allclose(fit.residuals, y - design @ beta, atol=1e-12)
+    again = shape_lm("x + g", data, y, n_permutations=99, seed=0)  # no response, the default seed
+    assert again.table.equals(fit.table)
+    lines = again.summary().split("\n")
+    assert lines[0] == ("shape ~ x + g: sums of squares type I (sequential), RRPP with 99 permutations (residuals "
+                        "of each term's reduced model permuted)")
+    assert lines[-2:] == ["p of x: residuals of ~ 1 permuted", "p of g: residuals of ~ x permuted"]
+
+
+def test_a_model_without_intercept_counts_from_zero(rng):
+    """~ 0 + x: nothing is centred, the total is ‖Y‖² on N degrees of freedom, x's sum of squares is
+    that of the projection on x alone."""
+    data, y = _lm_data(rng)
+    fit = shape_lm("~ 0 + x", data, y, n_permutations=19)
+    x = data["x"].to_numpy()
+    ss_x = float(np.sum((np.outer(x, x @ y) / (x @ x)) ** 2))  # ‖x xᵀ Y / xᵀx‖²
+    assert fit.table.loc["Total", "df"] == len(y) and fit.table.loc["Residual", "df"] == len(y) - 1
+    assert fit.table.loc["Total", "sum_of_squares"] == pytest.approx(np.sum(y ** 2), rel=1e-12)
+    assert fit.table.loc["x", "sum_of_squares"] == pytest.approx(ss_x, rel=1e-10)
+
+
+def test_shape_lm_input_errors_say_what_is_wrong(rng):
+    data, y = _lm_data(rng)
+    g = y @ y.T
+    with pytest.raises(ValueError, match=r"^give shapes \(N, K, d\) or gram \(N, N\), one of the two$"):
+        shape_lm("~ x", data)
+    with pytest.raises(ValueError, match=r"^give shapes \(N, K, d\) or gram \(N, N\), one of the two$"):
+        shape_lm("~ x", data, y, gram=g)
+    with pytest.raises(ValueError, match=r"^gram must be a symmetric \(N, N\) matrix; got shape \(12, 11\)$"):
+        shape_lm("~ x", data, gram=g[:, :11])
+    bad = g.copy()
+    bad[0, 1] += 0.1 * np.abs(g).max()
+    with pytest.raises(ValueError, match=r"^gram must be a symmetric \(N, N\) matrix; got shape \(12, 12\)$"):
+        shape_lm("~ x", data, gram=bad)
+    bad = g.copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(ValueError, match=r"^gram has non-finite values$"):
+        shape_lm("~ x", data, gram=bad)
+    with pytest.raises(ValueError, match=r"^shapes must be a 2-D array; got shape \(12,\)$"):
+        shape_lm("~ x", data, y[:, 0])
+    with pytest.raises(ValueError, match=r"^the shapes do not vary: there is nothing to model$"):
+        shape_lm("~ x", data, np.ones((12, 3)))
+    twice = data.assign(x2=2 * data["x"])
+    with pytest.raises(ValueError, match=r"^term x2 is collinear with x: it adds no independent column to the model "
+                                         r"\(a covariate that repeats another, or an empty cell\)$"):
+        shape_lm("~ x + x2", twice, y)
+    with pytest.raises(ValueError, match=r"^n_permutations\b"):
+        shape_lm("~ x", data, y, n_permutations=0)
+    with pytest.raises(ValueError, match=r"^formula '~ x': "):
+        shape_lm("~ x", data.assign(x=np.r_[np.nan, data["x"][1:]]), y)
+
+
+def test_gram_within_rounding_of_symmetric_is_taken(rng):
+    """Rows 0 and 1 of Y orthogonal, so G[0, 1] = 0, where only the absolute tolerance (1e-12 of the
+    largest entry) can accept a rounding-level asymmetry."""
+    data, y = _lm_data(rng)
+    y[1] -= (y[1] @ y[0]) / (y[0] @ y[0]) * y[0]
+    g = y @ y.T
+    g[0, 1] = 0.0
+    g[1, 0] = 1e-13 * np.abs(g).max()
+    ref = shape_lm("~ x", data, y, n_permutations=19).table
+    got = shape_lm("~ x", data, gram=g, n_permutations=19).table
+    np.testing.assert_allclose(got["sum_of_squares"], ref["sum_of_squares"], rtol=1e-9)
+
+
+def test_procrustes_coordinates_of_two_shapes_and_its_errors(rng):
+    x = rng.normal(size=(2, 4, 2))
+    out = procrustes_coordinates(x)
+    assert out.shape == (2, 8)
+    with pytest.raises(ValueError, match=r"^shapes must contain at least 2 shape"):
+        procrustes_coordinates(x[:1])

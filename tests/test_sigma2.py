@@ -140,7 +140,9 @@ def test_predictive_sigma2_of_two_far_spread_shapes_has_its_closed_form(d, k):
     s2 = np.mean(eps ** 2) / d
     # 2-D: 2k coordinates, 3 pose parameters (2 shifts, 1 rotation); 3-D: 6 coordinates, 6 pose parameters
     pose = {(2, 4): 8 / (8 - 3), (2, 2): 4 / (4 - 3), (3, 2): 1.0}[d, k]
-    assert predictive_sigma2(np.stack([u, v])) == pytest.approx(s2 / 2 * pose, rel=1e-6)
+    # the bounded search runs to xatol 1e-8 in log s², plus scipy's own √eps·|log s²| (about 1e-7 here);
+    # left at scipy's default xatol (1e-5) it is 5e-7 off in the first case
+    assert predictive_sigma2(np.stack([u, v])) == pytest.approx(s2 / 2 * pose, rel=2e-7)
 
 
 def test_predictive_sigma2_draws_partners_with_its_seed(rng):
@@ -192,3 +194,25 @@ def test_scatter_sigma2_of_two_shapes_differing_by_radial_moves_has_its_closed_f
         scatter_sigma2(np.stack([u, u, u]))
     with pytest.raises(ValueError, match="^shapes must contain at least 2 shape"):
         scatter_sigma2(u[None])
+
+
+def test_predictive_sigma2_default_partners_keep_to_two_million_landmark_pairs():
+    """Four far-spread rings of 520 landmarks (spacing 1) differing by radial moves: all partners would
+    be 4 · 3 · 520² = 3.2 million landmark pairs, so the default takes the most partners that keep
+    within 2²¹ pairs, one each (4 · 520² = 1.08 million). Each ordered pair (i, j) alone has the closed
+    form q_ij = mean_a |δ_a|² / d, and the rule returns the mean of q over the pairs it used, / 2,
+    times the pose correction: one of the 3⁴ one-partner choices, not the all-pairs mean."""
+    k, d = 520, 2
+    t = 2 * np.pi * np.arange(k) / k
+    radial = np.c_[np.cos(t), np.sin(t)]
+    alt = (-1.0) ** np.arange(k)  # radial moves with no net shift (K even) and no torque
+    moves = [0.0 * alt, 0.05 + 0.02 * alt, -0.1 + 0.05 * alt, 0.15 - 0.01 * alt]
+    x = np.stack([(k / (2 * np.pi) + m)[:, None] * radial for m in moves])
+    q = np.array([[np.mean((a - b) ** 2) / d for b in moves] for a in moves])
+    pose = k * d / (k * d - 3)
+    one_each = {round(np.mean([q[i, j] for i, j in enumerate(js)]) / 2 * pose, 12)
+                for js in np.ndindex(4, 4, 4, 4) if all(i != j for i, j in enumerate(js))}
+    all_pairs = q[~np.eye(4, dtype=bool)].mean() / 2 * pose
+    got = predictive_sigma2(x)
+    assert min(abs(got - v) for v in one_each) <= 1e-7 * got
+    assert abs(got - all_pairs) > 1e-3 * got

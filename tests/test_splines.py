@@ -1,8 +1,12 @@
+import warnings
+
 import numpy as np
 import pytest
 from scipy.spatial.distance import directed_hausdorff
 
+from shapelib import InputError
 from shapelib.comparison.hausdorff import hausdorff_distance
+from shapelib.geometry.procrustes import PoseWarning
 from shapelib.comparison.splines import (
     tps_bending_energy,
     tps_bending_matrix,
@@ -240,3 +244,54 @@ def test_hausdorff_of_unaligned_shapes_warns_naming_it():
     u = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.5], [0.2, 0.9]])
     with pytest.warns(sl.PoseWarning, match=r"\bhausdorff\b"):
         hausdorff_distance(u, u @ np.array([[0.0, -1.0], [1.0, 0.0]]).T)
+
+
+def test_kernel_values_off_the_special_points():
+    """U(3) = 9 log 9 (r² log r², not r² log 2r, which agrees at r = 2), also for integer input;
+    ψ₃,₁(r) = (1 − r)⁴ (4r + 1) inside the support: ψ(½) = 3/16, ψ(0.9) = 1e-4 · 4.6, 0 from r = 1."""
+    assert tps_kernel(np.array([3.0]))[0] == pytest.approx(9 * np.log(9), rel=1e-15)
+    assert tps_kernel(np.array([3]))[0] == pytest.approx(9 * np.log(9), rel=1e-15)
+    np.testing.assert_allclose(wendland_psi31(np.array([0.5, 0.9, 1.0, 1.5])), [3 / 16, 4.6e-4, 0.0, 0.0],
+                               rtol=1e-12, atol=0)
+
+
+def test_wendland_energy_scales_with_the_support_and_names_its_errors(pair):
+    """ψ(|u_a − u_b| / a) is unchanged when u, v and the support scale together by s, the affine
+    side conditions too (P's columns scale), and D = v − u scales by s: E(su, sv; sa) = s² E(u, v; a)
+    (here a = 1 and 2); and the errors say what is wrong."""
+    u, v = pair
+    e1 = wendland_bending_energy(u, v, support=1.0)
+    assert wendland_bending_energy(2 * u, 2 * v, support=2.0) == pytest.approx(4 * e1, rel=1e-9)
+    assert e1 != pytest.approx(wendland_bending_energy(u, v), rel=1e-3)
+    with pytest.raises(ValueError, match=r"^support\b"):
+        wendland_bending_energy(u, v, support=-1.0)
+    with pytest.raises(ValueError, match=r"^support radius is zero \(a single landmark\); pass support=\.\.\.$"):
+        wendland_bending_energy([[0.0, 0.0]], [[1.0, 0.0]], affine=False)
+
+
+def test_plain_wendland_warns_about_pose_in_its_own_name(pair):
+    """affine=False keeps the affine part in the energy, so a rotated copy warns, naming the metric;
+    affine=True (the affine part free) does not."""
+    u, v = pair
+    c, s = np.cos(0.5), np.sin(0.5)
+    rot = (v - v.mean(0)) @ np.array([[c, -s], [s, c]]).T + 3.0
+    with pytest.warns(PoseWarning, match=r"^wendland \(affine=False\) depends on the pose of the shapes"):
+        wendland_bending_energy(u, rot, affine=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PoseWarning)
+        wendland_bending_energy(u, rot)
+
+
+def test_spline_errors_name_the_landmarks_and_the_fix():
+    u = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])
+    with pytest.raises(InputError, match=r"^u has coincident landmarks 1 and 3: a spline cannot interpolate them$") as exc:
+        tps_bending_energy(u, u)
+    assert exc.value.facts == {"landmarks": (1, 3)}
+    with pytest.raises(ValueError, match=r"^u must be a 2-D array"):
+        tps_bending_matrix(np.zeros(3))
+    with pytest.raises(ValueError, match=r"^the landmarks are degenerate \(collinear in 2-D, coplanar in 3-D, or "
+                                         r"coincident\): the spline system is singular$"):
+        tps_bending_matrix(np.array([[0.0, 0], [1, 0], [2, 0], [3, 0]]))
+    with pytest.raises(ValueError, match=r"^no default thin-plate kernel for 4-D landmarks \(defaults: 'r2logr2' in "
+                                         r"2-D, 'r' in 3-D\); pass kernel= one of 'r2logr2', 'r2logr', 'r'$"):
+        tps_bending_matrix(np.eye(6, 4))

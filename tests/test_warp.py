@@ -39,7 +39,36 @@ def test_points_near_landmarks_follow_them():
 def test_errors(rng):
     u = rng.normal(size=(3, 2))
     r = geodesic(u, u + 1, sigma2=0.5, n_steps=2)
-    with pytest.raises(ValueError, match="lam"):
+    with pytest.raises(ValueError, match=r"^lam\b"):
         extrinsic_warp(u, r, lam=0)
     with pytest.raises(ValueError, match="2-D"):
         extrinsic_warp(np.zeros((2, 3)), r)
+    with pytest.raises(ValueError, match=r"^points\b"):
+        extrinsic_warp(np.zeros(3), r)
+
+
+def test_grid_laplacian_of_a_quadratic_and_the_axes():
+    """Δ(x² + 3y²) = 2 + 6 = 8 at every interior node of a grid with unequal steps (the stencil is
+    exact on quadratics); the axes run from the points' minimum − margin to maximum + margin."""
+    from shapelib.comparison.warp import _axes, _laplacian
+
+    x, y = np.linspace(-1.0, 2.0, 13), np.linspace(0.0, 1.0, 9)
+    xx, yy = np.meshgrid(x, y, indexing="ij")
+    lap = _laplacian(len(x), len(y), x[1] - x[0], y[1] - y[0]) @ (xx ** 2 + 3 * yy ** 2).ravel()
+    np.testing.assert_allclose(lap.reshape(len(x), len(y))[1:-1, 1:-1], 8.0, rtol=1e-10)
+    axes = _axes(np.array([[1.0, 5.0], [2.0, -1.0], [0.0, 3.0]]), 7, 0.5)
+    np.testing.assert_allclose(axes[0], np.linspace(-0.5, 2.5, 7))
+    np.testing.assert_allclose(axes[1], np.linspace(-1.5, 5.5, 7))
+
+
+def test_flow_of_the_mirrored_problem_is_the_mirrored_flow(rng):
+    """Swapping x and y in the landmarks, their velocities and the grid swaps the two components of the
+    flow and transposes the grid: on a grid with different x and y axes, so no axis stands in for
+    the other."""
+    theta = rng.normal(size=(5, 2))
+    vel = rng.normal(size=(5, 2))
+    axes = [np.linspace(-3.0, 3.0, 17), np.linspace(-2.5, 2.0, 13)]
+    f = likelihood_flow(theta, vel, sigma2=0.4, axes=axes, lam=1e-2)
+    g = likelihood_flow(theta[:, ::-1], vel[:, ::-1], sigma2=0.4, axes=axes[::-1], lam=1e-2)
+    assert f.shape == (17, 13, 2) and g.shape == (13, 17, 2)
+    np.testing.assert_allclose(g, np.transpose(f, (1, 0, 2))[:, :, ::-1], rtol=1e-8, atol=1e-10 * np.abs(f).max())
