@@ -525,10 +525,20 @@ def _mutation(r: dict) -> list[Table]:
             "limit. Each module's load average at its start is in the record.")
     tables = [Table("Mutation score per module", ["module", "date", "tool", "mutants", "killed", "survived", "score"],
                     rows, note, key="modules")]
-    left = [[f"``{m['module']}``", f"``{s['mutant'].rsplit('.', 1)[-1]}``", f"``{s['diff'].splitlines()[-1].lstrip('+').strip()}``"
-             if s["diff"] else "—", s["why"]] for m in mods for s in m["survivors"]]
+    killed, total = sum(m["killed"] for m in mods), sum(m["mutants"] for m in mods)
+    if total:
+        rows.append(["all recorded modules", "", "", str(total), str(killed), str(total - killed),
+                     f"{100 * killed / total:.1f} %"])
+    groups: dict = {}
+    for m in mods:
+        for sv in m["survivors"]:
+            key = (m["module"], sv["why"] or "(no note yet)")
+            groups.setdefault(key, []).append(sv["mutant"].rsplit(".", 1)[-1])
+    left = [[f"``{mod}``", str(len(names)), f"``{names[0]}``" + (f" and {len(names) - 1} more" if len(names) > 1 else ""),
+             why] for (mod, why), names in groups.items()]
     if left:
-        tables.append(Table("Surviving mutants", ["module", "mutant", "change", "why it survives"], left,
+        tables.append(Table("Surviving mutants, by reason", ["module", "mutants", "for example", "why they survive"],
+                            left, "Every survivor with its diff is in docs/_data/benchmarks/mutation.json.",
                             key="survivors"))
     return tables
 
