@@ -253,7 +253,7 @@ def test_point_set_errors_say_which_points_and_sets():
         as_point_set([[0.0, 0.0]])
     with pytest.raises(ValueError, match=r"^outline\b"):
         as_point_set(np.zeros((3, 4)), name="outline")
-    with pytest.raises(InputError, match=r"^points: point 1 has a non-finite coordinate 0 \((np\.float64\()?nan\)?\); 2 point\(s\) "
+    with pytest.raises(InputError, match=r"^points: point 1 has a non-finite coordinate 0 \(nan\); 2 point\(s\) "
                                          r"in all are not finite$") as exc:
         as_point_set([[0.0, 0.0], [np.nan, 1.0], [2.0, np.inf]])
     assert exc.value.facts == {"points": (1,)}

@@ -88,7 +88,7 @@ def as_point_set(x, *, name: str = "points", min_points: int = 2) -> np.ndarray:
     bad = ~np.isfinite(arr)
     if bad.any():
         i, j = np.argwhere(bad)[0]
-        raise InputError(f"{label}: point {i} has a non-finite coordinate {j} ({arr[i, j]!r}); "
+        raise InputError(f"{label}: point {i} has a non-finite coordinate {j} ({float(arr[i, j])}); "
                          f"{int(bad.any(axis=1).sum())} point(s) in all are not finite", {"points": (int(i),)})
     _check_duplicates(arr, label)
     return arr
