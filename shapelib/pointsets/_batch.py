@@ -46,7 +46,7 @@ from ..solver.batched import DEVICES, bucket, jax_device
 from ._coherent_em import EIG_RTOL, EMState, Kernel, box_volume
 from ._nonrigid import N_KEEP, SCREEN_ITER, W_GRID, W_SCREEN, start_rotations
 from .checks import as_point_set
-from .registration import (MAX_POINTS, SIGMA2_FLOOR, _nonrigid_frame, _nonrigid_result, register)
+from .registration import (MAX_POINTS, SIGMA2_FLOOR, _check_w, _nonrigid_frame, _nonrigid_result, register)
 
 __all__ = ["register_many", "REGISTER_MANY_BACKENDS"]
 
@@ -179,11 +179,7 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
     max_iter = check_positive_int(max_iter, name="max_iter")
     n_steps = check_positive_int(n_steps, name="n_steps")
     tol = check_positive(tol, name="tol")
-    auto_w = isinstance(w, str)
-    if auto_w and w != "auto":
-        raise ValueError(f"w must be a number in [0, 1) or 'auto'; got {w!r}")
-    if not auto_w and not 0.0 <= float(w) < 1.0:
-        raise ValueError(f"w must be in [0, 1) or 'auto'; got {w!r}")
+    auto_w = _check_w(w)
     return _register_jax(sets, w=None if auto_w else float(w), reflection=bool(reflection), lam=lam, s2g=s2g,
                          max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn, device=device,
                          batch_size=batch_size, timings=timings)

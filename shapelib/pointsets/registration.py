@@ -96,6 +96,16 @@ class RegistrationWarning(RuntimeWarning):
     """
 
 
+def _check_w(w) -> bool:
+    """Check the outlier weight ``w``: ``"auto"`` or a number in [0, 1). Returns whether it is ``"auto"``."""
+    auto_w = isinstance(w, str)
+    if auto_w and w != "auto":
+        raise ValueError(f"w must be a number in [0, 1) or 'auto'; got {w!r}")
+    if not auto_w and not 0.0 <= float(w) < 1.0:
+        raise ValueError(f"w must be in [0, 1) or 'auto'; got {w!r}")
+    return auto_w
+
+
 def _rms(x):
     return float(np.sqrt(np.mean(np.sum(x * x, axis=1))))
 
@@ -450,12 +460,8 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     if isinstance(sigma2, str) and sigma2 != "auto":
         raise ValueError(f"sigma2 must be a positive number or 'auto'; got {sigma2!r}")
     fixed_s2 = None if sigma2 is None or isinstance(sigma2, str) else check_sigma2(sigma2)
-    auto_w = isinstance(w, str)
-    if auto_w and w != "auto":
-        raise ValueError(f"w must be a number in [0, 1) or 'auto'; got {w!r}")
+    auto_w = _check_w(w)
     w0 = 0.1 if auto_w else float(w)
-    if not 0.0 <= w0 < 1.0:
-        raise ValueError(f"w must be in [0, 1) or 'auto'; got {w!r}")
     lam = check_positive(lam, name="lam")
     s2g = check_positive(sigma2_metric, name="sigma2_metric")
     max_iter = check_positive_int(max_iter, name="max_iter")
