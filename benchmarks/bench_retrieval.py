@@ -99,9 +99,20 @@ def main(argv=None) -> int:
     ap.add_argument("--store", default=None, help="zarr store of the registration matrix (resumable)")
     ap.add_argument("--backend", choices=("numpy", "jax"), default="numpy",
                     help="registrations one by one (numpy) or batched on the JAX device (jax: a GPU when JAX sees one)")
+    ap.add_argument("--prepare", metavar="DIR", default=None,
+                    help="write what bench_retrieval_device.py reads into DIR: the outlines, the rigid bound, "
+                         "every pair in the order of its shortlist rank (see below)")
+    ap.add_argument("--from-device", metavar="RUN", nargs="+", default=None,
+                    help="score the registration matrix that bench_retrieval_device.py runs wrote (their --out "
+                         "folders, in order; the last holds every pair done), with --prepare's DIR as --prepared")
+    ap.add_argument("--prepared", metavar="DIR", default=None, help="the --prepare folder the runs read")
     ap.add_argument("--rerank-k", type=int, default=10)
     ap.add_argument("--rerank-mu", type=float, default=0.8)
     args = ap.parse_args(argv)
+    if args.prepare:
+        return prepare_device(args)
+    if args.from_device:
+        return from_device(args)
     if args.registration:
         return registration(args)
     if args.scores:
@@ -320,6 +331,127 @@ def registration(args) -> int:
     res["loadavg_end"] = loadavg()
     if args.record:
         print("recorded", record("bench_retrieval", res, path=RECORD_DIR / "bench_retrieval_registration.json"))
+    return 0
+
+
+def _full_outlines(points):
+    """The 1,400 MPEG-7 outlines and their labels, as every full-test figure uses them."""
+    data = load_mpeg7(classes=mpeg7_classes(), n_points=points)
+    return np.stack([np.asarray(o, dtype=np.float64) for o in data.shapes]), np.asarray(data.labels)
+
+
+def shortlist_order(rigid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair ``i < j`` ordered by its shortlist rank ``min(r_i(j), r_j(i))`` (``r_i(j)``: the place of
+    ``j`` in row ``i`` of the rigid matrix, nearest 0; ties by ``i``, then ``j``), and those ranks. The
+    pairs of rank below ``k`` are the pairs of ``pairwise_distances(..., shortlist=k)``, so every prefix
+    of the order that ends where the rank changes is a shortlist."""
+    n = len(rigid)
+    r = np.array(rigid, dtype=np.float64)
+    np.fill_diagonal(r, np.inf)
+    place = np.empty((n, n), dtype=np.int64)
+    place[np.arange(n)[:, None], np.argsort(r, axis=1, kind="stable")] = np.arange(n)[None, :]
+    iu, ju = np.triu_indices(n, 1)
+    rank = np.minimum(place, place.T)[iu, ju]
+    order = np.lexsort((ju, iu, rank))
+    return np.column_stack([iu[order], ju[order]]).astype(np.int32), rank[order].astype(np.int32)
+
+
+def prepare_device(args) -> int:
+    """``--prepare DIR``: the inputs of ``bench_retrieval_device.py`` (module docstring of that script)."""
+    out = Path(args.prepare)
+    out.mkdir(parents=True, exist_ok=True)
+    outlines, labels = _full_outlines(args.points)
+    with Clock() as c:
+        rigid = sl.pairwise_distances(list(outlines), metric="fisher_rao_bound", modulo="similarity",
+                                      sigma2=args.sigma2, n_jobs=args.workers, progress=False)
+    pairs, rank = shortlist_order(rigid)
+    for name, a in (("outlines", outlines), ("labels", labels), ("rigid", rigid), ("pairs", pairs),
+                    ("pair_rank", rank)):
+        np.save(out / f"{name}.npy", a)
+    print(f"{len(outlines)} outlines, the rigid bound (σ² = {args.sigma2}) in {c.wall:.0f} s, {len(pairs):,} pairs "
+          f"in shortlist order into {out}")
+    return 0
+
+
+#: the shortlist of the registration matrix that the retrieval guide reports (the benchmark's default
+#: before the full matrix was run); the others are shown beside it
+DEVICE_SHORTLIST = 80
+
+
+def from_device(args) -> int:
+    """``--from-device RUN ...``: the registration matrix of the device runs, scored and recorded."""
+    import json
+
+    from benchmarks._machine import RECORD_DIR
+    from shapelib.pairwise._pointsets import fill_off_shortlist
+
+    if args.prepared is None:
+        raise SystemExit("--from-device needs --prepared DIR (the folder the runs read)")
+    prep = Path(args.prepared)
+    labels = np.load(prep / "labels.npy", allow_pickle=False)
+    rigid, pairs, rank = (np.load(prep / f"{name}.npy") for name in ("rigid", "pairs", "pair_rank"))
+    last = Path(args.from_device[-1])
+    state = np.load(last / "progress.npz")
+    done = int(state["done"])
+    misfits = np.load(last / "misfits.npy")[:done]
+    n = len(labels)
+    complete = int(rank[done]) if done < len(rank) else n - 1  # every pair of rank below this is done
+    runs = []
+    for run in args.from_device:
+        log = json.loads((Path(run) / "log.json").read_text())
+        chunks = log["chunks"]
+        timed = chunks[1:]  # the first chunk compiles the programs
+        regs = 2 * sum(c["pairs"] for c in timed)
+        runs.append({"date": log["date"], "command": log.get("argv"), "device": log["device"],
+                     "batch_size": log["batch_size"],
+                     "resumed_from": log["resumed_from"], "done": log["done"], "wall": log["wall_total"],
+                     "first_chunk": {"pairs": chunks[0]["pairs"], "wall": chunks[0]["wall"]},
+                     "registrations_per_second": regs / sum(c["wall"] for c in timed),
+                     "device_share": sum(c["search"] for c in timed) / sum(c["wall"] for c in timed),
+                     **({"check": log["check"]} if "check" in log else {})})
+    rate = float(np.mean([r["registrations_per_second"] for r in runs]))
+    res = {"mode": "registration on a device", "n_shapes": n, "points": int(np.load(prep / "outlines.npy").shape[1]),
+           "shortlist_sigma2": args.sigma2, "runs": runs, "pairs_done": done, "registrations": 2 * done,
+           "complete_shortlist": complete, "pairs_converged": float(state["ok"].mean()),
+           "registrations_per_second": rate, "full_matrix_minutes": 2 * len(pairs) / rate / 60,
+           "rerank": FULL_RERANK, "rerank_chosen_on": "the rigid bound, classes 1–35",
+           "reported_shortlist": DEVICE_SHORTLIST}
+    half = len(np.unique(labels)) // 2
+    every = mpeg7_classes()
+    halves = {f"classes 1–{half}": np.flatnonzero(np.isin(labels, every[:half])),
+              f"classes {half + 1}–{len(every)}": np.flatnonzero(np.isin(labels, every[half:]))}
+
+    def scored(D):
+        row = {"raw": sl.bullseye(D, labels).value,
+               **{m: sl.bullseye(sl.rerank(D, method=m, **kw), labels).value for m, kw in FULL_RERANK.items()}}
+        row["halves"] = {name: {"raw": sl.bullseye(D[np.ix_(i, i)], labels[i]).value,
+                                **{m: sl.bullseye(sl.rerank(D[np.ix_(i, i)], method=m, **kw), labels[i]).value
+                                   for m, kw in FULL_RERANK.items()}} for name, i in halves.items()}
+        return row
+
+    res["rigid"] = scored(rigid)
+    res["shortlists"] = []
+    for k in sorted({40, DEVICE_SHORTLIST, 160, complete}):
+        sel = rank[:done] < k
+        D = np.full((n, n), np.inf)
+        np.fill_diagonal(D, 0.0)
+        i, j = pairs[:done][sel].T
+        D[i, j] = D[j, i] = misfits[sel].mean(axis=1)  # combine="mean", as registration_distance
+        D, _ = fill_off_shortlist(D, rigid)
+        row = {"k": k, "pairs": int(sel.sum()), **scored(D)}
+        if k == DEVICE_SHORTLIST:
+            per = sl.bullseye(D, labels).per_class
+            lc = sl.bullseye(sl.rerank(D, method="lcdp", **FULL_RERANK["lcdp"]), labels).per_class
+            rig = sl.bullseye(rigid, labels).per_class
+            res["per_class"] = {str(c): {"raw": per[c], "lcdp": lc[c], "rigid": rig[c]} for c in per}
+        res["shortlists"].append(row)
+        print(f"shortlist {k} ({row['pairs']:,} pairs): bull's-eye raw {100 * row['raw']:.2f} %, "
+              f"tpg {100 * row['tpg']:.2f} %, lcdp {100 * row['lcdp']:.2f} %", flush=True)
+    print(f"rigid bound: raw {100 * res['rigid']['raw']:.2f} %, tpg {100 * res['rigid']['tpg']:.2f} %, "
+          f"lcdp {100 * res['rigid']['lcdp']:.2f} %; {done:,} pairs registered at {rate:.0f} per second "
+          f"(full matrix ≈ {res['full_matrix_minutes']:.0f} min)")
+    if args.record:
+        print("recorded", record("bench_retrieval", res, path=RECORD_DIR / "bench_retrieval_device.json"))
     return 0
 
 

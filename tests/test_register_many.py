@@ -175,3 +175,31 @@ def test_bad_pairs_are_refused_naming_the_pair(pairs, match):
 def test_bad_options_are_refused_naming_the_option(kw, match):
     with pytest.raises(ValueError, match=match):
         shapelib.register_many(PAIRS[:1], **kw)
+
+
+def test_fits_many_gives_what_the_results_say(both):
+    """``fits_many`` skips the results' assembly: its (σ², converged, n_iter) are the results' own, on both
+    backends, in the order of the pairs."""
+    from shapelib.pointsets._batch import fits_many
+
+    one_by_one, batched = both
+    for backend, results, kw in (("numpy", one_by_one, {}), ("jax", batched, {"device": "cpu"})):
+        fits = fits_many(PAIRS, backend=backend, **kw)
+        assert len(fits) == len(PAIRS)
+        for (s2, ok, it), r in zip(fits, results):
+            assert s2 == pytest.approx(r.sigma2, rel=1e-12) and ok == r.converged and it == r.n_iter
+
+
+def test_the_targets_sigma2_does_not_depend_on_the_source():
+    """The remembered leave-one-out σ² of a target (the pairs of a matrix share targets) is the one the
+    search computes for any source: it is a function of the target alone, and of its coordinates, not
+    of the array's identity (a copy gets the same value, a moved copy another)."""
+    from shapelib.pointsets._batch import _target_sigma2
+    from shapelib.pointsets.registration import _nonrigid_frame
+
+    y = _bend(_outline(33))
+    for x in (_outline(20), 3.0 * _outline(41) + 1.0):
+        assert _target_sigma2(y.shape, y.tobytes()) == _nonrigid_frame(x, y, None)[2]
+    other = y + 0.01 * np.sin(7 * y[:, ::-1])
+    assert _target_sigma2(other.shape, other.tobytes()) == _nonrigid_frame(y, other, None)[2]
+    assert _target_sigma2(other.shape, other.tobytes()) != _target_sigma2(y.shape, y.tobytes())

@@ -152,6 +152,24 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
     >>> [bool(np.abs(r.points - target).max() < 1e-3) for r, (_, target) in zip(res, pairs)]
     [True, True]
     """
+    return _register_many(pairs, backend=backend, metric=metric, sigma2=sigma2, w=w, reflection=reflection,
+                          lam=lam, sigma2_metric=sigma2_metric, kernel=kernel, max_iter=max_iter, tol=tol,
+                          n_steps=n_steps, warn=warn, device=device, batch_size=batch_size, timings=timings)
+
+
+def fits_many(pairs, **options) -> list:
+    """What :func:`register_many` finds, without building each :class:`~shapelib.RegistrationResult`:
+    ``(sigma2, converged, n_iter)`` of each pair's registration, equal to the result's ``sigma2``,
+    ``converged`` and ``n_iter`` (the registration distance needs no more; with ``backend="jax"`` the
+    results' assembly on the host is most of the time of a batch on a GPU). Options as
+    :func:`register_many`'s; ``warn`` is not taken (nothing is assessed)."""
+    return _register_many(pairs, warn=False, fits_only=True, **options)
+
+
+def _register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma2="auto", w="auto",
+                   reflection: bool = False, lam: float = 2.0, sigma2_metric: float = 2.0, kernel: str = "weights",
+                   max_iter: int = 150, tol: float = 1e-5, n_steps: int = 16, warn: bool = True, device=None,
+                   batch_size: int | None = None, timings: dict | None = None, fits_only: bool = False) -> list:
     if backend not in REGISTER_MANY_BACKENDS:
         raise ValueError(f"backend must be one of {REGISTER_MANY_BACKENDS}; got {backend!r}")
     sets = _check_pairs(pairs)
@@ -162,6 +180,8 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
             raise ValueError(f'device={device!r} needs backend="jax"')
         t0 = time.perf_counter()
         out = [register(x, y, transform="nonrigid", **opts) for x, y in sets]
+        if fits_only:
+            out = [_fit_of(r) for r in out]
         if timings is not None:
             timings.update(prep=0.0, search=time.perf_counter() - t0, assembly=0.0, device="numpy (CPU)")
         return out
@@ -182,7 +202,12 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
     auto_w = _check_w(w)
     return _register_jax(sets, w=None if auto_w else float(w), reflection=bool(reflection), lam=lam, s2g=s2g,
                          max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn, device=device,
-                         batch_size=batch_size, timings=timings)
+                         batch_size=batch_size, timings=timings, fits_only=fits_only)
+
+
+def _fit_of(result):
+    """``(sigma2, converged, n_iter)`` of a :class:`~shapelib.RegistrationResult` (:func:`fits_many`)."""
+    return float(result.sigma2), bool(result.converged), int(result.n_iter)
 
 
 def _check_pairs(pairs):
@@ -232,15 +257,17 @@ def _auto_batch(n_starts, n, m, device):
     return int(max(1, min(4096, budget // per_pair)))
 
 
-def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn, device, batch_size, timings):
+def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn, device, batch_size, timings,
+                  fits_only=False):
     results = [None] * len(sets)
     big = [i for i, (x, y) in enumerate(sets) if max(len(x), len(y)) > MAX_POINTS]
     for i in big:  # farthest-point subsets, one pair at a time (module docstring of registration)
         results[i] = register(*sets[i], w="auto" if w is None else w, reflection=reflection, lam=lam,
                               sigma2_metric=s2g, max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn)
+        if fits_only:
+            results[i] = _fit_of(results[i])
     todo = [i for i in range(len(sets)) if max(len(sets[i][0]), len(sets[i][1])) <= MAX_POINTS]
     t_prep = t_search = t_host = 0.0
-    target_s2 = {}
     dev_name = str(jax_device(device)) if todo else None
     if todo:
         d = sets[todo[0]][0].shape[1]
@@ -256,14 +283,17 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
             t0 = time.perf_counter()
             prep = []
             for i in idx:  # the target's leave-one-out σ² once per distinct target (a matrix's pairs share them)
-                key = (sets[i][1].shape, sets[i][1].tobytes())
-                prep.append(_nonrigid_frame(*sets[i], None, target_s2=target_s2.get(key)))
-                target_s2[key] = prep[-1][2]
+                y = sets[i][1]
+                prep.append(_nonrigid_frame(*sets[i], None, target_s2=_target_sigma2(y.shape, y.tobytes())))
             tp = time.perf_counter()
             fits = _search(prep, rots, w=W_SCREEN if w is None else w, grid=grid, lam=lam, s2g=s2g,
                            max_iter=max_iter, tol=tol, device=device)
             t1 = time.perf_counter()
             for i, (frame, _, s2_eval), f in zip(idx, prep, fits):
+                if fits_only:  # the best fit's σ² in the target's units, as _result gives it
+                    st = f[0][2]
+                    results[i] = (st.s2 * frame[5] ** 2, st.ok, st.it)
+                    continue
                 results[i] = _nonrigid_result(*sets[i], frame, s2_eval, f, rots, metric="alpha",
                                               reflection=reflection, s2g=s2g, kernel="weights",
                                               em_opts=dict(em_opts, s2_floor=SIGMA2_FLOOR * s2_eval),
@@ -274,6 +304,16 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
     if timings is not None:
         timings.update(prep=t_prep, search=t_search, assembly=t_host, device=dev_name)
     return results
+
+
+@functools.lru_cache(maxsize=4096)
+def _target_sigma2(shape, data):
+    """The target's leave-one-out σ² as :func:`register` computes it (``s2_eval`` of
+    :func:`~shapelib.pointsets.registration._nonrigid_frame`), remembered by the target's coordinates:
+    the pairs of a distance matrix, in one call or many, share their targets (a pure function of
+    ``data``, the float64 bytes of a ``shape`` array)."""
+    y = np.frombuffer(data, dtype=np.float64).reshape(shape)
+    return _nonrigid_frame(y, y, None)[2]
 
 
 def _pad_size(n):

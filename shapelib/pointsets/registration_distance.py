@@ -56,9 +56,11 @@ def _unit(x, name):
 
 
 def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.0, sigma2_metric: float = 1.0,
-                              max_iter: int = 150, tol: float = 1e-5, backend: str = "numpy") -> list:
+                              max_iter: int = 150, tol: float = 1e-5, backend: str = "numpy",
+                              timings: dict | None = None, batch_size: int | None = None) -> list:
     r""":func:`registration_misfits` of many pairs, the registrations of both directions of every pair
-    run by one :func:`shapelib.register_many` call (``backend="jax"``: batched on the JAX device).
+    run by one :func:`shapelib.register_many` call (``backend="jax"``: batched on the JAX device;
+    ``timings`` and ``batch_size`` as :func:`shapelib.register_many` takes them).
 
     Returns a list of ``(m_uv, m_vu, converged, n_iter)``, one per pair, as
     :func:`registration_misfits` gives them (the two backends agree within rounding):
@@ -75,7 +77,7 @@ def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.
     >>> [bool(max(m[0], m[1]) < 1e-3) for m in out]
     [True, True]
     """
-    from ._batch import register_many
+    from ._batch import fits_many
 
     units = []
     for k, pair in enumerate(pairs):
@@ -84,10 +86,10 @@ def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.
         units.append((_unit(pair[0], f"pairs[{k}] u" if len(pairs) > 1 else "u"),
                       _unit(pair[1], f"pairs[{k}] v" if len(pairs) > 1 else "v")))
     # w = 0: every target point must be explained, so that no misfit hides as "outliers"
-    res = register_many([p for a, b in units for p in ((a, b), (b, a))], backend=backend, reflection=reflection,
-                        lam=lam, sigma2_metric=sigma2_metric, w=0.0, max_iter=max_iter, tol=tol, warn=False)
-    return [(float(r1.sigma2), float(r2.sigma2), bool(r1.converged and r2.converged), int(r1.n_iter + r2.n_iter))
-            for r1, r2 in zip(res[::2], res[1::2])]
+    res = fits_many([p for a, b in units for p in ((a, b), (b, a))], backend=backend, reflection=reflection,
+                    lam=lam, sigma2_metric=sigma2_metric, w=0.0, max_iter=max_iter, tol=tol, timings=timings,
+                    **({} if batch_size is None else {"batch_size": batch_size}))
+    return [(float(r1[0]), float(r2[0]), bool(r1[1] and r2[1]), int(r1[2] + r2[2])) for r1, r2 in zip(res[::2], res[1::2])]
 
 
 def registration_distance(u, v, *, combine: str = "mean", reflection: bool = True, lam: float = 2.0,
