@@ -165,3 +165,25 @@ def test_the_engine_batches_a_block_on_jax_and_equals_the_numpy_matrix(direct):
     np.testing.assert_allclose(r.matrix, direct[:4, :4], rtol=1e-6, atol=1e-9)
     with pytest.raises(ValueError, match="backend"):
         registration_distance(STAR, TRIFOIL, backend="cuda")
+
+
+def test_registrations_on_jax_run_in_this_process_in_blocks_that_fill_the_device(direct, tmp_path):
+    """backend="jax" with n_jobs left to the engine: one process feeds the one device (worker processes
+    would each claim it), in blocks of about 32 × 32 registered pairs: with a shortlist that registers a
+    fraction f of the pairs, a block's side grows as 1/√f; the matrix still equals one by one."""
+    from tests.conftest import import_or_missing
+
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    r = sl.pairwise_distances(SETS[:4], metric="registration", progress=False, return_result=True,
+                              backend="jax", store=str(tmp_path / "r.zarr"), **OPTS)
+    assert r.log["mode"] == "in-process"
+    np.testing.assert_allclose(r.matrix, direct[:4, :4], rtol=1e-6, atol=1e-9)
+    from shapelib.pairwise._store import _Store
+
+    # 20 sets, each registered with its 1 rigid nearest: at most 20 of the 190 pairs (f ≤ 0.105), so a block
+    # is at least 32 / √0.105 ≈ 99 sets a side: all 20 in one block, one device call
+    many = [_similar(SETS[k % len(SETS)], 0.3 * k, 1 + 0.05 * k, 0.1 * k) for k in range(20)]
+    store = tmp_path / "s.zarr"
+    sl.pairwise_distances(many, metric="registration", shortlist=1, store=str(store), progress=False,
+                          backend="jax", max_iter=3)
+    assert _Store.open(str(store)).b == 20

@@ -175,9 +175,11 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
         seconds_per_pair = (_stored_seconds_per_pair(st) if st is not None else None) or (
             timed() * pair_fraction if n > 2 else 0.0)  # one pair: in-process whatever it costs
     jax_batches = not point_sets and _batched_jax(info, params)
-    if jax_batches:  # JAX installed and the device there, before any block (one-line errors)
+    # a point-set metric's registrations batched on the JAX device (registration_misfits_many)
+    jax_registrations = pair_sets and params.get("backend") == "jax"
+    if jax_batches or jax_registrations:  # JAX installed and the device there, before any block (one-line errors)
         check_backend(params["backend"], params.get("device"))
-    if local and n_jobs in (None, -1) and jax_batches:
+    if local and n_jobs in (None, -1) and (jax_batches or jax_registrations):
         n_workers = 1  # one device, fed by this process (worker processes would each claim it)
     elif local and n_jobs in (None, -1):
         left = _pairs_left(st, n, symmetric)
@@ -191,6 +193,8 @@ def compute_pairwise(shapes, *, metric: str, n_jobs: int | None = None, client=N
             b = min(n, BOUND_BLOCK_MAX)  # one batched call for a population this process holds
         if block_size is None and jax_batches:
             b = min(n, JAX_BLOCK_SIDE)  # blocks of pairs that fill the device, stored as they finish
+        if block_size is None and jax_registrations:  # about JAX_BLOCK_SIDE² registered pairs a block
+            b = min(n, int(np.ceil(JAX_BLOCK_SIDE / np.sqrt(pair_fraction))))
         st = _Store.create(store, {**want, "block_size": b})
     done = st.task_done()
     todo = [t for t in block_pairs(n, st.b, symmetric=symmetric) if t not in done]
