@@ -89,7 +89,8 @@ def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.
     res = fits_many([p for a, b in units for p in ((a, b), (b, a))], backend=backend, reflection=reflection,
                     lam=lam, sigma2_metric=sigma2_metric, w=0.0, max_iter=max_iter, tol=tol, timings=timings,
                     **({} if batch_size is None else {"batch_size": batch_size}))
-    return [(float(r1[0]), float(r2[0]), bool(r1[1] and r2[1]), int(r1[2] + r2[2])) for r1, r2 in zip(res[::2], res[1::2])]
+    return [(float(r1[0]), float(r2[0]), bool(r1[1] and r2[1]), int(r1[2] + r2[2]))
+            for r1, r2 in zip(res[::2], res[1::2])]
 
 
 def registration_distance(u, v, *, combine: str = "mean", reflection: bool = True, lam: float = 2.0,
