@@ -104,3 +104,40 @@ def test_bench_registration_runs_every_method_on_the_same_case_and_refuses_a_par
     # a clean deformation level: shapelib and CPD register the fish to within a few thousandths of its unit size
     assert row["shapelib"]["error"] < 0.005 and row["cpd"]["error"] < 0.005
     assert report["summary"]["1-1"]["levels"] == 1 and (tmp_path / "r.json").is_file()
+
+
+def test_the_shortlist_order_has_every_shortlist_as_a_prefix():
+    """bench_retrieval.shortlist_order: every pair once; the pairs of rank below k are exactly the
+    engine's symmetric shortlist of k (one set among the other's k nearest), for every k."""
+    from shapelib.pairwise._pointsets import shortlist_mask, shortlist_neighbours
+
+    bench = _load_bench("bench_retrieval")
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(30, 3))
+    rigid = np.linalg.norm(x[:, None] - x[None], axis=2)
+    pairs, rank = bench.shortlist_order(rigid)
+    assert len(pairs) == 30 * 29 // 2 and len({tuple(p) for p in pairs}) == len(pairs)
+    assert np.all(pairs[:, 0] < pairs[:, 1]) and np.all(np.diff(rank) >= 0)
+    for k in (1, 2, 5, 29):
+        mask = shortlist_mask(shortlist_neighbours(rigid, k))
+        want = {(i, j) for i, j in zip(*np.nonzero(np.triu(mask, 1)))}
+        assert {tuple(map(int, p)) for p in pairs[rank < k]} == want
+
+
+def test_the_outline_splits_at_its_concave_corners():
+    """bench_articulation.split_at_concavities: the arcs cover the outline once, each contiguous, and
+    on a plus sign (12 corners, 4 of them concave) the cuts are the 4 concave corners, whichever way
+    the outline runs."""
+    bench = _load_bench("bench_articulation")
+    corners = np.array([[1, 3], [-1, 3], [-1, 1], [-3, 1], [-3, -1], [-1, -1], [-1, -3], [1, -3], [1, -1],
+                        [3, -1], [3, 1], [1, 1]], float)
+    # 8 points per edge, the corners among them (every 8th point)
+    plus = np.concatenate([a + (b - a) * t for a, b in zip(corners, np.roll(corners, -1, axis=0))
+                           for t in [np.linspace(0, 1, 8, endpoint=False)[:, None]]])
+    concave = {i * 8 for i in (2, 5, 8, 11)}  # the inner corners (±1, ±1)
+    for x, index in ((plus, lambda i: i), (plus[::-1], lambda i: len(plus) - 1 - i)):
+        arcs = bench.split_at_concavities(x, 4)
+        assert sorted(np.concatenate(arcs).tolist()) == list(range(len(x)))
+        assert {index(int(a[0])) for a in arcs} == concave
+        for a in arcs:  # consecutive along the outline
+            assert np.all(np.isin((np.diff(a) % len(x)), (1, len(x) - 1)))
