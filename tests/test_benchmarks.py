@@ -141,3 +141,37 @@ def test_the_outline_splits_at_its_concave_corners():
         assert {index(int(a[0])) for a in arcs} == concave
         for a in arcs:  # consecutive along the outline
             assert np.all(np.isin((np.diff(a) % len(x)), (1, len(x) - 1)))
+
+
+def test_the_device_run_resumes_where_it_stopped_and_equals_one_by_one(tmp_path):
+    """bench_retrieval_device.py (on JAX's CPU backend here): a run stopped after some pairs, continued
+    with --resume, holds the misfits of one uninterrupted pass, each equal to the numpy backend's
+    registration one pair at a time; a resume from another run's pairs is refused."""
+    from tests.conftest import import_or_missing
+
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    from shapelib.pointsets.registration_distance import registration_misfits_many
+
+    prepare, device = _load_bench("bench_retrieval"), _load_bench("bench_retrieval_device")
+    t = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    sets = np.stack([np.c_[np.cos(t), (0.5 + 0.1 * k) * np.sin(t) + 0.05 * k * np.cos(2 * t)] for k in range(5)])
+    rigid = np.linalg.norm(sets[:, None] - sets[None], axis=(2, 3))
+    pairs, rank = prepare.shortlist_order(rigid)
+    data = tmp_path / "data"
+    data.mkdir()
+    np.save(data / "outlines.npy", sets)
+    np.save(data / "pairs.npy", pairs)
+    first, second = tmp_path / "first", tmp_path / "second"
+    opts = ["--data", str(data), "--batch-size", "4", "--check", "1"]
+    assert device.main([*opts, "--out", str(first), "--limit", "4"]) == 0
+    assert int(np.load(first / "progress.npz")["done"]) == 4
+    assert device.main([*opts, "--out", str(second), "--resume", str(first)]) == 0
+    state = np.load(second / "progress.npz")
+    misfits = np.load(second / "misfits.npy")
+    assert int(state["done"]) == len(pairs) == 10 and misfits.shape == (10, 2)
+    ref = registration_misfits_many([(sets[i], sets[j]) for i, j in pairs], max_iter=150)
+    np.testing.assert_allclose(misfits, [(a, b) for a, b, _, _ in ref], rtol=1e-6, atol=1e-12)
+    assert list(state["ok"]) == [c for _, _, c, _ in ref]
+    np.save(data / "pairs.npy", pairs[::-1])  # other pairs: the first run's files are not theirs
+    with pytest.raises(ValueError, match="not this run's"):
+        device.main([*opts, "--out", str(tmp_path / "third"), "--resume", str(first)])
