@@ -5,7 +5,6 @@ point of its objective), a brute-force grid, exact recoveries, the documented st
 argument checks. The exact-copy tests of tests/test_pointsets.py cannot see the σ² schedule (an
 exact copy is the optimum at every σ²); the targets here are noisy or partial."""
 
-import os
 import warnings
 from pathlib import Path
 
@@ -16,7 +15,12 @@ from scipy.spatial.transform import Rotation
 
 import shapelib as sl
 from shapelib.pointsets import PoseSearchWarning, align, density_distance, density_inner, hellinger_sq
+from shapelib.pointsets import pose as pose_module
 from shapelib.pointsets.pose import COARSE_SIGMA2, _choose, _starts, _stop
+
+#: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions
+#: go through a trampoline, one more stack frame between the caller and the code
+UNDER_MUTMUT = any("__mutmut_" in name for name in vars(pose_module))
 
 
 def pear(n=40):
@@ -319,7 +323,7 @@ def test_an_unconverged_search_warns_at_the_caller_and_a_converged_one_is_silent
     assert str(caught[0].message) == ("align: the refinement of the best start stopped after 1 iterations without "
                                       "converging (max_iter); raise max_iter")
     assert "shapelib" not in Path(caught[0].filename).parts  # not inside the library
-    if not os.environ.get("MUTANT_UNDER_TEST"):  # mutmut's trampoline adds a frame of its own
+    if not UNDER_MUTMUT:  # mutmut's trampoline adds a frame of its own
         assert caught[0].filename == __file__
     assert not pose.converged and pose.stop_reason == "max_iter"
     with warnings.catch_warnings():
