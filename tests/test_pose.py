@@ -105,7 +105,7 @@ def test_value_objective_and_candidates_are_the_density_quantities_at_their_pose
     """value = ‖p_{Ax+t} − p_y‖ and objective = value² / ‖p_y‖² at the requested σ²; each candidate
     (objective, A, t) is that objective at the coarsest σ² of the documented schedule, best first;
     the pose moves points by x ↦ A x + t and says what was asked."""
-    x, y, s2 = pear(), noisy_target(), 0.002
+    x, y, s2 = pear() + [5.0, -3.0], noisy_target(), 0.002  # a source away from the origin
     levels = sigma2_levels(y, s2)
     assert len(levels) == 5  # the schedule is exercised: 0.002·4⁴ ≥ 0.1·r² > 0.002·4³
     pose = align(x, y, sigma2=s2, transform=transform)
@@ -176,6 +176,30 @@ def test_one_iteration_per_level_counts_one_iteration_per_level():
         assert (pose.n_starts, len(pose.candidates), pose.converged, pose.stop_reason) == (1, 1, False, "max_iter")
 
 
+def test_one_iteration_per_refinement_with_two_starts():
+    """Two starts refined with one iteration each at the coarsest σ², then one or both followed with
+    one iteration at each of the four finer levels."""
+    x, y, s2 = pear(), noisy_target(), 0.002
+    pose = align(x, y, sigma2=s2, n_starts=2, max_iter=1, warn=False)
+    assert pose.n_starts == 2 and pose.n_iter in (2 + 4, 2 + 2 * 4)
+
+
+def test_the_schedule_stops_at_the_coarsest_sigma2_itself():
+    """A target of RMS radius exactly 1 and σ² = 0.1 / 16: the levels are 0.1, 0.025 and σ² exactly
+    (4 × σ² twice is 0.1 in floating point too), three L-BFGS iterations with max_iter = 1, and the
+    candidates are refined at σ² = 0.1."""
+    y = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0], [0.0, 0.0]]) * np.sqrt(5 / 4)
+    y = y - y.mean(axis=0)
+    assert rms_radius(y) == 1.0
+    s2 = 0.1 / 16
+    assert 16 * s2 == 0.1 and sigma2_levels(y, s2) == [0.1, 0.025, s2]
+    x = np.array([[1.0, 0.1], [0.0, 1.2], [-1.1, 0.0], [0.2, -1.0], [0.1, 0.1]])
+    pose = align(x, y, sigma2=s2, n_starts=1, max_iter=1, warn=False)
+    assert pose.n_iter == 3
+    fval, a, t = pose.candidates[0]
+    assert fval == pytest.approx(objective(x @ a.T + t, y, 0.1), rel=1e-10)
+
+
 def test_at_most_max_iter_iterations_per_refinement():
     x, y, s2 = pear(), noisy_target(), 0.002
     pose = align(x, y, sigma2=s2, max_iter=2, warn=False)
@@ -211,6 +235,16 @@ def test_a_scale_far_from_one_is_recovered_from_a_source_far_from_the_origin(tra
     assert np.abs(pose.points - y).max() < 1e-6 * scale
     assert pose.scale == pytest.approx(scale, rel=1e-7)
     assert np.allclose(pose.translation, y.mean(axis=0) - pose.matrix @ x.mean(axis=0), atol=1e-6 * scale)
+
+
+@pytest.mark.parametrize("transform", ["similarity", "affine"])
+def test_a_source_much_smaller_than_one_is_scaled_up_from_the_start(transform):
+    """A source of RMS radius 0.015 and a target 50 times larger: the search starts every start at
+    the ratio of the two radii, and recovers the pose exactly."""
+    x = 0.01 * pear() + [0.5, 0.2]
+    y = 50.0 * x @ rot2(2.0).T + [1.0, 2.0]
+    pose = align(x, y[::-1], sigma2=0.01 * 50 ** 2 * 1e-4, transform=transform)
+    assert np.abs(pose.points - y).max() < 1e-6 and pose.scale == pytest.approx(50.0, rel=1e-7)
 
 
 def test_the_pose_of_a_permuted_source_or_target_is_the_same():
@@ -368,13 +402,14 @@ def test_two_dimensional_starts_are_rotations_evenly_spaced_over_the_circle_then
         assert np.allclose(b[:, 1, 1] + 1j * b[:, 0, 1], np.conj(roots), atol=1e-15)
 
 
-def test_three_dimensional_starts_take_principal_axes_to_principal_axes_then_cover_every_rotation():
+@pytest.mark.parametrize("seeds", [(3, 4), (1, 101)])
+def test_three_dimensional_starts_take_principal_axes_to_principal_axes_then_cover_every_rotation(seeds):
     """The first four starts map the source's principal axes to ±the target's, all four proper sign
     patterns (the mirrored group: the four improper ones); then the icosahedral group (60 distinct
     rotations closed under products), no rotation farther than 44.5° from one of them (the covering
     radius of the group, 44.48°: random rotations come within a degree of it)."""
-    q = Rotation.random(random_state=3).as_matrix()
-    r = Rotation.random(random_state=4).as_matrix()
+    q = Rotation.random(random_state=seeds[0]).as_matrix()
+    r = Rotation.random(random_state=seeds[1]).as_matrix()
     z = np.vstack([np.diag([3.0, 2.0, 1.0]), -np.diag([3.0, 2.0, 1.0])])  # principal axes e1, e2, e3
     x = z @ q.T
     y = x @ r.T
