@@ -302,3 +302,15 @@ def test_pose_functions_refuse_single_landmarks_and_a_point_counts_by_its_positi
     seg = np.array([[-1.0, 0.0], [1.0, 0.0]])  # centred: turned about its centroid
     with pytest.warns(PoseWarning):
         assert check_pose(np.stack([seg, seg @ rot(0.6).T]), metric="alpha") == pytest.approx(2 * np.sin(0.3))
+
+
+def test_preshape_at_the_edges_of_double_precision():
+    """Scale invariance up to coordinates of 1e200 (whose squares overflow); coordinates that overflow
+    when centred are refused with the largest of them."""
+    tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    np.testing.assert_allclose(preshape(1e200 * tri), preshape(tri), rtol=1e-14)
+    huge = np.array([[1.7e308, 0.0], [1.7e308, 1.0], [0.0, 0.0]])
+    with np.errstate(over="ignore"), pytest.raises(ValueError, match=(
+            r"^configuration of shape \(3, 2\) has coordinates too large to centre in double precision "
+            r"\(largest 1.7e\+308\): rescale them$")):
+        preshape(huge)
