@@ -252,3 +252,65 @@ def test_procrustes_functions_name_their_arguments_and_sizes_without_overflow():
     mirror = sq * [-1.0, 1.0] + [0.3, 0.0]
     assert np.abs(procrustes_align(sq, mirror) - sq).max() > 0.1  # no reflection unless asked
     np.testing.assert_allclose(procrustes_align(sq, mirror, reflection=True), sq, atol=1e-12)
+
+
+def test_optimal_rotation_of_a_3d_mirror_image_is_scipy_align_vectors(rng):
+    """3-D, y a noisy mirror image of x: the best proper rotation is the one scipy's Rotation.align_vectors
+    finds (Kabsch), and Σ s is the correlation tr(xᵀ y R) = (‖x‖² + ‖y‖² − rssd²) / 2 at it."""
+    from scipy.spatial.transform import Rotation
+
+    from shapelib.geometry.procrustes import optimal_rotation
+
+    x = rng.normal(size=(12, 3)) * [3.0, 2.0, 1.0]
+    x -= x.mean(axis=0)
+    y = x @ np.diag([-1.0, 1.0, 1.0]) @ Rotation.random(random_state=2).as_matrix() + 0.05 * rng.normal(size=(12, 3))
+    y -= y.mean(axis=0)
+    r, trace = optimal_rotation(x, y)
+    best, rssd = Rotation.align_vectors(x, y)
+    np.testing.assert_allclose(r, best.as_matrix().T, atol=1e-10)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    assert trace == pytest.approx((np.sum(x ** 2) + np.sum(y ** 2) - rssd ** 2) / 2, rel=1e-10)
+    assert trace == pytest.approx(np.sum(x * (y @ r)), rel=1e-12)
+
+
+def test_pose_align_turns_small_shapes_too_and_keeps_a_lone_shape_where_it_is():
+    """Sizes below 1 are aligned like any other (two turned copies of size √5 / 100 meet halfway); a set
+    with one shape of non-zero size leaves it, and the shapes of zero size, where they are."""
+    small = 0.01 * RECT
+    aligned, moved = pose_align(np.stack([small, 0.01 * _turned(0.6, shift=(0.0, 0.0))]))
+    np.testing.assert_allclose(moved, [2 * np.sin(0.15)] * 2, rtol=1e-10)
+    np.testing.assert_allclose(aligned[0], aligned[1], atol=1e-14)
+    point = np.full((4, 2), 3.0)
+    aligned, moved = pose_align(np.stack([RECT + 7.0, point]))
+    np.testing.assert_allclose(aligned, [RECT + 7.0, point], atol=1e-12)
+    np.testing.assert_allclose(moved, 0.0, atol=1e-12)
+
+
+def test_pose_functions_refuse_single_landmarks_and_a_point_counts_by_its_position():
+    from shapelib.geometry.procrustes import check_pose, pose_change
+
+    with pytest.raises(ValueError, match=r"^shapes\[0\] must have at least 2 landmark"):
+        pose_align(np.zeros((2, 1, 2)))
+    with pytest.raises(ValueError, match=r"at least 2 landmark"):
+        pose_change(np.zeros((1, 2)), np.ones((1, 2)))
+    # v a point at (5, 7): it moves by ‖(5, 7) − c_u‖ √K over the mean size S(u)/2; u's whole size remains
+    s = np.sqrt(5.0)
+    moved, remaining = pose_change(RECT, np.tile([5.0, 7.0], (4, 1)))
+    assert moved == pytest.approx(np.linalg.norm([5.0, 7.0] - RECT.mean(axis=0)) * 2 / (s / 2), rel=1e-12)
+    assert remaining == pytest.approx(2.0, rel=1e-12)
+    # two-landmark shapes have a pose: a segment and its copy turned by 0.6 rad
+    seg = np.array([[-1.0, 0.0], [1.0, 0.0]])  # centred: turned about its centroid
+    with pytest.warns(PoseWarning):
+        assert check_pose(np.stack([seg, seg @ rot(0.6).T]), metric="alpha") == pytest.approx(2 * np.sin(0.3))
+
+
+def test_preshape_at_the_edges_of_double_precision():
+    """Scale invariance up to coordinates of 1e200 (whose squares overflow); coordinates that overflow
+    when centred are refused with the largest of them."""
+    tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    np.testing.assert_allclose(preshape(1e200 * tri), preshape(tri), rtol=1e-14)
+    huge = np.array([[1.7e308, 0.0], [1.7e308, 1.0], [0.0, 0.0]])
+    with np.errstate(over="ignore"), pytest.raises(ValueError, match=(
+            r"^configuration of shape \(3, 2\) has coordinates too large to centre in double precision "
+            r"\(largest 1.7e\+308\): rescale them$")):
+        preshape(huge)

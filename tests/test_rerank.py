@@ -162,3 +162,35 @@ def test_affinity_of_duplicated_items_has_its_closed_form():
     far = np.exp(-(0.3 / (0.5 * 0.5 * (0.3e-3 + 0.3))) ** 2)
     np.testing.assert_allclose(a, [[1.0, 1.0, far], [1.0, 1.0, far], [far, far, 1.0]], rtol=1e-12)
     np.testing.assert_array_equal(_affinity(np.zeros((3, 3)), _neighbours(np.zeros((3, 3)), 2), 0.5), 1.0)
+
+
+def _dense_tpg(d, order, mu, t):
+    """TPG by dense matrix powers from each row's neighbour list ``order`` (the row itself first)."""
+    n = len(d)
+    kappa = np.array([d[i, order[i, 1:]].mean() for i in range(n)])
+    a = np.exp(-(d / (mu * (kappa[:, None] + kappa[None, :]) / 2)) ** 2)
+    p = np.zeros((n, n))
+    for i in range(n):
+        p[i, order[i]] = a[i, order[i]] / a[i, order[i]].sum()
+    q = sum(np.linalg.matrix_power(p, s) @ np.linalg.matrix_power(p.T, s) for s in range(t + 1))
+    expect = 1 - q / q.max()
+    np.fill_diagonal(expect, 0)
+    return expect
+
+
+def test_the_defaults_are_tpg_with_ten_neighbours_mu_one_half_and_twenty_steps():
+    d, _ = noisy_classes(seed=8, n_classes=3, per_class=8)
+    order = np.argsort(d + np.diag(np.full(len(d), -np.inf)), axis=1, kind="stable")[:, :10]
+    np.testing.assert_allclose(rerank(d), _dense_tpg(d, order, 0.5, 20), atol=1e-12)
+
+
+def test_equal_dissimilarities_are_ranked_by_index():
+    """A matrix of small integers has many ties; the neighbours of each row are then the k − 1 items
+    of smallest (dissimilarity, index), here by np.lexsort, after the row itself."""
+    rng = np.random.default_rng(0)
+    n, k = 40, 8
+    d = rng.integers(1, 4, size=(n, n)).astype(float)
+    d = np.minimum(d, d.T)
+    np.fill_diagonal(d, 0.0)
+    order = np.array([[i] + [j for j in np.lexsort((np.arange(n), d[i])) if j != i][:k - 1] for i in range(n)])
+    np.testing.assert_allclose(rerank(d, k=k, n_iter=5), _dense_tpg(d, order, 0.5, 5), atol=1e-12)

@@ -15,7 +15,7 @@ global in rotation:
 2. every start is scored at a coarse σ² (σ ≈ 0.3–0.6 of the radius, where the landscape is
    smooth): in 2-D ``n_angles`` rotations evenly spaced over 360°, in 3-D the four proper
    rotations taking the source's principal axes to the target's and the 60 rotations of the
-   icosahedral group (no orientation farther than 38° from one of them); with ``reflection=True``
+   icosahedral group (no orientation farther than 44.5° from one of them); with ``reflection=True``
    each start also mirrored;
 3. the best ``n_starts`` starts (in 2-D: local minima of the score over the circle of angles)
    are refined by L-BFGS with the analytic gradient at the coarse σ²;
