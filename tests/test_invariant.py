@@ -365,7 +365,8 @@ def test_parabola_and_newton_steps_close_in_on_the_best_angle():
         for q in range(len(i)):
             x, y = sets[i[q]], sets[j[q]]
             res = minimize_scalar(lambda t: -_overlap_at_angles(x, y, np.array([t]))[0],
-                                  bounds=(angle[q] - cell, angle[q] + cell), method="bounded", options={"xatol": 1e-11})
+                                  bounds=(angle[q] - cell, angle[q] + cell), method="bounded",
+                                  options={"xatol": 1e-11})
             assert abs(np.angle(np.exp(1j * (angle[q] - res.x)))) < bound
             assert value[q] <= -res.fun * (1 + 1e-7)
 
