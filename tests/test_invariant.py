@@ -186,7 +186,7 @@ def test_block_search_is_the_best_angle_of_the_closed_form_overlap():
             assert value[i, j] == pytest.approx(at_pose, rel=1e-7)
             dense = max(_overlap_at_angles(x, y * [1.0, f], grid).max() for f in (1.0, -1.0))
             assert value[i, j] >= dense * (1 - 1e-7)
-            assert 0 <= angle[i, j] <= 2 * np.pi  # np.mod(−1e-17, 2π) rounds to 2π itself
+            assert 0 <= angle[i, j] < 2 * np.pi  # as documented (np.mod(−1e-17, 2π) alone rounds to 2π)
     assert refl[0, 1] and not refl[1, 2]
     assert value[0, 1] == pytest.approx(_overlap_at_angles(xs[0], xs[0], np.zeros(1))[0], rel=1e-7)
     # listed pairs, in any array shape, are the same entries
@@ -383,3 +383,13 @@ def test_normalise_points_scale_threshold_and_names():
         normalise_points(np.arange(9.0).reshape(3, 3), name="outline")
     with pytest.raises(ValueError, match="outline: point 1 repeats point 0"):
         normalise_points([[1.0, 2.0], [1.0, 2.0], [0.0, 0.0]], name="outline")
+
+
+def test_invariant_distance_names_its_own_arguments():
+    """Bad input to invariant_distance is named as the caller passed it (``x``, ``y``), not by the
+    matrix function it calls (``point_sets[0]``, ``others[0]``)."""
+    bad = np.arange(6.0).reshape(2, 3)
+    with pytest.raises(ValueError, match=r"^x\b"):
+        invariant_distance(bad, X, sigma2=S2)
+    with pytest.raises(ValueError, match=r"^y\b"):
+        invariant_distance(X, np.ones((4, 2)), sigma2=S2)

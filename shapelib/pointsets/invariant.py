@@ -366,7 +366,9 @@ def _best_angles(cands, n_grid: int, newton_steps: int):
             th = np.where(better, theta, th)
     c = cands[0] if len(cands) == 1 else np.where((best == 1)[:, None], cands[-1], cands[0])
     theta, value = _trig_newton(c, th, newton_steps)
-    return value, np.mod(theta, 2 * np.pi), best.astype(bool)
+    theta = np.mod(theta, 2 * np.pi)
+    theta[theta >= 2 * np.pi] = 0.0  # np.mod(−1e-17, 2π) rounds to 2π itself: the angle is in [0, 2π)
+    return value, theta, best.astype(bool)
 
 
 def _lhs(a: PolarSpectra) -> np.ndarray:
@@ -867,10 +869,10 @@ def invariant_distance(x, y, *, metric: str = "alpha_bound", sigma2: float, refl
     (True, True)
     """
     _check_metric(metric)
+    xs = normalise_points(x, name="x")[0]  # bad input named as the caller passed it, before the matrix's checks
+    ys = normalise_points(y, name="y")[0]
     d, ang, ref = invariant_distance_matrix([x], [y], metric=metric, sigma2=sigma2, reflection=reflection, exact=True,
                                             return_pose=True)
-    xs = normalise_points(x, name="x")[0]
-    ys = normalise_points(y, name="y")[0]
     s2 = check_sigma2(sigma2)
     if metric == "alpha_bound":
         overlap = density_inner(xs, _moved(ys, ang[0, 0], ref[0, 0]), sigma2=s2)
