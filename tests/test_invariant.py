@@ -393,3 +393,17 @@ def test_invariant_distance_names_its_own_arguments():
         invariant_distance(bad, X, sigma2=S2)
     with pytest.raises(ValueError, match=r"^y\b"):
         invariant_distance(X, np.ones((4, 2)), sigma2=S2)
+
+
+def test_angles_next_to_zero_wrap_into_the_documented_range():
+    """A set against itself turned by ±δ (δ small): the angle returned is δ's inverse taken into
+    [0, 2π) — just above 0 or just below 2π — never left outside the range or snapped to 0."""
+    x = normalise_points(_blob(30, 5))[0]
+    for delta in (-2e-3, -1e-5, 1e-5, 2e-3):
+        y = x @ _rot(delta).T  # x turned by δ: R_θ y matches x at θ = −δ (mod 2π)
+        sp = polar_spectra([x, y], sigma2=S2)
+        value, angle, refl = rotation_search(sp, sp, reflection=False, pairs=(np.array([0]), np.array([1])))
+        want = np.mod(-delta, 2 * np.pi)
+        assert 0 <= angle[0] < 2 * np.pi
+        assert abs(np.angle(np.exp(1j * (angle[0] - want)))) < 1e-7
+        assert abs(angle[0] - want) < 1e-7 or abs(angle[0] - want) > 2 * np.pi - 1e-7
