@@ -88,9 +88,8 @@ def main(argv=None) -> int:
            "parts": args.parts, "points": args.points, "n_shapes": n, "pairs": n * (n - 1) // 2}
     rigid = sl.pairwise_distances(xs, metric="fisher_rao_bound", modulo="similarity", sigma2=0.01, n_jobs=1,
                                   progress=False)
-    smooth, parts = np.zeros((n, n)), np.zeros((n, n))
+    smooth, directed = np.zeros((n, n)), np.zeros((n, n))
     t_smooth = t_parts = 0.0
-    directed = np.zeros((n, n))
     for i in range(n):
         for j in range(i + 1, n):
             t0 = time.process_time()

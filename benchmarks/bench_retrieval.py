@@ -434,13 +434,16 @@ def from_device(args) -> int:
     halves = {f"classes 1–{half}": np.flatnonzero(np.isin(labels, every[:half])),
               f"classes {half + 1}–{len(every)}": np.flatnonzero(np.isin(labels, every[half:]))}
 
+    def score(D, lab):
+        """The bull's-eye of ``D``, raw and re-ranked by each method."""
+        return {"raw": sl.bullseye(D, lab).value,
+                **{m: sl.bullseye(sl.rerank(D, method=m, **kw), lab).value for m, kw in FULL_RERANK.items()}}
+
+    def on_halves(D):
+        return {name: score(D[np.ix_(i, i)], labels[i]) for name, i in halves.items()}
+
     def scored(D):
-        row = {"raw": sl.bullseye(D, labels).value,
-               **{m: sl.bullseye(sl.rerank(D, method=m, **kw), labels).value for m, kw in FULL_RERANK.items()}}
-        row["halves"] = {name: {"raw": sl.bullseye(D[np.ix_(i, i)], labels[i]).value,
-                                **{m: sl.bullseye(sl.rerank(D[np.ix_(i, i)], method=m, **kw), labels[i]).value
-                                   for m, kw in FULL_RERANK.items()}} for name, i in halves.items()}
-        return row
+        return {**score(D, labels), "halves": on_halves(D)}
 
     res["rigid"] = scored(rigid)
 
@@ -467,20 +470,16 @@ def from_device(args) -> int:
     # the misfit with the rigid bound: every combination at three shortlists scored on each half; the one
     # of largest bull's-eye on the first half (raw, and re-ranked by LCDP) reported on the second
     first, second = list(halves)
-    combos = []
-    for k in sorted({DEVICE_SHORTLIST, 160, complete}):
-        for name, combine in DEVICE_COMBINE.items():
-            D, _ = matrix(k, combine)
-            combos.append({"k": k, "combine": name, "halves": scored(D)["halves"], "_D": D})
-    res["combinations"] = [{key: v for key, v in c.items() if key != "_D"} for c in combos]
+    combos = [{"k": k, "combine": name, "halves": on_halves(matrix(k, combine)[0])}
+              for k in sorted({DEVICE_SHORTLIST, 160, complete}) for name, combine in DEVICE_COMBINE.items()]
+    res["combinations"] = combos
     res["chosen"] = {}
     for column in ("raw", "lcdp"):
         best = max(combos, key=lambda c: c["halves"][first][column])
-        full = scored(best["_D"])
+        full = score(matrix(best["k"], DEVICE_COMBINE[best["combine"]])[0], labels)
         res["chosen"][column] = {"by": f"the largest {column} bull's-eye on {first}", "k": best["k"],
                                  "combine": best["combine"], "chosen_on": best["halves"][first],
-                                 "reported_on": best["halves"][second],
-                                 "all": {key: v for key, v in full.items() if key != "halves"}}
+                                 "reported_on": best["halves"][second], "all": full}
         print(f"chosen by {column} on {first}: {best['combine']}, shortlist {best['k']}: on {second} raw "
               f"{100 * best['halves'][second]['raw']:.2f} %, lcdp {100 * best['halves'][second]['lcdp']:.2f} %; "
               f"all 70 raw {100 * full['raw']:.2f} %, tpg {100 * full['tpg']:.2f} %, lcdp {100 * full['lcdp']:.2f} %")

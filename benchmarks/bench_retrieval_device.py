@@ -105,8 +105,9 @@ def main(argv=None) -> int:
     def run(idx, **extra):
         return registration_misfits_many([(outlines[i], outlines[j]) for i, j in pairs[idx]], **kw, **extra)
 
-    # the first chunk (one device batch) compiles the programs: its time is logged apart, not in the rate
-    step = max(1, args.batch_size // 2) if args.batch_size else 512
+    # one device batch a chunk until a rate is measured: the first compiles the programs (its time is
+    # logged apart, not in the rate), the second measures it
+    step = max(1, args.batch_size // 2)
     chunk, rate = step, None
     while done < total:
         elapsed = time.perf_counter() - t_start
@@ -134,10 +135,8 @@ def main(argv=None) -> int:
                             "same_convergence": all(a[2] == b[2] for a, b in zip(fit[:k], ref))}
             print(f"check: {k} pairs, device against numpy one by one: largest relative difference {diff:.2e}",
                   flush=True)
-        elif not first:
+        elif not first:  # the first chunk's time is the compilation's: no rate from it
             rate = len(idx) / wall if rate is None else 0.5 * (rate + len(idx) / wall)
-        if first:
-            rate = None if done + len(idx) < total else len(idx) / wall
         done = int(idx[-1]) + 1
         log["chunks"].append({"pairs": len(idx), "wall": wall, "compiles": first,
                               **{k: v for k, v in t.items() if k != "device"}})
@@ -152,8 +151,6 @@ def main(argv=None) -> int:
         _save_json(out / "log.json", log)
         print(f"{done:,}/{total:,} pairs ({2 * len(idx):,} registrations in {wall:.1f} s: "
               f"{2 * len(idx) / wall:.0f} per second; prep {t['prep']:.1f} s, device {t['search']:.1f} s)", flush=True)
-        if first:  # a second chunk of one batch measures the rate without the compilation
-            chunk = step
     return 0
 
 
