@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from shapelib.pointsets._coherent_em import EMState, Kernel, _estep, outlier_term, posteriors, run_em, sq_dist
+from shapelib.pointsets._coherent_em import (EMState, Kernel, _estep, _exp_neg, outlier_term, posteriors, run_em,
+                                             sq_dist)
 
 
 @pytest.fixture
@@ -12,6 +13,21 @@ def sets():
     theta = rng.normal(size=(23, 2))
     y = np.vstack([theta[:17] + 0.05 * rng.normal(size=(17, 2)), rng.uniform(-3, 3, size=(6, 2))])
     return theta, y
+
+
+def test_the_vectorised_exponential_is_within_one_ulp_of_numpy():
+    # every argument the E-step gives it (0 to PRUNE + 1) and the log-likelihood's (to 700), densely,
+    # with the points where the range reduction's k changes (multiples of ln 2) and their neighbours
+    ln2 = np.log(2.0)
+    a = np.concatenate([np.linspace(0.0, 38.0, 200_001), np.linspace(38.0, 700.0, 20_001),
+                        np.arange(1, 1010) * ln2 / 1.0, np.arange(1, 1010) * ln2 / 2.0])
+    a = np.concatenate([a, np.nextafter(a, 0.0), np.nextafter(a, np.inf)])
+    a = a[(a >= 0) & (a <= 700)]
+    out = np.empty_like(a)
+    _exp_neg(a, out, np.empty(a.size, dtype=np.int64))
+    ref = np.exp(-a)
+    assert np.max(np.abs(out - ref) / np.spacing(ref)) <= 1.0
+    assert out[a == 0.0][0] == 1.0
 
 
 @pytest.mark.parametrize("s2", [2.0, 0.05, 1e-3, 1e-5])
