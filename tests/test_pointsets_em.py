@@ -58,6 +58,32 @@ def test_leave_one_out_sigma2_is_a_maximum_scales_with_the_points_and_its_se_mat
     assert 0.5 < np.std(boot) / fit.standard_error < 2.0
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_leave_one_out_terms_are_the_likelihood_and_its_derivatives_in_log_sigma2(d):
+    """The one-pass terms of the leave-one-out fit against a dense computation of ℓ_LOO (every
+    Gaussian density, the diagonal left out) and its central differences in t = log σ²."""
+    from scipy.stats import multivariate_normal
+
+    from shapelib.pointsets.em import _loo_terms, _sq
+
+    rng = np.random.default_rng(11)
+    x = rng.normal(size=(40, d))
+    n = len(x)
+
+    def ell(t):
+        dens = np.array([multivariate_normal(mean=xj, cov=np.exp(t) * np.eye(d)).pdf(x) for xj in x])
+        np.fill_diagonal(dens, 0.0)
+        return float(np.sum(np.log(dens.sum(axis=0) / (n - 1))))
+
+    t, h = np.log(0.3), 1e-4
+    ll, r, s, hess = _loo_terms(_sq(x, x), np.exp(t), d)
+    assert ll == pytest.approx(ell(t), rel=1e-12)
+    assert s.sum() == pytest.approx((ell(t + h) - ell(t - h)) / (2 * h), rel=1e-6)
+    assert hess == pytest.approx((ell(t + h) - 2 * ell(t) + ell(t - h)) / h ** 2, rel=1e-4)
+    np.testing.assert_allclose(r.sum(axis=1), 1.0, rtol=1e-14)
+    assert np.all(np.diag(r) == 0.0)
+
+
 def test_leave_one_out_of_far_apart_pairs_has_its_closed_form():
     """Pairs of points, the pairs 100 apart: each point's leave-one-out density is its mate's
     Gaussian alone, ℓ_i = −δ_i²/(2σ²) − log(2πσ²) − log(n − 1) in 2-D with δ_i the pair's gap. So

@@ -227,46 +227,57 @@ def _em_standard_error(x, mu, s2):
     return float(s2 * np.sqrt(max(var_log, 0.0)))
 
 
-def _loo_scores(x, s2):
-    """Per-point scores of ℓ_LOO in log σ², and ℓ_LOO's second derivative in log σ²."""
-    n, d = x.shape
-    _, r, sq = _loglik(x, x, s2, loo=True)
-    a = sq / (2 * s2)  # ∂ log N_ij / ∂ log σ² = a_ij − d/2
-    si = np.sum(r * a, axis=1) - d / 2
-    # ∂²/∂(log σ²)² of log Σ_j N_ij: Var_r(a) − E_r(a)
-    ea = np.sum(r * a, axis=1)
-    hess = float(np.sum(np.sum(r * a * a, axis=1) - ea ** 2 - ea))
-    return si, hess
+def _loo_terms(sq, s2, d):
+    """Everything the leave-one-out fit needs at σ², in one pass over the (n, n) squared distances
+    ``sq`` (zero diagonal): ``(ℓ_LOO, r, s, h)`` with the responsibilities ``r_ij ∝ N(x_i; x_j, σ²I)``
+    (``j ≠ i``), the per-point scores in log σ², ``s_i = Σ_j r_ij a_ij − d/2`` with
+    ``a_ij = |x_i − x_j|²/2σ²`` (``∂ log N_ij / ∂ log σ² = a_ij − d/2``), and ℓ_LOO's second
+    derivative in log σ², ``h = Σ_i [Var_r(a)_i − E_r(a)_i]``. Each row's sum is scaled by its
+    largest term (log-sum-exp)."""
+    n = len(sq)
+    a = sq / (2 * s2)
+    np.fill_diagonal(a, np.inf)  # j = i left out
+    amin = a.min(axis=1)
+    e = np.exp(amin[:, None] - a)
+    tot = e.sum(axis=1)
+    r = e / tot[:, None]
+    np.fill_diagonal(a, 0.0)
+    ra = r * a
+    ea = ra.sum(axis=1)
+    hess = float(np.sum(np.sum(ra * a, axis=1) - ea ** 2 - ea))
+    ll = float(np.sum(np.log(tot) - amin) - n * (0.5 * d * np.log(2 * np.pi * s2) + np.log(n - 1)))
+    return ll, r, ea - d / 2, hess
 
 
 def _loo(x, tol, max_iter, floor):
     """Maximise ℓ_LOO over log σ²: Newton steps where ℓ_LOO is concave there, the EM fixed point
-    (which never decreases ℓ_LOO) otherwise."""
+    (which never decreases ℓ_LOO) otherwise. Returns σ², ℓ_LOO, the scores and the second derivative
+    at σ², the iterations, whether it converged and why it stopped."""
     n, d = x.shape
     sq = _sq(x, x)
     np.fill_diagonal(sq, np.inf)
     s2 = float(np.mean(sq.min(axis=1)) / d)  # nearest-neighbour start
     np.fill_diagonal(sq, 0.0)
-    ll, r, _ = _loglik(x, x, s2, loo=True)
+    ll, r, si, hess = _loo_terms(sq, s2, d)
     for it in range(1, max_iter + 1):
-        si, hess = _loo_scores(x, s2)
         g = float(si.sum())
         if hess < 0:
             step = -g / hess
             s2_new = s2 * float(np.exp(np.clip(step, -2.0, 2.0)))
         else:
             s2_new = float(np.sum(r * sq) / (n * d))
-        ll_new, r_new, _ = _loglik(x, x, s2_new, loo=True)
-        if ll_new < ll:  # Newton overshot: the EM step instead
+        new = _loo_terms(sq, s2_new, d)
+        if new[0] < ll:  # Newton overshot: the EM step instead
             s2_new = float(np.sum(r * sq) / (n * d))
-            ll_new, r_new, _ = _loglik(x, x, s2_new, loo=True)
+            new = _loo_terms(sq, s2_new, d)
         if s2_new <= floor:
-            return s2_new, ll_new, it, False, "degenerate"
+            return s2_new, new[0], new[2], new[3], it, False, "degenerate"
         done = abs(s2_new - s2) <= tol * s2
-        s2, ll, r = s2_new, ll_new, r_new
+        s2 = s2_new
+        ll, r, si, hess = new
         if done:
-            return s2, ll, it, True, "tolerance"
-    return s2, ll, max_iter, False, "max_iter"
+            return s2, ll, si, hess, it, True, "tolerance"
+    return s2, ll, si, hess, max_iter, False, "max_iter"
 
 
 def fit_mixture(points, *, n_components: int | None = None, tol: float = 1e-10, max_iter: int = 2000,
@@ -336,8 +347,7 @@ def fit_mixture(points, *, n_components: int | None = None, tol: float = 1e-10, 
     max_iter = check_positive_int(max_iter, name="max_iter")
     floor = 1e-14 * float(np.mean(np.sum((x - x.mean(0)) ** 2, axis=1)))
     if n_components is None or n_components == n:
-        s2, ll, it, ok, why = _loo(x, tol, max_iter, floor)
-        si, hess = _loo_scores(x, s2)
+        s2, ll, si, hess, it, ok, why = _loo(x, tol, max_iter, floor)
         se = float(s2 * np.sqrt(np.sum(si * si)) / abs(hess)) if hess != 0 else float("nan")
         fit = MixtureFit(x.copy(), s2, se, ll, it, ok, why, "leave_one_out")
     else:
