@@ -43,6 +43,20 @@ def test_the_estep_sums_equal_the_dense_posteriors(sets, s2, w):
     assert sse == pytest.approx(float(np.sum(p * sq_dist(theta, y))), rel=1e-12, abs=1e-14)
 
 
+@pytest.mark.parametrize("s2", [2.0, 1e-3])
+def test_the_estep_sums_equal_the_dense_posteriors_in_3d(s2):
+    rng = np.random.default_rng(4)
+    theta = rng.normal(size=(19, 3))
+    y = np.vstack([theta[:15] + 0.05 * rng.normal(size=(15, 3)), rng.uniform(-3, 3, size=(5, 3))])
+    c = outlier_term(len(theta), 3, s2, 0.2, 216.0)
+    p = posteriors(theta, y, s2, 0.2, 216.0)
+    p1, pt1, py, sse = _estep(theta, y, s2, c)
+    np.testing.assert_allclose(p1, p.sum(axis=1), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(pt1, p.sum(axis=0), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(py, p @ y, rtol=1e-12, atol=1e-14)
+    assert sse == pytest.approx(float(np.sum(p * sq_dist(theta, y))), rel=1e-12, abs=1e-14)
+
+
 def test_a_point_far_from_every_mean_takes_no_posterior_without_an_outlier_term(sets):
     theta, _ = sets
     y = np.array([[1e3, 1e3], theta[0]])

@@ -130,16 +130,23 @@ def _exp_neg(a, out, bits):
 def _column(tx, y, j, dist):
     """``dist[i] = |y_j − θ_i|²`` for every ``i`` (``tx`` is θᵀ, (d, n), contiguous); returns the smallest."""
     d, n = tx.shape
-    y0 = y[j, 0]
+    rmin = np.inf
+    if d == 2:  # one pass (the planar case is the common one)
+        y0, y1 = y[j, 0], y[j, 1]
+        for i in range(n):
+            t0 = y0 - tx[0, i]
+            t1 = y1 - tx[1, i]
+            r = t0 * t0 + t1 * t1
+            dist[i] = r
+            rmin = min(rmin, r)
+        return rmin
     for i in range(n):
-        t = y0 - tx[0, i]
-        dist[i] = t * t
-    for k in range(1, d):
+        dist[i] = 0.0
+    for k in range(d):
         yk = y[j, k]
         for i in range(n):
             t = yk - tx[k, i]
             dist[i] += t * t
-    rmin = np.inf
     for i in range(n):
         rmin = min(rmin, dist[i])
     return rmin
@@ -172,22 +179,31 @@ def _estep(theta, y, s2, c):
         _exp_neg(a, e, bits)
         s = 0.0
         for i in range(n):
-            if a[i] > PRUNE:
-                e[i] = 0.0
-            s += e[i]
+            v = e[i] if a[i] <= PRUNE else 0.0
+            e[i] = v
+            s += v
         inv = 1.0 / (s + (c * math.exp(rmin * half) if c > 0.0 else 0.0))
-        tot = 0.0
-        for i in range(n):
-            q = e[i] * inv
-            e[i] = q
-            p1[i] += q
-            tot += q
-            sse += q * dist[i]
-        for k in range(d):
-            yk = y[j, k]
+        pt1[j] = s * inv
+        if d == 2:  # one pass; the column's share of the distances summed, then scaled once
+            y0, y1 = y[j, 0] * inv, y[j, 1] * inv
+            col = 0.0
             for i in range(n):
-                pyt[k, i] += e[i] * yk
-        pt1[j] = tot
+                v = e[i]
+                col += v * dist[i]
+                p1[i] += v * inv
+                pyt[0, i] += v * y0
+                pyt[1, i] += v * y1
+            sse += col * inv
+        else:
+            for i in range(n):
+                q = e[i] * inv
+                e[i] = q
+                p1[i] += q
+                sse += q * dist[i]
+            for k in range(d):
+                yk = y[j, k]
+                for i in range(n):
+                    pyt[k, i] += e[i] * yk
     return p1, pt1, np.ascontiguousarray(pyt.T), sse
 
 
