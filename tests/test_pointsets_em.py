@@ -8,7 +8,12 @@ import pytest
 
 import shapelib as sl
 from shapelib.pointsets import fit_mixture
-from shapelib.pointsets.em import EMWarning, _loglik
+from shapelib.pointsets import em as em_module
+from shapelib.pointsets.em import EMWarning, _loglik, _loo_terms, _sq
+
+#: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions
+#: go through a trampoline, one stack frame more than a user's call
+UNDER_MUTMUT = any("__mutmut_" in name for name in vars(em_module))
 
 CENTRES = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 3.0], [3.0, 3.0]])
 
@@ -51,30 +56,30 @@ def test_leave_one_out_sigma2_is_a_maximum_scales_with_the_points_and_its_se_mat
     x = rng.normal(size=(120, 2))
     fit = fit_mixture(x)
     assert fit.method == "leave_one_out" and fit.converged
-    ll = lambda s2: _loglik(x, x, s2, loo=True)[0]
+    ll = lambda s2: _dense_loo_loglik(x, np.log(s2))
     assert ll(fit.sigma2) > max(ll(fit.sigma2 * 1.01), ll(fit.sigma2 / 1.01))
     assert fit_mixture(2.5 * x).sigma2 == pytest.approx(6.25 * fit.sigma2, rel=1e-6)
     boot = [fit_mixture(x[rng.integers(120, size=120)] + 1e-9 * rng.normal(size=(120, 2))).sigma2 for _ in range(40)]
     assert 0.5 < np.std(boot) / fit.standard_error < 2.0
 
 
-@pytest.mark.parametrize("d", [2, 3])
-def test_leave_one_out_terms_are_the_likelihood_and_its_derivatives_in_log_sigma2(d):
-    """The one-pass terms of the leave-one-out fit against a dense computation of ℓ_LOO (every
-    Gaussian density, the diagonal left out) and its central differences in t = log σ²."""
+def _dense_loo_loglik(x, t):
+    """ℓ_LOO at σ² = exp(t) from every Gaussian density (scipy), the diagonal left out."""
     from scipy.stats import multivariate_normal
 
-    from shapelib.pointsets.em import _loo_terms, _sq
+    n, d = x.shape
+    dens = np.array([multivariate_normal(mean=xj, cov=np.exp(t) * np.eye(d)).pdf(x) for xj in x])
+    np.fill_diagonal(dens, 0.0)
+    return float(np.sum(np.log(dens.sum(axis=0) / (n - 1))))
 
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_leave_one_out_terms_are_the_likelihood_and_its_derivatives_in_log_sigma2(d):
+    """The one-pass terms of the leave-one-out fit against a dense computation of ℓ_LOO and its
+    central differences in t = log σ²."""
     rng = np.random.default_rng(11)
     x = rng.normal(size=(40, d))
-    n = len(x)
-
-    def ell(t):
-        dens = np.array([multivariate_normal(mean=xj, cov=np.exp(t) * np.eye(d)).pdf(x) for xj in x])
-        np.fill_diagonal(dens, 0.0)
-        return float(np.sum(np.log(dens.sum(axis=0) / (n - 1))))
-
+    ell = lambda t: _dense_loo_loglik(x, t)  # noqa: E731
     t, h = np.log(0.3), 1e-4
     ll, r, s, hess = _loo_terms(_sq(x, x), np.exp(t), d)
     assert ll == pytest.approx(ell(t), rel=1e-12)
@@ -82,6 +87,55 @@ def test_leave_one_out_terms_are_the_likelihood_and_its_derivatives_in_log_sigma
     assert hess == pytest.approx((ell(t + h) - 2 * ell(t) + ell(t - h)) / h ** 2, rel=1e-4)
     np.testing.assert_allclose(r.sum(axis=1), 1.0, rtol=1e-14)
     assert np.all(np.diag(r) == 0.0)
+
+
+def test_leave_one_out_sigma2_is_stationary_and_scale_equivariant_over_six_decades():
+    """σ̂² of c·x is c²σ̂² of x, and at σ̂² the score in log σ² vanishes (Newton converges
+    quadratically: the stopping test leaves a relative error far below its tolerance)."""
+    rng = np.random.default_rng(12)
+    x = rng.normal(size=(60, 2))
+    base = fit_mixture(x).sigma2
+    for c in (1e-3, 1.0, 1e3):
+        fit = fit_mixture(c * x)
+        assert fit.converged and fit.sigma2 == pytest.approx(c * c * base, rel=1e-9)
+        _, _, s, hess = _loo_terms(_sq(c * x, c * x), fit.sigma2, 2)
+        assert hess < 0 and abs(s.sum() / hess) < 1e-8  # the Newton step left, in log σ²
+
+
+@pytest.mark.parametrize("case", ["normal", "two_clusters_and_a_far_point", "curve"])
+def test_leave_one_out_newton_reaches_the_dense_maximum_in_a_few_iterations(case):
+    """σ̂² against a bounded scalar search of the dense ℓ_LOO (scipy) in log σ², and Newton's
+    quadratic convergence: a handful of iterations to tol = 1e-10 (the EM fixed point alone, the
+    safeguard, converges linearly and needs far more). On the two clusters with a far point the first
+    Newton step overshoots and the safeguard's EM step is taken."""
+    from scipy.optimize import minimize_scalar
+
+    rng = np.random.default_rng(1)
+    base = rng.normal(size=(50, 2))
+    x = {"normal": base,
+         "two_clusters_and_a_far_point": np.vstack([0.01 * base, 0.01 * base + [5.0, 0.0], [[300.0, 300.0]]]),
+         "curve": np.column_stack([np.arange(30.0), np.sin(np.arange(30.0))])}[case]
+    fit = fit_mixture(x)
+    t0 = np.log(fit.sigma2)
+    best = minimize_scalar(lambda t: -_dense_loo_loglik(x, t), bounds=(t0 - 1.0, t0 + 1.0), method="bounded",
+                           options={"xatol": 1e-9})
+    assert fit.converged and fit.n_iter <= 8
+    assert fit.sigma2 == pytest.approx(np.exp(best.x), rel=1e-6)
+    assert fit.log_likelihood == pytest.approx(_dense_loo_loglik(x, t0), rel=1e-12)
+
+
+def test_leave_one_out_max_iter_is_the_iteration_budget():
+    rng = np.random.default_rng(13)
+    x = rng.normal(size=(50, 2))
+    n_iter = fit_mixture(x).n_iter
+    assert n_iter >= 2
+    done = fit_mixture(x, max_iter=n_iter)
+    assert done.converged and done.n_iter == n_iter and done.stop_reason == "tolerance"
+    with pytest.warns(EMWarning, match=f"after {n_iter - 1} iterations") as rec:
+        short = fit_mixture(x, max_iter=n_iter - 1)
+    if not UNDER_MUTMUT:  # mutmut's trampoline adds a frame of its own
+        assert rec[0].filename == __file__  # the warning points at the caller's line
+    assert not short.converged and short.n_iter == n_iter - 1 and short.stop_reason == "max_iter"
 
 
 def test_leave_one_out_of_far_apart_pairs_has_its_closed_form():

@@ -160,16 +160,13 @@ def _sq(x, y):
     return np.einsum("ikd,ikd->ik", d, d)
 
 
-def _loglik(x, mu, s2, *, loo=False):
-    """ℓ, responsibilities (n, K) and the squared distances."""
+def _loglik(x, mu, s2):
+    """ℓ of the equal-weight mixture, responsibilities (n, K) and the squared distances."""
     n, d = x.shape
     sq = _sq(x, mu)
     logn = -sq / (2 * s2) - 0.5 * d * np.log(2 * np.pi * s2)
-    if loo:
-        np.fill_diagonal(logn, -np.inf)
-    k = len(mu) - (1 if loo else 0)
     lse = logsumexp(logn, axis=1)
-    return float(lse.sum() - n * np.log(k)), np.exp(logn - lse[:, None]), sq
+    return float(lse.sum() - n * np.log(len(mu))), np.exp(logn - lse[:, None]), sq
 
 
 def _kmeanspp(x, k, rng):
