@@ -59,7 +59,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._machine import loadavg, record  # noqa: E402
+from benchmarks._machine import RECORD_DIR, loadavg, record  # noqa: E402
 
 import shapelib as sl  # noqa: E402
 from shapelib.datasets import load_mpeg7, mpeg7_classes  # noqa: E402
