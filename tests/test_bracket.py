@@ -431,3 +431,13 @@ def test_cpu_batch_is_the_single_bracket_of_each_pair_with_the_same_options(pair
     with pytest.warns(GeodesicWarning, match="max_n_steps"):  # warn=True by default, for each pair
         shapelib.distance_brackets(u[None], v[None], metric="alpha", sigma2=0.5, rtol=1e-9, n_steps=2,
                                    max_n_steps=2, backend="cpu")
+
+
+def test_a_cpu_batch_with_warn_false_is_silent(pair):
+    u, v = pair
+    v = shapelib.procrustes_align(u, v, scaling=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GeodesicWarning)
+        b = shapelib.distance_brackets(u[None], v[None], metric="alpha", sigma2=0.5, rtol=1e-9, n_steps=2,
+                                       max_n_steps=2, backend="cpu", warn=False)[0]
+    assert b.stopped_by == "max_n_steps" and not b.converged

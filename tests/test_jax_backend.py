@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -305,7 +306,7 @@ def batch3():
     a = shapelib.procrustes_align(u, u + 0.15 * rng.normal(size=u.shape), scaling=False)
     c = shapelib.procrustes_align(u, u + 0.8 * rng.normal(size=u.shape), scaling=False)
     us, vs = np.stack([u, a, u]), np.stack([a, a, c])
-    kw = dict(metric="alpha", sigma2=S2, rtol=1e-2, n_steps=2, max_n_steps=4, level_iter=2, level_tol=1e-6,
+    kw = dict(metric="alpha", sigma2=S2, rtol=1e-2, n_steps=2, max_n_steps=4, level_iter=2, level_tol=1e-5,
               min_shrink=0.1)
     t0 = time.perf_counter()
     with pytest.warns(shapelib.GeodesicWarning) as record:
@@ -329,7 +330,7 @@ def test_batched_brackets_are_certified_per_pair_and_agree_with_the_cpu_brackets
         np.testing.assert_array_equal(b.path[[0, -1]], np.stack([u, v]))
         log = b.log
         assert (log["backend"], log["hessian"], log["rtol"], log["n_steps"], log["max_n_steps"], log["level_iter"],
-                log["level_tol"], log["min_shrink"]) == ("jax", None, 1e-2, 2, 4, 2, 1e-6, 0.1)
+                log["level_tol"], log["min_shrink"]) == ("jax", None, 1e-2, 2, 4, 2, 1e-5, 0.1)
         assert log["sigma_ratio"] == pytest.approx(shapelib.sigma_ratio(np.stack([u, v]), sigma2=S2), rel=1e-12)
         assert 0.0 <= b.seconds <= wall
         if b.stopped_by == "trivial":
@@ -395,3 +396,58 @@ def test_batched_bracket_arguments_are_checked_before_any_solve(kwargs, match):
     with pytest.raises(ValueError, match=match):
         shapelib.distance_brackets(u[None], 1.1 * u[None], **{"metric": "alpha", "sigma2": S2, "n_steps": 2,
                                                               "device": "cpu", **kwargs})
+
+
+def test_each_level_of_a_batch_is_the_device_solver_warm_started_from_the_last(batch3):
+    """The pair that goes on first in the batch: level 1 (n_steps 2, both unfinished pairs) is
+    batched_geodesics from the straight line, level 2 (n_steps 4, that pair alone) batched_geodesics
+    started from level 1's path refined, with level_iter · JAX_LEVEL_ITER iterations, level_tol, a
+    JAX_LEVEL_WINDOW window and the target (lower · (1 + rtol))²; the pair after it is still done."""
+    from shapelib.solver.bracket import JAX_LEVEL_WINDOW, refine_path
+
+    us, vs, kw, *_ = batch3
+    us, vs = us[::-1].copy(), vs[::-1].copy()  # the large deformation first, then the trivial and the small one
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", shapelib.GeodesicWarning)
+        one = shapelib.distance_brackets(us, vs, device="cpu", **{**kw, "max_n_steps": 2})
+        two = shapelib.distance_brackets(us, vs, device="cpu", **kw)
+    assert [b.stopped_by for b in two] == ["stalled", "trivial", "rtol"]
+    lower = [b.lower for b in two]
+    solve = dict(metric="alpha", sigma2=S2, tol=kw["level_tol"], max_iter=kw["level_iter"] * JAX_LEVEL_ITER,
+                 window=JAX_LEVEL_WINDOW, device="cpu", warn=False)
+    first = batched.batched_geodesics(us[[0, 2]], vs[[0, 2]], n_steps=2, lower_bounds=[lower[0], lower[2]],
+                                      target_energy=[(lower[0] * 1.01) ** 2, (lower[2] * 1.01) ** 2], **solve)
+    for b, r in zip((one[0], one[2]), first):
+        np.testing.assert_array_equal(b.path, r.path)
+        assert b.n_iter == r.n_iter
+    second = batched.batched_geodesics(us[:1], vs[:1], n_steps=4, init=refine_path(one[0].path)[None],
+                                       lower_bounds=lower[:1], target_energy=[(lower[0] * 1.01) ** 2], **solve)[0]
+    level = two[0].log["levels"][1]
+    assert level["n_steps"] == 4 and level["n_iter"] == second.n_iter
+    np.testing.assert_array_equal(two[0].path, second.path)
+
+
+def test_a_device_bracket_of_relabelled_landmarks_reports_an_infinite_gap(batch3):
+    """Relabelled landmarks: the densities coincide, so the bound is 0 while the landmarks must move;
+    the gap is infinite (no division by zero) and the bracket stalls, as on the CPU."""
+    us, _, kw, *_ = batch3
+    u = us[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        warnings.simplefilter("ignore", shapelib.PoseWarning)
+        b = shapelib.distance_bracket(u, u[[1, 0, 2]], **kw, backend="jax", device="cpu", warn=False)
+    assert b.lower == 0.0 and b.upper > 0.1 and b.rel_gap == np.inf and b.stopped_by == "stalled"
+
+
+def test_a_fisher_rao_device_batch_uses_the_grid_asked_for(pair2):
+    """grid_spacing and grid_margin reach the bound and the length: both are the CPU quadrature's on
+    that grid, not on the default one."""
+    u, v = pair2
+    grid = dict(grid_spacing=0.45, grid_margin=4.5)
+    b = shapelib.distance_brackets(u[None], v[None], metric="fisher_rao", sigma2=S2, rtol=1e-2, n_steps=6,
+                                   max_n_steps=6, device="cpu", warn=False, **grid)[0]
+    assert (b.log["grid_spacing"], b.log["grid_margin"]) == (0.45, 4.5)
+    assert b.lower == pytest.approx(shapelib.fisher_rao_lower_bound(u, v, sigma2=S2, **grid), rel=1e-13)
+    assert b.lower != pytest.approx(shapelib.fisher_rao_lower_bound(u, v, sigma2=S2), rel=1e-13)
+    assert b.upper == pytest.approx(shapelib.path_length(b.path, metric="fisher_rao", sigma2=S2, **grid), rel=1e-11)
+    assert b.upper != pytest.approx(shapelib.path_length(b.path, metric="fisher_rao", sigma2=S2), rel=1e-11)
