@@ -451,3 +451,15 @@ def test_a_fisher_rao_device_batch_uses_the_grid_asked_for(pair2):
     assert b.lower != pytest.approx(shapelib.fisher_rao_lower_bound(u, v, sigma2=S2), rel=1e-13)
     assert b.upper == pytest.approx(shapelib.path_length(b.path, metric="fisher_rao", sigma2=S2, **grid), rel=1e-11)
     assert b.upper != pytest.approx(shapelib.path_length(b.path, metric="fisher_rao", sigma2=S2), rel=1e-11)
+
+
+def test_a_device_bracket_of_identical_shapes_is_trivial_and_logs_no_hessian(batch3):
+    """No solve: zero bounds at once, the time since the call, and hessian None (L-BFGS uses none)."""
+    us, _, kw, *_ = batch3
+    t0 = time.perf_counter()
+    b = shapelib.distance_bracket(us[0], us[0].copy(), **{**kw, "n_steps": 3, "max_n_steps": 3}, backend="jax",
+                                  device="cpu")
+    wall = time.perf_counter() - t0
+    assert (b.lower, b.upper, b.rel_gap, b.n_iter, b.stopped_by, b.n_steps) == (0.0, 0.0, 0.0, 0, "trivial", 3)
+    assert b.path.shape == (4,) + us[0].shape and 0.0 <= b.seconds <= wall
+    assert b.log["backend"] == "jax" and b.log["hessian"] is None and b.log["levels"] == []
