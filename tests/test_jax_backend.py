@@ -410,8 +410,11 @@ def test_each_level_of_a_batch_is_the_device_solver_warm_started_from_the_last(b
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", shapelib.GeodesicWarning)
         one = shapelib.distance_brackets(us, vs, device="cpu", **{**kw, "max_n_steps": 2})
+    with pytest.warns(shapelib.GeodesicWarning) as record:
         two = shapelib.distance_brackets(us, vs, device="cpu", **kw)
     assert [b.stopped_by for b in two] == ["stalled", "trivial", "rtol"]
+    assert [str(w.message) for w in record if issubclass(w.category, shapelib.GeodesicWarning)] == [
+        f"alpha distance brackets: 1 of 3 pairs stopped above rtol 1.0e-02 (first: {two[0].summary()})"]
     lower = [b.lower for b in two]
     solve = dict(metric="alpha", sigma2=S2, tol=kw["level_tol"], max_iter=kw["level_iter"] * JAX_LEVEL_ITER,
                  window=JAX_LEVEL_WINDOW, device="cpu", warn=False)
