@@ -50,6 +50,11 @@ def targets() -> dict[str, list[str]]:
     return tomllib.loads(TARGETS.read_text())["modules"]
 
 
+def fork_unsafe() -> set[str]:
+    """Modules whose covering tests run JAX (``[fork_unsafe]`` of benchmarks/mutation_targets.toml)."""
+    return set(tomllib.loads(TARGETS.read_text()).get("fork_unsafe", {}).get("modules", []))
+
+
 def notes() -> dict[str, str]:
     """Mutant name -> why it survives (benchmarks/mutation_notes.toml), where someone has looked."""
     return tomllib.loads(NOTES.read_text()).get("survivors", {}) if NOTES.is_file() else {}
@@ -71,9 +76,13 @@ def changed_since(commit: str) -> list[str]:
     return sorted(p for p in out if p.endswith(".py") and p.startswith(CORE) and (ROOT / p).is_file())
 
 
-def _mutmut_config(module: str, tests: list[str], timeout_multiplier: float) -> str:
+def _mutmut_config(module: str, tests: list[str], timeout_multiplier: float, forkserver: bool = False) -> str:
+    """mutmut's settings. ``forkserver``: each mutant's tests run in a process forked from a server that
+    has only collected the tests, never run one: JAX is multithreaded once its backend has started (a
+    test ran), and a process forked from it after that hangs, which mutmut would count as killed."""
     quoted = lambda xs: "[" + ", ".join(json.dumps(x) for x in xs) + "]"  # noqa: E731
-    return ("\n[tool.mutmut]\n"
+    isolation = 'process_isolation = "forkserver"\nforkserver_warmup = "collect"\n' if forkserver else ""
+    return ("\n[tool.mutmut]\n" + isolation +
             'source_paths = ["shapelib"]\n'
             f"only_mutate = {quoted([module])}\n"
             f"pytest_add_cli_args_test_selection = {quoted(tests)}\n"
@@ -86,6 +95,10 @@ def _mutmut_config(module: str, tests: list[str], timeout_multiplier: float) -> 
 def _mutmut(args: list[str], cwd: Path, log=None) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     env.setdefault("SHAPELIB_DATA_DIR", str(ROOT.parent / "shared" / "data"))
+    # each mutant's process compiles its JAX programs afresh; they do not change between mutants of
+    # code outside the kernels, so the persistent cache turns a compilation into a file read
+    env.setdefault("JAX_COMPILATION_CACHE_DIR", str(cwd / "jax-cache"))
+    env.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
     return subprocess.run([sys.executable, "-m", "mutmut", *args], cwd=cwd, env=env, text=True,
                           stdout=log if log is not None else subprocess.PIPE,
                           stderr=subprocess.STDOUT if log is not None else subprocess.PIPE)
@@ -118,7 +131,7 @@ def run_module(module: str, tests: list[str], *, max_children: int, timeout_mult
     for folder in ("shapelib", "tests", "data"):
         shutil.copytree(ROOT / folder, work / folder, ignore=skip)
     (work / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text()
-                                         + _mutmut_config(module, tests, timeout_multiplier))
+                                         + _mutmut_config(module, tests, timeout_multiplier, module in fork_unsafe()))
     load_start, t0 = loadavg(), time.perf_counter()
     with open(work / "mutmut.log", "w") as log:
         rc = _mutmut(["run", "--max-children", str(max_children)], work, log).returncode

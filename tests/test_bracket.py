@@ -1,11 +1,14 @@
 """Certified distance brackets (shapelib.solver.bracket): lower ≤ d ≤ upper, at the requested width."""
 
+import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import shapelib
+from shapelib.solver import bracket as bracket_module
 from shapelib.solver.bracket import DistanceBracket, distance_bracket, extrapolate_doublings, lower_bound, refine_path
 from shapelib.solver.geodesic import GeodesicWarning, geodesic
 from shapelib.geometry.procrustes import PoseWarning
@@ -149,6 +152,7 @@ def test_straight_line_good_enough_costs_no_iteration(pair):
     ({"min_shrink": 1.0}, "min_shrink"),
     ({"hessian": "newton"}, "hessian must be"),
     ({"sigma2": -1.0}, "sigma2"),
+    ({"device": "gpu"}, 'device="gpu" needs backend="jax"'),
 ])
 def test_errors(pair, kwargs, match):
     u, v = pair
@@ -272,3 +276,168 @@ def test_lower_bound_passes_its_grid_on(rng):
     assert coarse == want
     assert coarse != lower_bound(u, v, metric="fisher_rao", sigma2=0.5)
     assert coarse != lower_bound(u, v, metric="fisher_rao", sigma2=0.5, grid_spacing=0.9)
+
+
+# --- what a bracket reports, and how its levels are solved (each a property another computation checks)
+
+#: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions
+#: go through a trampoline, more stack frames between the caller and the code
+UNDER_MUTMUT = any("__mutmut_" in name for name in vars(bracket_module))
+
+
+def _one_warning(record, category):
+    caught = [w for w in record if issubclass(w.category, category)]
+    assert len(caught) == 1 and "shapelib" not in Path(caught[0].filename).parts  # not inside the library
+    if not UNDER_MUTMUT:  # the caller's line (mutmut's trampoline adds frames of its own)
+        assert caught[0].filename == __file__
+    return str(caught[0].message)
+
+
+def test_the_warning_says_why_it_stopped_and_where_the_distance_lies(pair, far_pair):
+    """max_n_steps: the level, the iterations and the interval, and the remedy; stalled: why the gap
+    stays open; σ far below the landmark spacing: that, and the remedy for it."""
+    u, v = pair
+    with pytest.warns(GeodesicWarning) as record:
+        b = distance_bracket(u, v, metric="alpha", sigma2=0.5, rtol=1e-9, n_steps=4, max_n_steps=4)
+    text = _one_warning(record, GeodesicWarning)
+    assert b.n_iter > 0 and text.startswith(f"alpha distance bracket stopped (max_n_steps) at relative gap "
+                                            f"{b.rel_gap:.2e} > rtol 1.0e-09 (n_steps 4, {b.n_iter} iterations)")
+    assert f"[{b.lower:.6g}, {b.upper:.6g}]; raise max_n_steps to refine further" in text
+    u, v = far_pair
+    with pytest.warns(GeodesicWarning) as record:
+        b = distance_bracket(u, v, metric="fisher_rao", sigma2=0.5)
+    text = _one_warning(record, GeodesicWarning)
+    assert text.startswith("fisher_rao distance bracket stopped (stalled)") and text.endswith(
+        "; the gap no longer shrinks with n_steps, so the geodesic is itself longer than the closed-form bound "
+        "(typical at small sigma2)")
+    u, v = pair
+    with pytest.warns(GeodesicWarning) as record:  # σ = 0.04 landmark spacings (and ScaleWarning)
+        b = distance_bracket(20 * u, 20 * shapelib.procrustes_align(u, v, scaling=False), metric="alpha", sigma2=0.5)
+    text = _one_warning(record, GeodesicWarning)
+    assert _one_warning(record, shapelib.ScaleWarning).startswith("sigma = 0.707 (sigma2 = 0.5) is ")
+    assert b.stopped_by == "stalled" and "the gap no longer shrinks" not in text
+    assert f"sigma is {b.log['sigma_ratio']:.3g} landmark spacings" in text and "(shapelib.to_centroid_size)" in text
+    assert b.log["sigma_ratio"] == pytest.approx(shapelib.sigma_ratio(np.stack([b.path[0], b.path[-1]]), sigma2=0.5))
+
+
+def test_identical_shapes_give_a_standing_path_with_the_options(pair):
+    u, _ = pair
+    t0 = time.perf_counter()
+    b = distance_bracket(u, u.copy(), metric="alpha", sigma2=0.3, n_steps=5, rtol=1e-2)
+    wall = time.perf_counter() - t0
+    assert b.path.shape == (6,) + u.shape and np.array_equal(b.path, np.broadcast_to(u, b.path.shape))
+    assert (b.metric, b.sigma2, b.n_steps) == ("alpha", 0.3, 5)
+    assert b.log["levels"] == [] and b.log["rtol"] == 1e-2 and b.log["n_steps"] == 5
+    assert 0.0 <= b.seconds <= wall
+
+
+def test_the_log_holds_the_options_and_every_level(pair):
+    """The options as given (level_tol too); the levels double n_steps from n_steps, each with at most
+    level_iter iterations, the last one's upper end and n_steps the bracket's; the levels' times add
+    up to at most the bracket's, which is at most the wall-clock time around the call."""
+    u, v = pair
+    v = shapelib.procrustes_align(u, v, scaling=False)
+    t0 = time.perf_counter()
+    b = distance_bracket(u, v, metric="alpha", sigma2=0.5, rtol=1e-9, n_steps=2, max_n_steps=8, level_iter=2,
+                         level_tol=1e-12, min_shrink=0.01, warn=False)
+    wall = time.perf_counter() - t0
+    assert (b.metric, b.sigma2) == ("alpha", 0.5)
+    log = b.log
+    assert (log["rtol"], log["n_steps"], log["max_n_steps"], log["level_iter"], log["level_tol"], log["min_shrink"],
+            log["hessian"]) == (1e-9, 2, 8, 2, 1e-12, 0.01, "exact")
+    assert log["sigma_ratio"] == pytest.approx(shapelib.sigma_ratio(np.stack([u, v]), sigma2=0.5), rel=1e-12)
+    levels = log["levels"]
+    assert [lv["n_steps"] for lv in levels] == [2, 4, 8][:len(levels)] and levels[-1]["n_steps"] == b.n_steps
+    assert levels[-1]["upper"] == b.upper and levels[-1]["rel_gap"] == b.rel_gap
+    assert all(lv["n_iter"] <= 2 for lv in levels) and b.n_iter == sum(lv["n_iter"] for lv in levels)
+    assert 0.0 <= sum(lv["seconds"] for lv in levels) <= b.seconds <= wall
+
+
+def test_a_level_stops_as_soon_as_the_energy_certifies_rtol(pair):
+    """√E ≤ lower · (1 + rtol) ends the level (length ≤ √E): the last level stopped on that target."""
+    u, v = pair
+    for metric in METRICS:
+        b = distance_bracket(u, v, metric=metric, sigma2=0.5, rtol=1e-3)
+        assert b.log["levels"][-1]["stopped_by"] == "target_energy"
+        assert b.lower <= b.upper <= np.sqrt(b.energy) <= b.lower * (1 + 1e-3) * (1 + 1e-12)
+
+
+def test_each_level_is_the_geodesic_solver_warm_started_from_the_last(far_pair):
+    """Level 1 is geodesic() at n_steps with level_iter iterations, level_tol, a 2-iteration window and
+    the Hessian asked for; level 2 is geodesic() at 2·n_steps started from level 1's path refined."""
+    u, v = far_pair
+    v = shapelib.procrustes_align(u, v, scaling=False)
+    kw = dict(metric="fisher_rao", sigma2=0.5, rtol=1e-9, level_iter=6, level_tol=1e-3, hessian="model",
+              min_shrink=0.0, warn=False)
+    one = distance_bracket(u, v, n_steps=4, max_n_steps=4, **kw)
+    two = distance_bracket(u, v, n_steps=4, max_n_steps=8, **kw)
+    solver = dict(metric="fisher_rao", sigma2=0.5, max_iter=6, tol=1e-3, window=2, hessian="model",
+                  grid_spacing=one.log["grid_spacing"], warn=False)
+    first = geodesic(u, v, n_steps=4, **solver)
+    np.testing.assert_allclose(one.path, first.path, rtol=0, atol=1e-12)
+    assert one.upper == pytest.approx(first.length, rel=1e-12) and one.n_iter == first.n_iter
+    assert one.log["levels"][0]["stopped_by"] == "energy_window" and one.n_iter < 6  # the window ended it
+    second = geodesic(u, v, n_steps=8, init=refine_path(one.path), **solver)
+    assert [lv["n_steps"] for lv in two.log["levels"]] == [4, 8]
+    np.testing.assert_allclose(two.path, second.path, rtol=0, atol=1e-12)
+    assert two.upper == pytest.approx(second.length, rel=1e-12)
+
+
+def test_default_refinement_options(pair, far_pair):
+    """max_n_steps 64 by default (n_steps 65 must raise it); at most 3 iterations a level by default,
+    and a pair that needs them uses 3."""
+    u, v = pair
+    with pytest.raises(ValueError, match="max_n_steps must be >= n_steps"):
+        distance_bracket(u, v, metric="alpha", sigma2=0.5, n_steps=65)
+    assert distance_bracket(u, v, metric="alpha", sigma2=0.5, n_steps=64, rtol=10.0).n_steps == 64
+    u, v = far_pair
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GeodesicWarning)
+        b = distance_bracket(u, v, metric="alpha", sigma2=0.5, rtol=1e-9, n_steps=2, max_n_steps=8, min_shrink=0.0)
+    assert max(lv["n_iter"] for lv in b.log["levels"]) == 3
+
+
+def test_the_fisher_rao_grid_margin_reaches_the_bound(pair):
+    from shapelib.solver.bracket import BRACKET_SPACING
+
+    u, v = pair
+    v = shapelib.procrustes_align(u, v, scaling=False)
+    b = distance_bracket(u, v, metric="fisher_rao", sigma2=0.5, rtol=10.0, grid_margin=2.5)
+    assert b.lower == shapelib.fisher_rao_lower_bound(u, v, sigma2=0.5, grid_spacing=BRACKET_SPACING, grid_margin=2.5)
+    assert b.lower != shapelib.fisher_rao_lower_bound(u, v, sigma2=0.5, grid_spacing=BRACKET_SPACING)
+
+
+def test_cpu_batch_is_the_single_bracket_of_each_pair_with_the_same_options(pair, far_pair):
+    """distance_brackets(backend="cpu") passes every option on to distance_bracket, pair by pair, in order."""
+    (u, v), (_, w) = pair, far_pair
+    v, w = (shapelib.procrustes_align(u, x, scaling=False) for x in (v, w))
+    kw = dict(metric="fisher_rao", sigma2=0.4, rtol=1e-2, n_steps=4, max_n_steps=8, level_iter=2, level_tol=1e-4,
+              min_shrink=0.1, grid_spacing=0.45, grid_margin=4.0, hessian="exact")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GeodesicWarning)
+        got = shapelib.distance_brackets(np.stack([u, w, u]), np.stack([v, u, u]), backend="cpu", **kw)
+        want = [distance_bracket(a, c, **kw) for a, c in ((u, v), (w, u), (u, u))]
+    assert len(got) == 3 and got[2].stopped_by == "trivial"
+    for g, x in zip(got, want):
+        assert (g.lower, g.upper, g.n_steps, g.n_iter, g.stopped_by) == (x.lower, x.upper, x.n_steps, x.n_iter,
+                                                                         x.stopped_by)
+        np.testing.assert_array_equal(g.path, x.path)
+        assert {k: g.log[k] for k in g.log if k != "levels"} == {k: x.log[k] for k in x.log if k != "levels"}
+    # the defaults are distance_bracket's
+    b, one = shapelib.distance_brackets(u[None], v[None], metric="alpha", sigma2=0.5, backend="cpu")[0], \
+        distance_bracket(u, v, metric="alpha", sigma2=0.5)
+    assert {k: b.log[k] for k in b.log if k != "levels"} == {k: one.log[k] for k in one.log if k != "levels"}
+    assert (b.log["rtol"], b.log["n_steps"], b.log["max_n_steps"], b.log["level_iter"]) == (1e-3, 8, 64, 3)
+    with pytest.warns(GeodesicWarning, match="max_n_steps"):  # warn=True by default, for each pair
+        shapelib.distance_brackets(u[None], v[None], metric="alpha", sigma2=0.5, rtol=1e-9, n_steps=2,
+                                   max_n_steps=2, backend="cpu")
+
+
+def test_a_cpu_batch_with_warn_false_is_silent(pair):
+    u, v = pair
+    v = shapelib.procrustes_align(u, v, scaling=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GeodesicWarning)
+        b = shapelib.distance_brackets(u[None], v[None], metric="alpha", sigma2=0.5, rtol=1e-9, n_steps=2,
+                                       max_n_steps=2, backend="cpu", warn=False)[0]
+    assert b.stopped_by == "max_n_steps" and not b.converged

@@ -7,6 +7,9 @@ import json
 import os
 import subprocess
 import sys
+import time
+import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,8 +26,13 @@ jax = import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
 
 from shapelib.geometry import _jax_kernels as jk  # noqa: E402
 from shapelib.solver import batched  # noqa: E402
+from shapelib.solver import bracket as bracket_module  # noqa: E402
+from shapelib.solver.bracket import JAX_LEVEL_ITER  # noqa: E402
 
 S2 = 0.5
+#: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions
+#: go through a trampoline, one more stack frame between the caller and the code
+UNDER_MUTMUT = any("__mutmut_" in name for name in vars(bracket_module))
 
 
 def _shape(rng, k, d):
@@ -192,8 +200,9 @@ def test_backend_and_device_are_checked():
         shapelib.distance_bracket(u, u * 1.1, metric="alpha", sigma2=S2, backend="jax", device="tpu0")
 
 
-@pytest.mark.skipif(any(d.platform == "gpu" for d in jax.devices()), reason="a GPU is visible")
 def test_gpu_without_a_gpu_is_a_one_line_error_not_a_cpu_fallback():
+    if any(d.platform == "gpu" for d in jax.devices()):  # asked here, not at collection: starting JAX's
+        pytest.skip("a GPU is visible")                  # backend makes a process unsafe to fork
     u = np.array([[-0.5, -0.3], [0.5, -0.3], [0.0, 0.6]])  # centred: u * 1.1 has the same pose
     with pytest.raises(RuntimeError, match="JAX sees no GPU") as err:
         shapelib.geodesic(u, u * 1.1, metric="fisher_rao", sigma2=S2, backend="jax", device="gpu")
@@ -280,4 +289,180 @@ def test_a_batch_warns_at_the_callers_line_as_a_single_pair_does(batched_entry):
     v = u @ np.array([[0.0, -1.0], [1.0, 0.0]]) + 5.0  # rotated and moved: not aligned
     with pytest.warns(shapelib.PoseWarning) as record:
         getattr(shapelib, batched_entry)(u[None], v[None], metric="alpha", sigma2=S2, device="cpu", warn=False)
-    assert {w.filename for w in record if issubclass(w.category, shapelib.PoseWarning)} == {__file__}
+    files = {w.filename for w in record if issubclass(w.category, shapelib.PoseWarning)}
+    assert len(files) == 1 and "shapelib" not in Path(files.pop()).parts  # not inside the library
+    if not UNDER_MUTMUT:  # mutmut's trampoline adds a frame of its own
+        assert {w.filename for w in record if issubclass(w.category, shapelib.PoseWarning)} == {__file__}
+
+
+@pytest.fixture(scope="module")
+def batch3():
+    """One device batch of three α pairs (3 landmarks, n_steps 2 then 4): a small deformation that meets
+    rtol at the first level, identical shapes, and a large one whose geodesic is longer than the bound
+    (it stalls after the second level). The geodesic of each pair is longer than the chord by 0.6 % and
+    11.6 %, so rtol = 1e-2 tells them apart."""
+    rng = np.random.default_rng(5)
+    u = rng.normal(size=(3, 2)) * 1.6
+    a = shapelib.procrustes_align(u, u + 0.15 * rng.normal(size=u.shape), scaling=False)
+    c = shapelib.procrustes_align(u, u + 0.8 * rng.normal(size=u.shape), scaling=False)
+    us, vs = np.stack([u, a, u]), np.stack([a, a, c])
+    kw = dict(metric="alpha", sigma2=S2, rtol=1e-2, n_steps=2, max_n_steps=4, level_iter=2, level_tol=1e-5,
+              min_shrink=0.1)
+    t0 = time.perf_counter()
+    with pytest.warns(shapelib.GeodesicWarning) as record:
+        out = shapelib.distance_brackets(us, vs, device="cpu", **kw)
+    wall = time.perf_counter() - t0
+    return us, vs, kw, out, wall, record
+
+
+def test_batched_brackets_are_certified_per_pair_and_agree_with_the_cpu_brackets(batch3):
+    """Each bracket: its own pair's closed-form bound and endpoints, its upper end the length of its path by
+    the CPU quadrature, the CPU solver's converged geodesic inside it; the stop reasons, levels and ends of
+    the CPU bracket with the same options; n_steps doubled from n_steps; the options and the time logged."""
+    us, vs, kw, out, wall, _ = batch3
+    assert [b.stopped_by for b in out] == ["rtol", "trivial", "stalled"]
+    assert [[lv["n_steps"] for lv in b.log["levels"]] for b in out] == [[2], [], [2, 4]]
+    for u, v, b in zip(us, vs, out):
+        cpu = shapelib.distance_bracket(u, v, **kw, warn=False)
+        assert (b.metric, b.sigma2, b.n_steps, b.stopped_by, b.converged) == (
+            "alpha", S2, cpu.n_steps, cpu.stopped_by, cpu.stopped_by in ("rtol", "trivial"))
+        assert b.path.shape == (b.n_steps + 1,) + u.shape
+        np.testing.assert_array_equal(b.path[[0, -1]], np.stack([u, v]))
+        log = b.log
+        assert (log["backend"], log["hessian"], log["rtol"], log["n_steps"], log["max_n_steps"], log["level_iter"],
+                log["level_tol"], log["min_shrink"]) == ("jax", None, 1e-2, 2, 4, 2, 1e-5, 0.1)
+        assert log["sigma_ratio"] == pytest.approx(shapelib.sigma_ratio(np.stack([u, v]), sigma2=S2), rel=1e-12)
+        assert 0.0 <= b.seconds <= wall
+        if b.stopped_by == "trivial":
+            assert (b.lower, b.upper, b.rel_gap, b.energy, b.n_iter) == (0.0, 0.0, 0.0, 0.0, 0)
+            np.testing.assert_array_equal(b.path, np.broadcast_to(u, b.path.shape))
+            continue
+        assert "cpu" in log["device"].lower()
+        assert b.lower == pytest.approx(shapelib.l2_distance(u, v, sigma2=S2), rel=1e-12)
+        assert b.upper == pytest.approx(shapelib.path_length(b.path, metric="alpha", sigma2=S2), rel=1e-11)
+        assert b.energy == pytest.approx(path_energy(path_metric("alpha", S2), b.path, gradient=False)[0], rel=1e-11)
+        assert b.lower <= b.upper <= np.sqrt(b.energy) * (1 + 1e-12)
+        assert b.rel_gap == pytest.approx(b.upper / b.lower - 1, rel=1e-12)
+        fine = shapelib.geodesic(u, v, metric="alpha", sigma2=S2, n_steps=16, tol=1e-10)
+        assert b.lower <= fine.length <= b.upper * (1 + 1e-9)
+        levels = log["levels"]
+        assert levels[-1]["upper"] == b.upper and levels[-1]["rel_gap"] == b.rel_gap
+        assert b.n_iter == sum(lv["n_iter"] for lv in levels) and b.seconds == sum(lv["seconds"] for lv in levels)
+        assert all(lv["n_iter"] <= 2 * JAX_LEVEL_ITER for lv in levels)  # level_iter · JAX_LEVEL_ITER at most
+        if b.stopped_by == "rtol":  # the first level ended as soon as the energy certified rtol
+            assert levels[0]["stopped_by"] == "target_energy"
+            assert b.rel_gap <= 1e-2 and np.sqrt(b.energy) <= b.lower * (1 + 1e-2) * (1 + 1e-12)
+        else:  # both solvers at the minimum of the discrete energy at n_steps = 4
+            assert b.upper == pytest.approx(cpu.upper, rel=1e-8) and b.rel_gap > 1e-2
+
+
+def test_a_batch_warns_once_for_the_pairs_above_rtol(batch3):
+    *_, out, _, record = batch3
+    caught = [w for w in record if issubclass(w.category, shapelib.GeodesicWarning)]
+    assert len(caught) == 1
+    if not UNDER_MUTMUT:  # mutmut's trampoline adds frames of its own
+        assert caught[0].filename == __file__
+    assert str(caught[0].message) == (f"alpha distance brackets: 1 of 3 pairs stopped above rtol 1.0e-02 "
+                                      f"(first: {out[2].summary()})")
+
+
+def test_a_single_jax_bracket_warns_as_the_cpu_one(batch3):
+    """One pair that stops above rtol: the single-pair message, with its level, iterations and interval."""
+    us, vs, kw, *_ = batch3
+    with pytest.warns(shapelib.GeodesicWarning) as record:
+        b = shapelib.distance_bracket(us[2], vs[2], **{**kw, "max_n_steps": 2}, backend="jax", device="cpu")
+    caught = [w for w in record if issubclass(w.category, shapelib.GeodesicWarning)]
+    assert len(caught) == 1
+    if not UNDER_MUTMUT:  # mutmut's trampoline adds frames of its own
+        assert caught[0].filename == __file__
+    assert b.stopped_by == "max_n_steps" and b.n_iter > 0
+    assert str(caught[0].message).startswith(
+        f"alpha distance bracket stopped (max_n_steps) at relative gap {b.rel_gap:.2e} > rtol 1.0e-02 "
+        f"(n_steps 2, {b.n_iter} iterations): the distance is certified only to lie in "
+        f"[{b.lower:.6g}, {b.upper:.6g}]; raise max_n_steps")
+    with pytest.warns(shapelib.GeodesicWarning) as record:  # σ = 0.04 landmark spacings (and ScaleWarning)
+        b = shapelib.distance_bracket(20 * us[2], 20 * vs[2], **kw, backend="jax", device="cpu")
+    caught = [w for w in record if issubclass(w.category, shapelib.GeodesicWarning)]
+    assert len(caught) == 1 and b.stopped_by == "stalled"
+    assert f"; sigma is {b.log['sigma_ratio']:.3g} landmark spacings" in str(caught[0].message)
+    assert b.log["sigma_ratio"] == pytest.approx(shapelib.sigma_ratio(20 * np.stack([us[2], vs[2]]), sigma2=S2))
+
+
+@pytest.mark.parametrize("kwargs, match", [({"rtol": 0.0}, "rtol"), ({"n_steps": 0}, "n_steps"),
+                                           ({"max_n_steps": 1}, "max_n_steps"), ({"device": "tpu"}, "device"),
+                                           ({"metric": "euclid"}, "metric must be"), ({"sigma2": 0.0}, "sigma2")])
+def test_batched_bracket_arguments_are_checked_before_any_solve(kwargs, match):
+    u = np.array([[-0.5, -0.3], [0.5, -0.3], [0.0, 0.6]])
+    with pytest.raises(ValueError, match=match):
+        shapelib.distance_brackets(u[None], 1.1 * u[None], **{"metric": "alpha", "sigma2": S2, "n_steps": 2,
+                                                              "device": "cpu", **kwargs})
+
+
+def test_each_level_of_a_batch_is_the_device_solver_warm_started_from_the_last(batch3):
+    """The pair that goes on first in the batch: level 1 (n_steps 2, both unfinished pairs) is
+    batched_geodesics from the straight line, level 2 (n_steps 4, that pair alone) batched_geodesics
+    started from level 1's path refined, with level_iter · JAX_LEVEL_ITER iterations, level_tol, a
+    JAX_LEVEL_WINDOW window and the target (lower · (1 + rtol))²; the pair after it is still done."""
+    from shapelib.solver.bracket import JAX_LEVEL_WINDOW, refine_path
+
+    us, vs, kw, *_ = batch3
+    us, vs = us[::-1].copy(), vs[::-1].copy()  # the large deformation first, then the trivial and the small one
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", shapelib.GeodesicWarning)
+        one = shapelib.distance_brackets(us, vs, device="cpu", **{**kw, "max_n_steps": 2})
+    with pytest.warns(shapelib.GeodesicWarning) as record:
+        two = shapelib.distance_brackets(us, vs, device="cpu", **kw)
+    assert [b.stopped_by for b in two] == ["stalled", "trivial", "rtol"]
+    assert [str(w.message) for w in record if issubclass(w.category, shapelib.GeodesicWarning)] == [
+        f"alpha distance brackets: 1 of 3 pairs stopped above rtol 1.0e-02 (first: {two[0].summary()})"]
+    lower = [b.lower for b in two]
+    solve = dict(metric="alpha", sigma2=S2, tol=kw["level_tol"], max_iter=kw["level_iter"] * JAX_LEVEL_ITER,
+                 window=JAX_LEVEL_WINDOW, device="cpu", warn=False)
+    first = batched.batched_geodesics(us[[0, 2]], vs[[0, 2]], n_steps=2, lower_bounds=[lower[0], lower[2]],
+                                      target_energy=[(lower[0] * 1.01) ** 2, (lower[2] * 1.01) ** 2], **solve)
+    for b, r in zip((one[0], one[2]), first):
+        np.testing.assert_array_equal(b.path, r.path)
+        assert b.n_iter == r.n_iter
+    second = batched.batched_geodesics(us[:1], vs[:1], n_steps=4, init=refine_path(one[0].path)[None],
+                                       lower_bounds=lower[:1], target_energy=[(lower[0] * 1.01) ** 2], **solve)[0]
+    level = two[0].log["levels"][1]
+    assert level["n_steps"] == 4 and level["n_iter"] == second.n_iter
+    np.testing.assert_array_equal(two[0].path, second.path)
+
+
+def test_a_device_bracket_of_relabelled_landmarks_reports_an_infinite_gap(batch3):
+    """Relabelled landmarks: the densities coincide, so the bound is 0 while the landmarks must move;
+    the gap is infinite (no division by zero) and the bracket stalls, as on the CPU."""
+    us, _, kw, *_ = batch3
+    u = us[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        warnings.simplefilter("ignore", shapelib.PoseWarning)
+        b = shapelib.distance_bracket(u, u[[1, 0, 2]], **kw, backend="jax", device="cpu", warn=False)
+    assert b.lower == 0.0 and b.upper > 0.1 and b.rel_gap == np.inf and b.stopped_by == "stalled"
+
+
+def test_a_fisher_rao_device_batch_uses_the_grid_asked_for(pair2):
+    """grid_spacing and grid_margin reach the bound and the length: both are the CPU quadrature's on
+    that grid, not on the default one."""
+    u, v = pair2
+    grid = dict(grid_spacing=0.45, grid_margin=4.5)
+    b = shapelib.distance_brackets(u[None], v[None], metric="fisher_rao", sigma2=S2, rtol=1e-2, n_steps=6,
+                                   max_n_steps=6, device="cpu", warn=False, **grid)[0]
+    assert (b.log["grid_spacing"], b.log["grid_margin"]) == (0.45, 4.5)
+    assert b.lower == pytest.approx(shapelib.fisher_rao_lower_bound(u, v, sigma2=S2, **grid), rel=1e-13)
+    assert b.lower != pytest.approx(shapelib.fisher_rao_lower_bound(u, v, sigma2=S2), rel=1e-13)
+    assert b.upper == pytest.approx(shapelib.path_length(b.path, metric="fisher_rao", sigma2=S2, **grid), rel=1e-11)
+    assert b.upper != pytest.approx(shapelib.path_length(b.path, metric="fisher_rao", sigma2=S2), rel=1e-11)
+
+
+def test_a_device_bracket_of_identical_shapes_is_trivial_and_logs_no_hessian(batch3):
+    """No solve: zero bounds at once, the time since the call, and hessian None (L-BFGS uses none)."""
+    us, _, kw, *_ = batch3
+    t0 = time.perf_counter()
+    b = shapelib.distance_bracket(us[0], us[0].copy(), **{**kw, "n_steps": 3, "max_n_steps": 3}, backend="jax",
+                                  device="cpu")
+    wall = time.perf_counter() - t0
+    assert (b.lower, b.upper, b.rel_gap, b.n_iter, b.stopped_by, b.n_steps) == (0.0, 0.0, 0.0, 0, "trivial", 3)
+    assert b.path.shape == (4,) + us[0].shape and 0.0 <= b.seconds <= wall
+    assert b.log["backend"] == "jax" and b.log["hessian"] is None and b.log["levels"] == []
