@@ -95,8 +95,8 @@ _LN2_LO = 1.90821492927058770002e-10
 def _exp_neg(a, out, bits):
     """``out[i] = exp(−a[i])`` for ``0 ≤ a[i] ≤ 700``, vectorised.
 
-    ``math.exp`` in a compiled loop is a scalar library call (no vector math library here), a third
-    of the E-step's time; this is the textbook exponential written so that the compiler vectorises it:
+    ``math.exp`` in a compiled loop is a scalar library call (no vector math library here), about
+    half of the E-step's time (46 µs of 90 for 98 × 98 points); this is the textbook exponential written so that the compiler vectorises it:
     ``x = k ln 2 + r`` with ``k = round(x / ln 2)`` and ``|r| ≤ ln 2 / 2`` (Cody–Waite reduction),
     ``exp(r)`` by its Taylor polynomial of degree 13 (remainder ``|r|¹⁴/14! < 1e-17``) in Horner form,
     and ``2^k`` built from its exponent bits. Within one unit in the last place of ``np.exp`` over
