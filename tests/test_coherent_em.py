@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from shapelib.pointsets._coherent_em import (EMState, Kernel, _estep, _exp_neg, outlier_term, posteriors, run_em,
-                                             sq_dist)
+from shapelib.pointsets._coherent_em import (PLAIN_ITER, EMState, Kernel, _em_map, _estep, _exp_neg, _extrapolate,
+                                             objective, outlier_term, posteriors, run_em, sq_dist)
 
 
 @pytest.fixture
@@ -36,7 +36,14 @@ def test_the_estep_sums_equal_the_dense_posteriors(sets, s2, w):
     theta, y = sets
     volume = 36.0
     p = posteriors(theta, y, s2, w, volume)  # the (n, m) matrix, exponentials of every pair
-    p1, pt1, py, sse = _estep(theta, y, s2, outlier_term(len(theta), 2, s2, w, volume))
+    c = outlier_term(len(theta), 2, s2, w, volume)
+    p1, pt1, py, sse, lse = _estep(theta, y, s2, c)
+    # the log-normalisers: log(Σ_i exp(−|y_j − θ_i|²/2σ²) + c), summed over j, by scipy from the distances
+    from scipy.special import logsumexp
+    logs = -sq_dist(theta, y) / (2 * s2)
+    if c > 0:
+        logs = np.vstack([logs, np.full(len(y), np.log(c))])
+    assert lse == pytest.approx(float(logsumexp(logs, axis=0).sum()), rel=1e-12, abs=1e-9)
     np.testing.assert_allclose(p1, p.sum(axis=1), rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(pt1, p.sum(axis=0), rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(py, p @ y, rtol=1e-12, atol=1e-14)
@@ -50,7 +57,7 @@ def test_the_estep_sums_equal_the_dense_posteriors_in_3d(s2):
     y = np.vstack([theta[:15] + 0.05 * rng.normal(size=(15, 3)), rng.uniform(-3, 3, size=(5, 3))])
     c = outlier_term(len(theta), 3, s2, 0.2, 216.0)
     p = posteriors(theta, y, s2, 0.2, 216.0)
-    p1, pt1, py, sse = _estep(theta, y, s2, c)
+    p1, pt1, py, sse, _ = _estep(theta, y, s2, c)
     np.testing.assert_allclose(p1, p.sum(axis=1), rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(pt1, p.sum(axis=0), rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(py, p @ y, rtol=1e-12, atol=1e-14)
@@ -60,7 +67,7 @@ def test_the_estep_sums_equal_the_dense_posteriors_in_3d(s2):
 def test_a_point_far_from_every_mean_takes_no_posterior_without_an_outlier_term(sets):
     theta, _ = sets
     y = np.array([[1e3, 1e3], theta[0]])
-    p1, pt1, _, _ = _estep(theta, y, 1e-2, 0.0)
+    p1, pt1, _, _, _ = _estep(theta, y, 1e-2, 0.0)
     assert pt1[0] == 0.0 and pt1[1] == pytest.approx(1.0)
     assert p1.sum() == pytest.approx(1.0)
 
@@ -116,3 +123,81 @@ def test_the_objective_is_the_negative_log_posterior(sets, w, s2):
     ll = logsumexp(np.stack(terms), axis=0).sum()
     energy = np.sum(st.coef * (g @ st.coef))
     assert objective(st, y, lam=2.0, volume=volume) == pytest.approx(-ll + 0.5 * 2.0 * energy, rel=1e-10)
+
+
+def _problem():
+    """A bent outline with noise, half of it resampled: plain EM needs about 200 iterations."""
+    rng = np.random.default_rng(5)
+    t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    u = np.column_stack([np.cos(t) + 0.45 * np.cos(2 * t), 0.55 * np.sin(t) + 0.12 * np.sin(2 * t)])
+    y = u + np.column_stack([0.05 * np.sin(2 * u[:, 1]), 0.25 * u[:, 0] ** 2]) + 0.03 * rng.normal(size=u.shape)
+    y = y[rng.permutation(60)[:50]]
+    kernel = Kernel.of(np.exp(-sq_dist(u, u) / (4 * 0.5)))
+    return u, y, kernel, dict(lam=2.0, volume=float(np.prod(np.ptp(y, axis=0))), s2_floor=1e-6)
+
+
+def test_the_em_map_gives_the_objective_at_its_input():
+    """F from the E-step's normalisers against the objective (itself checked against scipy above)."""
+    u, y, kernel, o = _problem()
+    st = EMState(u=u, kernel=kernel, coef=0.02 * np.cos(u), s2=0.07, w=0.1)
+    n, d = u.shape
+    out = _em_map(u, kernel.q, np.ascontiguousarray(kernel.q.T), kernel.ev, y, np.sum(y * y, axis=1), st.coef, st.s2,
+                  outlier_term(n, d, 1.0, st.w, o["volume"]), o["lam"], False, o["s2_floor"], np.log(0.9 / n))
+    assert out[2] == pytest.approx(objective(st, y, lam=o["lam"], volume=o["volume"]), rel=1e-12)
+    # and the iteration it gives is one plain EM iteration
+    one = run_em(EMState(u=u, kernel=kernel, coef=st.coef.copy(), s2=st.s2, w=0.1), y, max_iter=1, tol=0.0, **o)
+    np.testing.assert_allclose(out[0], one.coef, rtol=1e-12, atol=1e-14)
+    assert out[1] == pytest.approx(one.s2, rel=1e-12)
+
+
+def test_the_extrapolation_recovers_the_limit_of_a_geometric_sequence():
+    """SQUAREM's S3 step is exact for x_k = x* + ρ^k e (its α is −1/(1 − ρ)), and α = −1 gives x2."""
+    rng = np.random.default_rng(0)
+    star, e = rng.normal(size=(7, 2)), rng.normal(size=(7, 2))
+    ls, le = np.log(0.3), 0.8
+    for rho in (0.5, 0.9, 0.99):
+        xs = [(star + rho**k * e, np.exp(ls + rho**k * le)) for k in range(3)]
+        c, s2 = _extrapolate(*xs[0], *xs[1], *xs[2], 1e-12)
+        np.testing.assert_allclose(c, star, atol=1e-9)
+        assert np.log(s2) == pytest.approx(ls, abs=1e-9)
+    # a sequence that does not contract (‖r‖ ≤ ‖v‖): the step is held at α = −1, which is x2
+    xs = [(star + (-1.5) ** k * e, np.exp(ls + (-1.5) ** k * le)) for k in range(3)]
+    c, s2 = _extrapolate(*xs[0], *xs[1], *xs[2], 1e-12)
+    np.testing.assert_allclose(c, xs[2][0], atol=1e-12)
+    assert s2 == pytest.approx(xs[2][1], rel=1e-12)
+
+
+def test_the_accelerated_em_reaches_the_fixed_point_of_plain_em_in_fewer_iterations():
+    u, y, kernel, o = _problem()
+    fits = {}
+    for acc in (False, True):
+        st = EMState(u=u, kernel=kernel, coef=np.zeros_like(u), s2=1.0, w=0.1)
+        fits[acc] = run_em(st, y, max_iter=20000, tol=1e-11, accelerate=acc, **o)
+    plain, fast = fits[False], fits[True]
+    assert plain.ok and fast.ok
+    np.testing.assert_allclose(fast.theta, plain.theta, atol=1e-6)
+    assert fast.s2 == pytest.approx(plain.s2, rel=1e-6)
+    assert fast.it < 0.6 * plain.it
+    # the first PLAIN_ITER iterations are plain EM: the same iterate either way
+    a = run_em(EMState(u=u, kernel=kernel, coef=np.zeros_like(u), s2=1.0, w=0.1), y, max_iter=PLAIN_ITER, tol=0.0,
+               **o)
+    b = run_em(EMState(u=u, kernel=kernel, coef=np.zeros_like(u), s2=1.0, w=0.1), y, max_iter=PLAIN_ITER, tol=0.0,
+               accelerate=False, **o)
+    np.testing.assert_array_equal(a.coef, b.coef)
+
+
+def test_a_cycle_never_ends_above_one_em_iteration():
+    """The safeguard: a cycle (three iterations past PLAIN_ITER, one call) ends at an F no higher than one
+    plain EM iteration from its start reaches, and EM never increases F; so F over the calls never increases.
+    Accelerated from σ² = 1 (as if past PLAIN_ITER), where extrapolations overshoot and are refused."""
+    u, y, kernel, o = _problem()
+    st = EMState(u=u, kernel=kernel, coef=np.zeros_like(u), s2=1.0, w=0.6, it=PLAIN_ITER)
+    f = [objective(st, y, lam=o["lam"], volume=o["volume"])]
+    for _ in range(15):
+        one = EMState(u=u, kernel=kernel, coef=st.coef.copy(), s2=st.s2, w=0.6)
+        run_em(one, y, max_iter=1, tol=0.0, accelerate=False, **o)
+        run_em(st, y, max_iter=3, tol=0.0, **o)
+        f.append(objective(st, y, lam=o["lam"], volume=o["volume"]))
+        assert f[-1] <= objective(one, y, lam=o["lam"], volume=o["volume"]) + 1e-9 * abs(f[-1])
+    assert np.all(np.diff(f) <= 1e-9 * np.abs(f[:-1]))
+    assert st.it == PLAIN_ITER + 45

@@ -19,11 +19,14 @@ The batched path is the search of :mod:`shapelib.pointsets._nonrigid` with the e
    largest kept rank.
 3. **EM.** Every fit (a pair × a start rotation × an outlier weight) iterates E-step, Woodbury
    M-step and σ² update in a ``lax.while_loop`` under ``vmap``: a fit that has met its tolerance (or
-   ``max_iter``) is frozen while the others go on. Screening runs ``SCREEN_ITER`` iterations from
-   every start at ``W_SCREEN``; the ``N_KEEP`` starts of least objective (chosen on the host, stable
-   order, as :func:`~shapelib.pointsets._nonrigid.fit_all` does) are fitted from the start at every
-   weight of the grid. A screened fit that converged is not reused as the search does: its fit at
-   ``W_SCREEN`` is run again from the start, the same iterations to the same fixed point.
+   ``max_iter``) is frozen while the others go on: ``PLAIN_ITER`` EM iterations, then the cycles of
+   :func:`~shapelib.pointsets._coherent_em.run_em`'s acceleration (two EM iterations, SQUAREM's
+   extrapolation and one iteration from it, kept if the objective did not increase), each pass of
+   a second loop one cycle: all three iterations computed and the cycle's outcome selected, so that
+   a fit stops where the compiled loop stops. Screening runs ``SCREEN_ITER`` iterations from every start at ``W_SCREEN``; the
+   ``N_KEEP`` starts of least objective (chosen on the host, stable order, as
+   :func:`~shapelib.pointsets._nonrigid.fit_all` does) are fitted at every weight of the grid: at
+   ``W_SCREEN`` by continuing the screening's EM, at the others from the start.
 4. **Results.** The fits go back to the host as
    :class:`~shapelib.pointsets._coherent_em.EMState` objects, and each pair's
    :class:`~shapelib.RegistrationResult` is assembled by the same numpy code as :func:`register`'s
@@ -43,7 +46,7 @@ import numpy as np
 from .._validate import check_positive, check_positive_int
 from ..geometry import _jax_kernels as jk
 from ..solver.batched import DEVICES, bucket, jax_device
-from ._coherent_em import EIG_RTOL, EMState, Kernel, box_volume
+from ._coherent_em import EIG_RTOL, PLAIN_ITER, EMState, Kernel, box_volume
 from ._nonrigid import N_KEEP, SCREEN_ITER, W_GRID, W_SCREEN, start_rotations
 from .checks import as_point_set
 from .registration import (MAX_POINTS, SIGMA2_FLOOR, _check_w, _nonrigid_frame, _nonrigid_result, register)
@@ -354,12 +357,20 @@ def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device):
             common = (xs, umask, ys, ymask, nreal, vol, floor, q, ev)
             scalars = (float(lam), float(tol))
             screen = np.broadcast_to(rot_arr, (bp, n_rot, d, d))
-            out1 = fit(*common, screen, np.full(n_rot, w), *scalars, min(SCREEN_ITER, max_iter))
-            f_screen = np.asarray(out1[4])
+            fresh = (np.zeros((bp, n_rot), bool), np.zeros((bp, n_rot, n_pad, d)), np.ones((bp, n_rot)),
+                     np.zeros((bp, n_rot), np.int32), np.zeros((bp, n_rot), bool))
+            out1 = [np.asarray(a) for a in fit(*common, screen, np.full(n_rot, w), *fresh, *scalars,
+                                               min(SCREEN_ITER, max_iter))]
+            f_screen = out1[4]
             kept = np.argsort(f_screen, axis=1, kind="stable")[:, :N_KEEP]  # fit_all's sort: stable, by objective
             starts = np.repeat(kept, len(grid), axis=1)  # (bp, N_KEEP · len(grid)): start-major, weights inner
             weights = np.tile(np.asarray(grid, float), kept.shape[1])
-            out2 = [np.asarray(a) for a in fit(*common, rot_arr[starts], weights, *scalars, max_iter)]
+            # the fit at the screening weight continues the screening's EM, the others start afresh (fit_all)
+            rows = np.arange(bp)[:, None]
+            resume = np.broadcast_to(weights == w, starts.shape).copy()
+            carried = (resume, out1[0][rows, starts], out1[1][rows, starts], out1[2][rows, starts].astype(np.int32),
+                       out1[3][rows, starts])
+            out2 = [np.asarray(a) for a in fit(*common, rot_arr[starts], weights, *carried, *scalars, max_iter)]
     coef, s2, it, ok, f = out2
     fits = []
     for k in range(b):
@@ -398,7 +409,8 @@ def _programs():
 
     factor = jax.jit(jax.vmap(factor_one, in_axes=(0, 0, None)))
 
-    def fit_one(x, umask, y, ymask, n, vol, floor, q, ev, rot, w, lam, tol, max_iter):
+    def fit_one(x, umask, y, ymask, n, vol, floor, q, ev, rot, w, resume, coef0, s2_init, it0, ok0, lam, tol,
+                max_iter):
         d = x.shape[1]
         u = jnp.where(umask[:, None], x @ rot.T, 0.0)
         pair = umask[:, None] & ymask[None, :]
@@ -412,12 +424,21 @@ def _programs():
         def apply(coef):  # G W
             return q @ (ev[:, None] * (q.T @ coef))
 
-        def step(coef, s2):
-            theta = u + apply(coef)
-            e = jnp.where(pair, jnp.exp(-dist(theta) / (2.0 * s2)), 0.0)
+        m_real = jnp.sum(ymask)
+        log_wn = jnp.log((1 - w) / n)
+
+        def step(coef, s2):  # one EM iteration, and F at its input (_coherent_em._em_map)
+            gw = apply(coef)
+            r = dist(u + gw)
+            e = jnp.where(pair, jnp.exp(-r / (2.0 * s2)), 0.0)
             den = jnp.sum(e, axis=0) + (2 * jnp.pi * s2) ** (d / 2) * c_w
             live = ymask & (den > 0)
             p = jnp.where(live[None, :], e / jnp.where(live, den, 1.0)[None, :], 0.0)
+            # the columns' log-normalisers (a column whose every term underflows: its largest term's log)
+            rmin = jnp.min(jnp.where(pair, r, jnp.inf), axis=0)
+            lse = jnp.sum(jnp.where(ymask, jnp.where(live, jnp.log(jnp.where(live, den, 1.0)),
+                                                     -jnp.where(ymask, rmin, 0.0) / (2.0 * s2)), 0.0))
+            f = 0.5 * lam * jnp.sum(coef * gw) - lse - m_real * (log_wn - 0.5 * d * jnp.log(2 * jnp.pi * s2))
             p1, pt1, py = jnp.sum(p, axis=1), jnp.sum(p, axis=0), p @ y
             lam_s2 = lam * s2
             b = py - p1[:, None] * u
@@ -426,19 +447,50 @@ def _programs():
             coef = (b - dq @ cho_solve((jnp.linalg.cholesky(inner), True), q.T @ b)) / lam_s2
             theta = u + apply(coef)
             sse = pt1 @ yy - 2.0 * jnp.sum(py * theta) + p1 @ jnp.sum(theta * theta, axis=1)
-            s2_new = jnp.maximum(sse / (jnp.maximum(jnp.sum(p1), 1e-300) * d), floor)
-            return coef, s2_new, jnp.abs(s2_new - s2) <= tol * s2
+            return coef, jnp.maximum(sse / (jnp.maximum(jnp.sum(p1), 1e-300) * d), floor), f
+
+        def extrapolate(c0, s0, c1, s1, c2, s2):  # _coherent_em._extrapolate
+            l0, l1, l2 = jnp.log(s0), jnp.log(s1), jnp.log(s2)
+            rl, vl = l1 - l0, l2 - 2.0 * l1 + l0
+            r, v = c1 - c0, c2 - 2.0 * c1 + c0
+            rr, vv = jnp.sum(r * r) + rl * rl, jnp.sum(v * v) + vl * vl
+            alpha = jnp.minimum(jnp.where(vv > 0, -jnp.sqrt(rr / jnp.where(vv > 0, vv, 1.0)), -1.0), -1.0)
+            lx = l0 - 2.0 * alpha * rl + alpha * alpha * vl
+            return c0 - 2.0 * alpha * r + alpha * alpha * v, jnp.maximum(jnp.exp(jnp.minimum(lx, 30.0)), floor)
+
+        def cond_plain(state):
+            it, _, _, done = state
+            return (~done) & (it < jnp.minimum(max_iter, PLAIN_ITER))
+
+        def body_plain(state):  # the first PLAIN_ITER iterations of a fit: plain EM
+            it, c0, s0, _ = state
+            c1, s1, _ = step(c0, s0)
+            return it + 1, c1, s1, jnp.abs(s1 - s0) <= tol * s0
 
         def cond(state):
             it, _, _, done = state
             return (~done) & (it < max_iter)
 
-        def body(state):
-            it, coef, s2, _ = state
-            coef, s2, done = step(coef, s2)
-            return it + 1, coef, s2, done
+        def body(state):  # one cycle of _coherent_em._em_loop (all three iterations computed, one kept)
+            it, c0, s0, _ = state
+            c1, s1, _ = step(c0, s0)
+            conv1 = jnp.abs(s1 - s0) <= tol * s0
+            c2, s2, f1 = step(c1, s1)
+            conv2 = jnp.abs(s2 - s1) <= tol * s1
+            cx, sx = extrapolate(c0, s0, c1, s1, c2, s2)
+            c3, s3, fx = step(cx, sx)
+            conv3 = jnp.abs(s3 - sx) <= tol * sx
+            one = conv1 | (it + 3 > max_iter)  # the cycle ends after its first iteration
+            two = ~one & conv2  # ... after its second, converged
+            refused = ~one & ~conv2 & ~(fx <= f1)  # three iterations run, the second one's kept
+            keep2 = two | refused
+            coef = jnp.where(one, c1, jnp.where(keep2, c2, c3))
+            return (jnp.where(one, it + 1, jnp.where(two, it + 2, it + 3)), coef,
+                    jnp.where(one, s1, jnp.where(keep2, s2, s3)), jnp.where(one, conv1, jnp.where(keep2, conv2, conv3)))
 
-        it, coef, s2, ok = lax.while_loop(cond, body, (jnp.int32(0), jnp.zeros_like(u), s2_0, jnp.bool_(False)))
+        state = (jnp.where(resume, it0, 0), jnp.where(resume, coef0, 0.0), jnp.where(resume, s2_init, s2_0),
+                 resume & ok0)
+        it, coef, s2, ok = lax.while_loop(cond, body, lax.while_loop(cond_plain, body_plain, state))
         # the objective F (negative log-posterior) of the final fit
         theta = u + apply(coef)
         logn = jnp.where(pair, -dist(theta) / (2 * s2), -jnp.inf) - 0.5 * d * jnp.log(2 * jnp.pi * s2)
@@ -447,6 +499,6 @@ def _programs():
         f = -jnp.sum(jnp.where(ymask, ll, 0.0)) + 0.5 * lam * jnp.sum(coef * apply(coef))
         return coef, s2, it, ok, f
 
-    per_pair = jax.vmap(fit_one, in_axes=(None,) * 9 + (0, 0, None, None, None))
-    fit = jax.jit(jax.vmap(per_pair, in_axes=(0,) * 10 + (None, None, None, None)))
+    per_pair = jax.vmap(fit_one, in_axes=(None,) * 9 + (0,) * 7 + (None, None, None))
+    fit = jax.jit(jax.vmap(per_pair, in_axes=(0,) * 10 + (None,) + (0,) * 5 + (None, None, None)))
     return factor, fit

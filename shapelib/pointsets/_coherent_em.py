@@ -37,10 +37,27 @@ low-rank variant does), which is the same for every rotation of the source; the 
 ``W = (B − D Q (λσ² Λ⁻¹ + Qᵀ D Q)⁻¹ Qᵀ B) / λσ²`` (Woodbury, ``D = diag(P1)``,
 ``B = P y − D u``): O(n k²) instead of O(n³).
 
+**Acceleration.** EM converges linearly, slowly once σ² is small: a fit of ~100 points often
+stopped at 150 iterations without meeting its tolerance. After the first ``PLAIN_ITER`` iterations of
+a fit, :func:`run_em` accelerates it with SQUAREM [2]_: with ``x = (W, log σ²)`` and ``M`` one EM
+iteration, each cycle takes ``x1 = M(x0)``, ``x2 = M(x1)``, the extrapolated point
+``x' = x0 − 2α r + α² v`` (``r = x1 − x0``, ``v = x2 − 2x1 + x0``, ``α = min(−‖r‖/‖v‖, −1)``: scheme
+S3) and one EM iteration from it, ``M(x')``, which is kept only if ``F(x') ≤ F(x1)``; otherwise the
+cycle ends at ``x2``. Each E-step gives ``F`` at its own input (its column normalisers are the
+likelihood), so the safeguard costs nothing, and ``F`` never increases from one cycle to the next.
+The fixed points are EM's: a fit stops when one EM iteration changes σ² by less than the tolerance.
+The first iterations stay plain EM because they decide the basin: σ² shrinks from the spread of the
+whole target, and an extrapolation there jumps past the slow shrinking (measured on the
+Chui–Rangarajan samples 1–5: accelerated from the first iteration, several fits end in worse basins;
+after ``PLAIN_ITER``, the same fits as plain EM, 15 % fewer iterations in all, and 279 of 280
+registrations meeting their tolerance instead of 259).
+
 References
 ----------
 .. [1] A. Myronenko and X. Song, "Point set registration: coherent point drift", *IEEE Transactions on
    Pattern Analysis and Machine Intelligence* 32(12), 2262–2275, 2010.
+.. [2] R. Varadhan and C. Roland, "Simple and globally convergent methods for accelerating the
+   convergence of any EM algorithm", *Scandinavian Journal of Statistics* 35(2), 335–353, 2008.
 """
 
 from __future__ import annotations
@@ -54,6 +71,8 @@ from numba import njit
 
 #: eigenvalues of the weight kernel below this fraction of the largest are dropped
 EIG_RTOL = 1e-10
+#: EM iterations of a fit before SQUAREM's acceleration starts (module docstring)
+PLAIN_ITER = 40
 
 
 def sq_dist(x, y):
@@ -156,8 +175,11 @@ def _column(tx, y, j, dist):
 def _estep(theta, y, s2, c):
     """The sums the M-step needs, without the (n, m) matrix: ``P1 = Σ_j P_ij`` (n,), ``Pᵀ1`` (m,),
     ``P y`` (n, d) and ``Σ_ij P_ij |y_j − θ_i|²``, with ``c`` the outlier term of ``P``'s
-    denominator. Each column is scaled by its largest term, ``exp(−r_min/2σ²)``, and the terms
-    ``PRUNE`` below it are dropped (the same sums to float64 precision)."""
+    denominator, and the sum of the denominators' logarithms ``Σ_j log(Σ_i exp(−|y_j − θ_i|²/2σ²) + c)``
+    (the log-likelihood up to terms in σ², w and n: :func:`_em_map`). Each column is scaled by its
+    largest term, ``exp(−r_min/2σ²)``, and the terms ``PRUNE`` below it are dropped (the same sums
+    to float64 precision); a column skipped for taking no posterior adds ``−r_min/2σ²``, its
+    logarithm to within ``log n``."""
     n, d = theta.shape
     m = y.shape[0]
     tx = np.ascontiguousarray(theta.T)
@@ -169,10 +191,12 @@ def _estep(theta, y, s2, c):
     dist = np.empty(n)
     bits = np.empty(n, np.int64)
     sse = 0.0
+    lse = 0.0
     half = 0.5 / s2
     for j in range(m):
         rmin = _column(tx, y, j, dist)
         if c == 0.0 and rmin * half > 708.0:
+            lse -= rmin * half
             continue  # every term underflows and no outlier term: the point takes no posterior
         for i in range(n):
             a[i] = min((dist[i] - rmin) * half, PRUNE + 1.0)
@@ -184,6 +208,8 @@ def _estep(theta, y, s2, c):
             s += v
         inv = 1.0 / (s + (c * math.exp(rmin * half) if c > 0.0 else 0.0))
         pt1[j] = s * inv
+        # the column's log-denominator −r_min/2σ² − log(inv); log c where c exp(r_min/2σ²) overflowed
+        lse += -(rmin * half + math.log(inv)) if inv > 0.0 else math.log(c)
         if d == 2:  # one pass; the column's share of the distances summed, then scaled once
             y0, y1 = y[j, 0] * inv, y[j, 1] * inv
             col = 0.0
@@ -204,44 +230,88 @@ def _estep(theta, y, s2, c):
                 yk = y[j, k]
                 for i in range(n):
                     pyt[k, i] += e[i] * yk
-    return p1, pt1, np.ascontiguousarray(pyt.T), sse
+    return p1, pt1, np.ascontiguousarray(pyt.T), sse, lse
 
 
 @njit(cache=True, fastmath=False)
-def _em_loop(u, q, ev, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor):
-    """:func:`run_em`'s iterations for a factored weight-coordinate kernel ``G = Q diag(ev) Qᵀ``, compiled:
-    E-step, the Woodbury M-step of the module docstring and σ²'s update. ``c_unit`` is the outlier
-    term at σ² = 1 (it scales as ``σ^d``). Returns ``coef``, σ², the iterations run and whether σ²'s
-    relative change fell below ``tol``."""
+def _em_map(u, q, qt, ev, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn):
+    """One EM iteration from ``(W, σ²)`` with the factored kernel ``G = Q diag(ev) Qᵀ``: E-step, the
+    Woodbury M-step of the module docstring and σ²'s update (σ² kept when ``fixed``). Returns ``W``,
+    σ² and the objective ``F`` at the *input* ``(W, σ²)`` (its E-step's log-normalisers give it:
+    ``F = −Σ_j L_j − m log((1 − w)/n) + (m d/2) log(2πσ²) + (λ/2) tr(Wᵀ G W)``, ``log_wn`` is
+    ``log((1 − w)/n)``). ``c_unit`` is the outlier term at σ² = 1 (it scales as ``σ^d``)."""
+    n, d = u.shape
+    gw = q @ (ev[:, None] * (qt @ coef))
+    p1, pt1, py, sse, lse = _estep(u + gw, y, s2, c_unit * s2 ** (d / 2))
+    f = 0.5 * lam * np.sum(coef * gw) - lse - y.shape[0] * (log_wn - 0.5 * d * math.log(2.0 * math.pi * s2))
+    lam_s2 = lam * s2
+    b = py - p1[:, None] * u
+    dq = p1[:, None] * q
+    inner = qt @ dq
+    for a in range(inner.shape[0]):
+        inner[a, a] += lam_s2 / ev[a]
+    coef = (b - dq @ np.linalg.solve(inner, qt @ b)) / lam_s2
+    if fixed:
+        return coef, s2, f
+    theta = u + q @ (ev[:, None] * (qt @ coef))
+    sse = pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.sum(theta * theta, axis=1)
+    return coef, max(sse / (max(p1.sum(), 1e-300) * d), s2_floor), f
+
+
+@njit(cache=True, fastmath=False)
+def _extrapolate(c0, s0, c1, s1, c2, s2, s2_floor):
+    """SQUAREM's step (scheme S3 of [2]_) from three successive EM iterates ``x0, x1 = M(x0),
+    x2 = M(x1)`` of ``x = (W, log σ²)``: ``r = x1 − x0``, ``v = x2 − 2 x1 + x0``,
+    ``α = −min(‖r‖/‖v‖, …)`` held at most −1, and ``x' = x0 − 2α r + α² v`` (``α = −1`` gives ``x2``).
+    Returns ``W'`` and σ²' (at least ``s2_floor``)."""
+    l0, l1, l2 = math.log(s0), math.log(s1), math.log(s2)
+    rl, vl = l1 - l0, l2 - 2.0 * l1 + l0
+    r = c1 - c0
+    v = c2 - 2.0 * c1 + c0
+    rr = np.sum(r * r) + rl * rl
+    vv = np.sum(v * v) + vl * vl
+    alpha = -math.sqrt(rr / vv) if vv > 0.0 else -1.0
+    alpha = min(alpha, -1.0)
+    lx = l0 - 2.0 * alpha * rl + alpha * alpha * vl
+    return c0 - 2.0 * alpha * r + alpha * alpha * v, max(math.exp(min(lx, 30.0)), s2_floor)
+
+
+@njit(cache=True, fastmath=False)
+def _em_loop(u, q, ev, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor, log_wn, plain):
+    """:func:`run_em`'s iterations for a factored weight-coordinate kernel, compiled: ``plain`` EM
+    iterations, then the cycle of the module docstring (two EM iterations, SQUAREM's extrapolation,
+    one EM iteration from it, kept only if ``F`` did not increase). Returns ``W``, σ², the EM
+    iterations run (the extrapolated ones included) and whether one EM iteration changed σ² by less
+    than ``tol`` (relative)."""
     n, d = u.shape
     yy = np.zeros(y.shape[0])
     for j in range(y.shape[0]):
         for k in range(d):
             yy[j] += y[j, k] * y[j, k]
     qt = np.ascontiguousarray(q.T)
-    theta = u + q @ (ev[:, None] * (qt @ coef))
     it = 0
-    ok = False
-    for _ in range(max_iter):
+    while it < max_iter:
+        c1, s1, f0 = _em_map(u, q, qt, ev, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn)
         it += 1
-        p1, pt1, py, sse = _estep(theta, y, s2, c_unit * s2 ** (d / 2))
-        lam_s2 = lam * s2
-        b = py - p1[:, None] * u
-        dq = p1[:, None] * q
-        inner = qt @ dq
-        for a in range(inner.shape[0]):
-            inner[a, a] += lam_s2 / ev[a]
-        coef = (b - dq @ np.linalg.solve(inner, qt @ b)) / lam_s2
-        theta = u + q @ (ev[:, None] * (qt @ coef))
-        if fixed:
+        if not fixed and abs(s1 - s2) <= tol * s2:
+            return c1, s1, it, True
+        if it <= plain or it + 2 > max_iter:
+            coef, s2 = c1, s1
             continue
-        sse = pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.sum(theta * theta, axis=1)
-        s2_old = s2
-        s2 = max(sse / (max(p1.sum(), 1e-300) * d), s2_floor)
-        if abs(s2 - s2_old) <= tol * s2_old:
-            ok = True
-            break
-    return coef, s2, it, ok
+        c2, s2b, f1 = _em_map(u, q, qt, ev, y, yy, c1, s1, c_unit, lam, fixed, s2_floor, log_wn)
+        it += 1
+        if not fixed and abs(s2b - s1) <= tol * s1:
+            return c2, s2b, it, True
+        cx, sx = _extrapolate(coef, s2, c1, s1, c2, s2b, s2_floor)
+        c3, s3, fx = _em_map(u, q, qt, ev, y, yy, cx, sx, c_unit, lam, fixed, s2_floor, log_wn)
+        it += 1
+        if not fx <= f1:  # the extrapolation did not decrease F (or is not a number): the EM iterate
+            coef, s2 = c2, s2b
+            continue
+        if not fixed and abs(s3 - sx) <= tol * sx:
+            return c3, s3, it, True
+        coef, s2 = c3, s3
+    return coef, s2, it, False
 
 
 def outlier_term(n, d, s2, w, volume):
@@ -309,42 +379,78 @@ def initial_sigma2(u, y):
     return float(np.mean(sq_dist(u, y)) / u.shape[1])
 
 
-def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12):
-    """Continue the EM of the module docstring for up to ``max_iter`` more iterations (w fixed).
+def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12, accelerate=True):
+    """Continue the EM of the module docstring for up to ``max_iter`` more iterations (w fixed),
+    accelerated by SQUAREM once the fit has run ``PLAIN_ITER`` iterations (never with
+    ``accelerate=False``).
 
-    Stops (``ok``, ``why="tolerance"``) when σ² changes by less than ``tol`` (relative).
+    Stops (``ok``, ``why="tolerance"``) when one EM iteration changes σ² by less than ``tol``
+    (relative); with ``fixed_s2`` it runs ``max_iter`` iterations. ``st.it`` counts EM iterations,
+    the extrapolated ones included.
     """
     n, d = st.u.shape
     y = np.ascontiguousarray(y, dtype=float)
     k = st.kernel
+    fixed = fixed_s2 is not None
+    log_wn = math.log((1 - st.w) / n)
+    plain = PLAIN_ITER - st.it if accelerate else max_iter  # iterations of this call before the acceleration
     if k is not None and k.full is None:
-        c_unit = outlier_term(n, d, 1.0, st.w, volume)
         coef, s2, it, ok = _em_loop(np.ascontiguousarray(st.u, dtype=float), np.ascontiguousarray(k.q), k.ev, y,
-                                    np.ascontiguousarray(st.coef, dtype=float), float(st.s2), c_unit, float(lam),
-                                    int(max_iter), float(tol), fixed_s2 is not None, float(s2_floor))
-        st.coef, st.s2, st.it = coef, s2, st.it + it
-        if fixed_s2 is not None or ok:
-            st.ok, st.why = True, "tolerance"
-        return st
-    yy = np.einsum("jd,jd->j", y, y)
-    for _ in range(max_iter):
-        st.it += 1
-        p1, pt1, py, sse = _estep(np.ascontiguousarray(st.theta), y, st.s2, outlier_term(n, d, st.s2, st.w, volume))
-        np_ = float(p1.sum())
-        if st.kernel is not None:
-            st.coef = st.kernel.solve(p1, py - p1[:, None] * st.u, lam * st.s2)
-            theta = st.theta
-            sse = float(pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.einsum("id,id->i", theta, theta))
-        if fixed_s2 is not None:
-            continue
-        s2_old = st.s2
-        st.s2 = max(sse / (max(np_, 1e-300) * d), s2_floor)
-        if abs(st.s2 - s2_old) <= tol * s2_old:
-            st.ok, st.why = True, "tolerance"
-            break
-    if fixed_s2 is not None:
+                                    np.ascontiguousarray(st.coef, dtype=float), float(st.s2),
+                                    outlier_term(n, d, 1.0, st.w, volume), float(lam), int(max_iter), float(tol),
+                                    fixed, float(s2_floor), log_wn, int(plain))
+    else:
+        coef, s2, it, ok = _squarem_py(st, y, lam=lam, volume=volume, max_iter=max_iter, tol=tol, fixed=fixed,
+                                       s2_floor=s2_floor, log_wn=log_wn, plain=plain)
+    st.coef, st.s2, st.it = coef, s2, st.it + it
+    if fixed or ok:
         st.ok, st.why = True, "tolerance"
     return st
+
+
+def _squarem_py(st, y, *, lam, volume, max_iter, tol, fixed, s2_floor, log_wn, plain):
+    """:func:`_em_loop` with a dense kernel on the means (``Kernel.full``) or none (σ² alone)."""
+    n, d = st.u.shape
+    m = len(y)
+    yy = np.einsum("jd,jd->j", y, y)
+
+    def em_map(coef, s2):
+        gw = st.kernel.apply(coef) if st.kernel is not None else np.zeros_like(st.u)
+        theta = st.u + gw
+        p1, pt1, py, sse, lse = _estep(np.ascontiguousarray(theta), y, s2, outlier_term(n, d, s2, st.w, volume))
+        f = 0.5 * lam * float(np.sum(coef * gw)) - lse - m * (log_wn - 0.5 * d * math.log(2.0 * math.pi * s2))
+        if st.kernel is not None:
+            coef = st.kernel.solve(p1, py - p1[:, None] * st.u, lam * s2)
+            theta = st.u + st.kernel.apply(coef)
+            sse = float(pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.einsum("id,id->i", theta, theta))
+        if fixed:
+            return coef, s2, f
+        return coef, max(sse / (max(float(p1.sum()), 1e-300) * d), s2_floor), f
+
+    coef, s2 = np.array(st.coef, dtype=float), float(st.s2)
+    it = 0
+    while it < max_iter:
+        c1, s1, _ = em_map(coef, s2)
+        it += 1
+        if not fixed and abs(s1 - s2) <= tol * s2:
+            return c1, s1, it, True
+        if it <= plain or it + 2 > max_iter:
+            coef, s2 = c1, s1
+            continue
+        c2, s2b, f1 = em_map(c1, s1)
+        it += 1
+        if not fixed and abs(s2b - s1) <= tol * s1:
+            return c2, s2b, it, True
+        cx, sx = _extrapolate(coef, s2, c1, s1, c2, s2b, s2_floor)
+        c3, s3, fx = em_map(cx, sx)
+        it += 1
+        if not fx <= f1:
+            coef, s2 = c2, s2b
+            continue
+        if not fixed and abs(s3 - sx) <= tol * sx:
+            return c3, s3, it, True
+        coef, s2 = c3, s3
+    return coef, s2, it, False
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)

@@ -9,14 +9,16 @@ and which of its fits is the answer. Both sets come in normalised units (zero me
    rotations of the cube), and their mirror images when reflections are allowed. EM's basin of
    attraction reaches further than half the step (CPD recovers rotations up to about 70° on its
    own), so one start lies in the right basin whatever the target's orientation.
-2. **Screening.** ``SCREEN_ITER`` EM iterations from each start at the screening outlier weight;
-   the ``N_KEEP`` starts of least objective go on.
+2. **Screening.** ``SCREEN_ITER`` EM iterations from each start at the screening outlier weight
+   (plain EM: the acceleration of :func:`~._coherent_em.run_em` starts after them); the ``N_KEEP``
+   starts of least objective go on.
 3. **Outlier weight.** With ``w="auto"``, each kept start is continued to convergence at every
    weight of ``W_GRID`` and the fit of least objective ``F`` (the negative log-posterior, a
    likelihood of the same target data under each fit) is kept: the profile likelihood of ``w``
    over a grid. Each fit runs at its own fixed ``w`` — EM that also updates ``w`` feeds back (what
    the deformation has not reached yet is called an outlier and then never reached), which is
-   what a fixed weight per fit avoids.
+   what a fixed weight per fit avoids. The fit at the screening weight continues the screening's
+   EM; the others start again from the posed source.
 4. **The comparison after the fit** (:func:`assess`): every final fit is kept with its objective, so
    that two distinct fits of nearly equal objective (a near-symmetric shape) are seen.
 """
@@ -94,14 +96,15 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
     fits = []
     for f0, k, st0 in screened[:N_KEEP]:
         for wk in grid:
-            if wk == screen_w and st0.ok:
-                fits.append((f0, k, st0))
-                tick(len(rots) + len(fits), total)
-                continue
-            # each weight from the start: a fit continued from another weight's keeps that weight's basin
-            s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(st0.u, yn)
-            st = EMState(u=st0.u, kernel=st0.kernel, coef=np.zeros_like(st0.u), s2=s2, w=wk)
-            run_em(st, yn, max_iter=max_iter, **opts)
+            if wk == screen_w:  # the screening's EM, continued to convergence (or max_iter in all)
+                st = EMState(u=st0.u, kernel=st0.kernel, coef=st0.coef.copy(), s2=st0.s2, w=wk, it=st0.it,
+                             ok=st0.ok, why=st0.why)
+                if not st.ok:
+                    run_em(st, yn, max_iter=max_iter - st.it, **opts)
+            else:  # each other weight from the start: a fit continued from another weight's keeps its basin
+                s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(st0.u, yn)
+                st = EMState(u=st0.u, kernel=st0.kernel, coef=np.zeros_like(st0.u), s2=s2, w=wk)
+                run_em(st, yn, max_iter=max_iter, **opts)
             fits.append((objective(st, yn, lam=lam, volume=volume), k, st))
             tick(len(rots) + len(fits), total)
     fits.sort(key=lambda c: c[0])
