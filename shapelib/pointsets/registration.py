@@ -177,8 +177,9 @@ class RegistrationResult:
     sigma2 : float
         The final σ² of the EM (in the target's units); ``w``: the final outlier weight.
     converged, stop_reason, n_iter
-        EM: ``"tolerance"`` (converged), ``"max_iter"`` (not). Convergence says that EM stopped
-        at a fixed point, not that the fixed point is the right one: see ``reliable``.
+        EM: ``"tolerance"`` (converged), ``"max_iter"`` (not), and the EM iterations of the fit
+        kept. Convergence says that EM stopped at a fixed point, not that the fixed point is the
+        right one: see ``reliable``.
     reliable : bool
         False when something says that the registration probably failed (non-rigid): another pose
         explains the target about as well with a different fit (objectives within 0.2 per target
@@ -391,9 +392,9 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     n_angles : int
         2-D start angles of the pose search of the rigid transforms (:func:`shapelib.align`).
     max_iter : int
-        EM iterations.
+        EM iterations per fit (non-rigid: the extrapolated iterations of the acceleration included).
     tol : float
-        EM stops when σ² changes by less than ``tol`` (relative) between iterations.
+        EM stops when one iteration changes σ² by less than ``tol`` (relative).
     n_steps : int
         Time steps of the deformation path.
     warn : bool
