@@ -172,11 +172,11 @@ def _column(tx, y, j, dist):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def _estep(theta, y, s2, c):
+def _estep(theta, y, s2, c, with_lse=True):
     """The sums the M-step needs, without the (n, m) matrix: ``P1 = Σ_j P_ij`` (n,), ``Pᵀ1`` (m,),
     ``P y`` (n, d) and ``Σ_ij P_ij |y_j − θ_i|²``, with ``c`` the outlier term of ``P``'s
     denominator, and the sum of the denominators' logarithms ``Σ_j log(Σ_i exp(−|y_j − θ_i|²/2σ²) + c)``
-    (the log-likelihood up to terms in σ², w and n: :func:`_em_map`). Each column is scaled by its
+    (the log-likelihood up to terms in σ², w and n: :func:`_em_map`; 0 unless ``with_lse``). Each column is scaled by its
     largest term, ``exp(−r_min/2σ²)``, and the terms ``PRUNE`` below it are dropped (the same sums
     to float64 precision); a column skipped for taking no posterior adds ``−r_min/2σ²``, its
     logarithm to within ``log n``."""
@@ -196,7 +196,8 @@ def _estep(theta, y, s2, c):
     for j in range(m):
         rmin = _column(tx, y, j, dist)
         if c == 0.0 and rmin * half > 708.0:
-            lse -= rmin * half
+            if with_lse:
+                lse -= rmin * half
             continue  # every term underflows and no outlier term: the point takes no posterior
         for i in range(n):
             a[i] = min((dist[i] - rmin) * half, PRUNE + 1.0)
@@ -209,7 +210,8 @@ def _estep(theta, y, s2, c):
         inv = 1.0 / (s + (c * math.exp(rmin * half) if c > 0.0 else 0.0))
         pt1[j] = s * inv
         # the column's log-denominator −r_min/2σ² − log(inv); log c where c exp(r_min/2σ²) overflowed
-        lse += -(rmin * half + math.log(inv)) if inv > 0.0 else math.log(c)
+        if with_lse:
+            lse += -(rmin * half + math.log(inv)) if inv > 0.0 else math.log(c)
         if d == 2:  # one pass; the column's share of the distances summed, then scaled once
             y0, y1 = y[j, 0] * inv, y[j, 1] * inv
             col = 0.0
@@ -234,16 +236,19 @@ def _estep(theta, y, s2, c):
 
 
 @njit(cache=True, fastmath=False)
-def _em_map(u, q, qt, ev, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn):
+def _em_map(u, q, qt, ev, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, with_f=True):
     """One EM iteration from ``(W, σ²)`` with the factored kernel ``G = Q diag(ev) Qᵀ``: E-step, the
     Woodbury M-step of the module docstring and σ²'s update (σ² kept when ``fixed``). Returns ``W``,
     σ² and the objective ``F`` at the *input* ``(W, σ²)`` (its E-step's log-normalisers give it:
     ``F = −Σ_j L_j − m log((1 − w)/n) + (m d/2) log(2πσ²) + (λ/2) tr(Wᵀ G W)``, ``log_wn`` is
-    ``log((1 − w)/n)``). ``c_unit`` is the outlier term at σ² = 1 (it scales as ``σ^d``)."""
+    ``log((1 − w)/n)``; NaN unless ``with_f``). ``c_unit`` is the outlier term at σ² = 1 (it scales
+    as ``σ^d``)."""
     n, d = u.shape
     gw = q @ (ev[:, None] * (qt @ coef))
-    p1, pt1, py, sse, lse = _estep(u + gw, y, s2, c_unit * s2 ** (d / 2))
-    f = 0.5 * lam * np.sum(coef * gw) - lse - y.shape[0] * (log_wn - 0.5 * d * math.log(2.0 * math.pi * s2))
+    p1, pt1, py, sse, lse = _estep(u + gw, y, s2, c_unit * s2 ** (d / 2), with_f)
+    f = np.nan
+    if with_f:
+        f = 0.5 * lam * np.sum(coef * gw) - lse - y.shape[0] * (log_wn - 0.5 * d * math.log(2.0 * math.pi * s2))
     lam_s2 = lam * s2
     b = py - p1[:, None] * u
     dq = p1[:, None] * q
@@ -291,7 +296,7 @@ def _em_loop(u, q, ev, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor,
     qt = np.ascontiguousarray(q.T)
     it = 0
     while it < max_iter:
-        c1, s1, f0 = _em_map(u, q, qt, ev, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn)
+        c1, s1, _ = _em_map(u, q, qt, ev, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, False)
         it += 1
         if not fixed and abs(s1 - s2) <= tol * s2:
             return c1, s1, it, True
