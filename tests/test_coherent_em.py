@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from shapelib.pointsets._coherent_em import (PLAIN_ITER, EMState, Kernel, _em_map, _estep, _exp_neg, _extrapolate,
-                                             objective, outlier_term, posteriors, run_em, sq_dist)
+                                             initial_sigma2, objective, outlier_term, posteriors, run_em, sq_dist)
 
 
 @pytest.fixture
@@ -201,3 +201,11 @@ def test_a_cycle_never_ends_above_one_em_iteration():
         assert f[-1] <= objective(one, y, lam=o["lam"], volume=o["volume"]) + 1e-9 * abs(f[-1])
     assert np.all(np.diff(f) <= 1e-9 * np.abs(f[:-1]))
     assert st.it == PLAIN_ITER + 45
+
+
+def test_the_start_sigma2_is_the_mean_squared_distance_over_the_dimension(sets):
+    theta, y = sets
+    u = 2.0 * theta + [0.3, -1.2]  # off-centre: the cross term counts
+    dense = np.mean(np.sum((y[None, :, :] - u[:, None, :]) ** 2, axis=2)) / 2
+    assert initial_sigma2(u, y) == pytest.approx(dense, rel=1e-13)
+    assert initial_sigma2(y, y) == pytest.approx(np.mean(np.sum((y[None] - y[:, None]) ** 2, axis=2)) / 2, rel=1e-13)

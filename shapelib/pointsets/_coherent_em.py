@@ -380,8 +380,11 @@ class EMState:
 
 
 def initial_sigma2(u, y):
-    """``Σ_ij |y_j − u_i|² / (d n m)``: CPD's start, wide enough to see the whole target."""
-    return float(np.mean(sq_dist(u, y)) / u.shape[1])
+    """``Σ_ij |y_j − u_i|² / (d n m)``: CPD's start, wide enough to see the whole target, without the
+    (n, m) distances: ``(m Σ_i |u_i|² + n Σ_j |y_j|² − 2 (Σ_i u_i)·(Σ_j y_j)) / (d n m)``."""
+    (n, d), m = u.shape, len(y)
+    total = m * np.einsum("id,id->", u, u) + n * np.einsum("jd,jd->", y, y) - 2.0 * float(u.sum(axis=0) @ y.sum(axis=0))
+    return float(max(total, 0.0) / (d * n * m))
 
 
 def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12, accelerate=True):
