@@ -251,3 +251,24 @@ def test_psi_coef_on_scattered_nodes_matches_logsumexp(rng, d):
     np.testing.assert_allclose(psi, 2 * np.exp(0.5 * log_p), rtol=1e-12)
     ref = np.exp(log_n - np.log(k * s2) - 0.5 * log_p[:, None])
     assert np.all(np.abs(coef - ref) <= 1e-12 * ref.max(axis=1)[:, None])
+
+
+def test_fisher_rao_derivatives_where_the_density_underflows(rng):
+    """Two clusters 80σ apart: the grid between them has nodes where p underflows and ψ is exactly
+    0 (ψ̇ too). The quadratic form's gradient and second derivatives (numpy) stay finite there and
+    equal the compiled kernels' (another implementation of the same sums); ψ̇²/ψ is taken as 0."""
+    from shapelib.geometry.metrics import fr_qform_grad_hessian_compiled
+
+    s2 = 0.05
+    far = 80 * np.sqrt(s2) * np.eye(2)
+    theta = np.concatenate([rng.normal(size=(2, 2)) * 0.3 + far[0], rng.normal(size=(2, 2)) * 0.3 + far[1]])[None]
+    vel = rng.normal(size=theta.shape)
+    grid = make_grid(theta, sigma2=s2, grid_spacing=0.5, grid_margin=4)
+    psi, _ = psi_coef(theta[0], s2, grid)
+    assert np.sum(psi == 0) > 0  # the underflow is exercised
+    q, d_theta, d_vel = _fr_qform_grad(theta, vel, s2, grid)
+    hess = _fr_qform_hessian(theta, vel, s2, grid)
+    q_c, dt_c, dv_c, hess_c = fr_qform_grad_hessian_compiled(theta, vel, s2, grid)
+    for got, ref in zip((q, d_theta, d_vel, *hess), (q_c, dt_c, dv_c, *hess_c)):
+        assert np.all(np.isfinite(got))
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-10 * np.abs(ref).max())
