@@ -264,3 +264,58 @@ def test_near_form_in_chunks_and_at_a_wide_sigma(rng):
     u = wide.normal(size=(5, 2))
     v = u + 0.5 * wide.normal(size=u.shape)
     assert l2_distance(u, v, sigma2=1e6) == pytest.approx(np.sqrt(_decimal_l2_sq(u, v, 1e6)), rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda x: alpha_bound_block(x[0], x, sigma2=0.5), r"^rows must have shape \(N, K, d\)"),
+    (lambda x: fisher_rao_bound_block(x, x[0], sigma2=0.5), r"^cols must have shape \(N, K, d\)"),
+    (lambda x: alpha_bound_block(x, x[:, :4], sigma2=0.5),
+     r"^rows and cols must have the same \(K, d\); got \(5, 2\) and \(4, 2\)$"),
+    (lambda x: bound_matrix_sweep(x[0], metric="alpha_bound", sigma2s=[0.5]), r"^shapes must have shape \(N, K, d\)"),
+    (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=0.5),
+     r"^sigma2s must be a non-empty 1-D sequence of positive numbers; got 0.5$"),
+    (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[[0.5, 1.0]]),
+     r"^sigma2s must be a non-empty 1-D sequence of positive numbers"),
+    (lambda x: bound_block("alpha", x, sigma2=0.5), r"^metric must be one of \('alpha_bound', 'fisher_rao_bound'\); got 'alpha'$"),
+    (lambda x: bound_block("alpha_bound", x, sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: bound_block("fisher_rao_bound", x, x[:2], sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: alpha_bound_block(x, x[:2], sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: fisher_rao_bound_block(x, sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[0.5], n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: bound_matrix_sweep(x, metric="fisher_rao_bound", sigma2s=[0.5], n_threads=0),
+     r"^n_threads must be a positive integer"),
+])
+def test_each_entry_point_names_the_argument_at_fault(rng, call, message):
+    with pytest.raises(ValueError, match=message):
+        call(_population(rng, 4, 5, 2))
+
+
+@pytest.mark.parametrize("metric", ["alpha_bound", "fisher_rao_bound"])
+def test_bound_block_by_name_is_the_per_pair_bound_of_rows_against_cols(rng, metric):
+    """``bound_block(metric, rows, cols)``: entry (r, c) is the per-pair bound of rows[r] and
+    cols[c] (l2_distance; fisher_rao_lower_bound to its quadrature accuracy), not rows with itself."""
+    x = _population(rng, 5, 6, 2, size=1.5)
+    rows, cols = x[:2], x[2:]
+    got = bound_block(metric, rows, cols, sigma2=0.4, n_threads=1)
+    assert got.shape == (2, 3)
+    one = l2_distance if metric == "alpha_bound" else fisher_rao_lower_bound
+    want = np.array([[one(u, v, sigma2=0.4) for v in cols] for u in rows])
+    np.testing.assert_allclose(got, want, rtol=1e-12 if metric == "alpha_bound" else 1e-7, atol=0)
+
+
+def test_alpha_matrix_far_from_the_reference_is_quiet(rng):
+    """Shapes 5 apart at σ² = 0.01 (|δ|²/2σ² ~ 1e3): the centred form's exponentials overflow for
+    the pairs that use the plain overlaps, which must happen silently (no RuntimeWarning) and leave
+    every entry equal to l2_distance."""
+    import warnings
+
+    base = rng.normal(size=(4, 2)) * 3
+    x = np.stack([base + rng.normal(size=2) * 5 for _ in range(5)])
+    s2 = 0.01
+    want = np.array([[l2_distance(u, v, sigma2=s2) for v in x] for u in x])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = alpha_bound_matrix(x, sigma2=s2, n_threads=1)
+        sweep = bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[s2, 2 * s2], n_threads=1)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(sweep[0], want, rtol=1e-12, atol=0)
