@@ -272,6 +272,7 @@ def test_near_form_in_chunks_and_at_a_wide_sigma(rng):
     (lambda x: alpha_bound_block(x, x[:, :4], sigma2=0.5),
      r"^rows and cols must have the same \(K, d\); got \(5, 2\) and \(4, 2\)$"),
     (lambda x: bound_matrix_sweep(x[0], metric="alpha_bound", sigma2s=[0.5]), r"^shapes must have shape \(N, K, d\)"),
+    (lambda x: alpha_bound_matrix(x[0], sigma2=0.5), r"^shapes must have shape \(N, K, d\)"),
     (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=0.5),
      r"^sigma2s must be a non-empty 1-D sequence of positive numbers; got 0.5$"),
     (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[[0.5, 1.0]]),
@@ -319,3 +320,56 @@ def test_alpha_matrix_far_from_the_reference_is_quiet(rng):
         sweep = bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[s2, 2 * s2], n_threads=1)
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
     np.testing.assert_allclose(sweep[0], want, rtol=1e-12, atol=0)
+
+
+def _direct_fisher_rao(rows, cols, s2, spacing, margin):
+    """4 arcsin(‖ψ_r − ψ_c‖/4) with ψ = 2√p from gmm_density at the nodes of the grid covering both
+    sets, ‖·‖² the node sum times the node weight: the sum the batched bound evaluates, term by term."""
+    from shapelib.geometry.gmm import gmm_density
+    from shapelib.geometry.quadrature import make_grid
+
+    grid = make_grid(np.concatenate([rows, cols]), sigma2=s2, grid_spacing=spacing, grid_margin=margin)
+    psi = lambda xs: np.stack([2 * np.sqrt(gmm_density(grid.nodes, u, sigma2=s2)) for u in xs])  # noqa: E731
+    pr, pc = psi(rows), psi(cols)
+    sq = grid.weight * ((pr[:, None, :] - pc[None, :, :]) ** 2).sum(axis=-1)
+    return 4 * np.arcsin(np.minimum(np.sqrt(sq) / 4, 1.0)), len(grid.nodes)
+
+
+def test_fisher_rao_block_and_matrix_are_the_direct_sums_on_their_grid(rng):
+    """A narrow grid (step 0.2 σ, margin 2.5 σ: not the defaults) covering rows and columns
+    that are far apart (Bhattacharyya coefficient near 0), one column a 1e-7 copy of a row: every
+    entry is the direct sum w Σ (ψ_r − ψ_c)² on that grid (ψ from gmm_density), to rounding. The grid
+    has more nodes than one chunk of the ψ matrix, so the sums run over several chunks."""
+    s2 = 0.25
+    rows = rng.normal(size=(3, 4, 2)) * 1.5
+    cols = np.stack([rows[0] + 1e-7 * rng.normal(size=(4, 2)), rows[1] + [9.0, 0.0], rng.normal(size=(4, 2)) * 1.5])
+    want, n_nodes = _direct_fisher_rao(rows, cols, s2, 0.2, 2.5)
+    assert n_nodes > 8192 and want[1, 1] > 3.0 and want[0, 0] < 1e-5
+    got = fisher_rao_bound_block(rows, cols, sigma2=s2, grid_spacing=0.2, grid_margin=2.5, n_threads=1)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=0)
+    x = np.concatenate([rows, cols])
+    full, _ = _direct_fisher_rao(x, x, s2, 0.2, 2.5)
+    np.fill_diagonal(full, 0.0)
+    got = fisher_rao_bound_matrix(x, sigma2=s2, grid_spacing=0.2, grid_margin=2.5, n_threads=1)
+    np.testing.assert_allclose(got, full, rtol=1e-9, atol=0)
+
+
+@pytest.mark.parametrize("metric, n", [("alpha_bound", 130), ("fisher_rao_bound", 70)])
+def test_many_near_pairs_are_all_recomputed(rng, metric, n):
+    """n copies of one shape, each moved by ~1e-7 (a population as tight as that): more near pairs
+    than one batch of the cancellation-free recomputation (4096 pairs for α, more than 8192 here;
+    2048 for Fisher–Rao). The matrix equals its blocks of ten rows, each of which has fewer near
+    pairs than one batch; α pairs also equal l2_distance to 1e-12 (the offsets from the reference
+    shape are taken from the uncentred landmarks, so they keep their digits)."""
+    u = rng.normal(size=(3, 2))
+    x = u + 1e-7 * rng.normal(size=(n, 3, 2))
+    assert n * (n - 1) // 2 > (8192 if metric == "alpha_bound" else 2048)
+    full = bound_block(metric, x, sigma2=0.5, n_threads=1)
+    blocks = np.concatenate([bound_block(metric, x[i:i + 10], x, sigma2=0.5, n_threads=1) for i in range(0, n, 10)])
+    off = ~np.eye(n, dtype=bool)
+    assert np.all(full[off] > 0)
+    np.testing.assert_allclose(full[off], blocks[off], rtol=1e-6 if metric == "fisher_rao_bound" else 1e-12, atol=0)
+    if metric == "alpha_bound":
+        for i, j in rng.integers(0, n, size=(20, 2)):
+            if i != j:
+                assert full[i, j] == pytest.approx(l2_distance(x[i], x[j], sigma2=0.5), rel=1e-12, abs=0)
