@@ -373,3 +373,14 @@ def test_many_near_pairs_are_all_recomputed(rng, metric, n):
         for i, j in rng.integers(0, n, size=(20, 2)):
             if i != j:
                 assert full[i, j] == pytest.approx(l2_distance(x[i], x[j], sigma2=0.5), rel=1e-12, abs=0)
+
+
+def test_alpha_matrix_of_more_shapes_than_one_block_of_self_terms(rng):
+    """300 shapes: the self terms ⟨p_i, p_i⟩ and ‖p_i − p_m‖² are taken 256 shapes at a time; every
+    entry still equals l2_distance (a sample of pairs, including ones across the 256 boundary)."""
+    x = _population(rng, 300, 3, 2, spread=0.3)
+    a = alpha_bound_matrix(x, sigma2=0.5, n_threads=1)
+    pairs = [(0, 299), (255, 256), (256, 257), (10, 280), (299, 298)] + [tuple(p) for p in rng.integers(0, 300, size=(10, 2))]
+    for i, j in pairs:
+        want = 0.0 if i == j else l2_distance(x[i], x[j], sigma2=0.5)
+        assert a[i, j] == pytest.approx(want, rel=1e-12, abs=0), (i, j)
