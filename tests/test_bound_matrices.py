@@ -384,3 +384,23 @@ def test_alpha_matrix_of_more_shapes_than_one_block_of_self_terms(rng):
     for i, j in pairs:
         want = 0.0 if i == j else l2_distance(x[i], x[j], sigma2=0.5)
         assert a[i, j] == pytest.approx(want, rel=1e-12, abs=0), (i, j)
+
+
+def test_alpha_block_with_shapes_on_both_sides_of_the_reach(rng):
+    """Blocks whose rows are all within √2σ of the reference shape (centred form) and whose columns
+    include a shape far outside (plain overlaps), and the other way round; and a population whose
+    shapes sit 3σ-ish from their mean at σ² = 0.1, where the centred form would cancel e^{45}-sized
+    terms: every entry equals l2_distance."""
+    s2 = 0.5
+    base = rng.normal(size=(4, 2)) * 2
+    near = base + 0.01 * rng.normal(size=(5, 4, 2))
+    mixed = np.stack([base + 0.01 * rng.normal(size=(4, 2)), base + [5.0, 0.0]])
+    for rows, cols in ((near, mixed), (mixed, near)):
+        got = alpha_bound_block(rows, cols, sigma2=s2, n_threads=1)
+        want = np.array([[l2_distance(u, v, sigma2=s2) for v in cols] for u in rows])
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
+    directions = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    x = base + 3.0 * directions[:, None, :] + 0.01 * rng.normal(size=(4, 4, 2))
+    got = alpha_bound_matrix(x, sigma2=0.1, n_threads=1)
+    want = np.array([[0.0 if i == j else l2_distance(x[i], x[j], sigma2=0.1) for j in range(4)] for i in range(4)])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
