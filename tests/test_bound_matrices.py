@@ -273,6 +273,9 @@ def test_near_form_in_chunks_and_at_a_wide_sigma(rng):
      r"^rows and cols must have the same \(K, d\); got \(5, 2\) and \(4, 2\)$"),
     (lambda x: bound_matrix_sweep(x[0], metric="alpha_bound", sigma2s=[0.5]), r"^shapes must have shape \(N, K, d\)"),
     (lambda x: alpha_bound_matrix(x[0], sigma2=0.5), r"^shapes must have shape \(N, K, d\)"),
+    (lambda x: fisher_rao_bound_matrix(x, sigma2=0.5, grid_spacing=0), r"^grid_spacing must be a positive finite number"),
+    (lambda x: fisher_rao_bound_block(x, sigma2=0.5, grid_margin=-1.0), r"^grid_margin must be a positive finite number"),
+    (lambda x: fisher_rao_bound_matrix(x, sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
     (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=0.5),
      r"^sigma2s must be a non-empty 1-D sequence of positive numbers; got 0.5$"),
     (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[[0.5, 1.0]]),
@@ -305,13 +308,14 @@ def test_bound_block_by_name_is_the_per_pair_bound_of_rows_against_cols(rng, met
 
 
 def test_alpha_matrix_far_from_the_reference_is_quiet(rng):
-    """Shapes 5 apart at σ² = 0.01 (|δ|²/2σ² ~ 1e3): the centred form's exponentials overflow for
-    the pairs that use the plain overlaps, which must happen silently (no RuntimeWarning) and leave
+    """Shapes 5 apart at σ² = 0.01 (|δ|²/2σ² ~ 1e3), one of them mirrored (landmark offsets from the
+    reference in opposite directions): the centred form's exponentials overflow for the pairs and
+    self terms that use the plain overlaps, which must happen silently (no RuntimeWarning) and leave
     every entry equal to l2_distance."""
     import warnings
 
     base = rng.normal(size=(4, 2)) * 3
-    x = np.stack([base + rng.normal(size=2) * 5 for _ in range(5)])
+    x = np.stack([base + rng.normal(size=2) * 5 for _ in range(5)] + [-base])  # mirrored: δ_a·δ_b < 0
     s2 = 0.01
     want = np.array([[l2_distance(u, v, sigma2=s2) for v in x] for u in x])
     with warnings.catch_warnings():
@@ -403,4 +407,28 @@ def test_alpha_block_with_shapes_on_both_sides_of_the_reach(rng):
     x = base + 3.0 * directions[:, None, :] + 0.01 * rng.normal(size=(4, 4, 2))
     got = alpha_bound_matrix(x, sigma2=0.1, n_threads=1)
     want = np.array([[0.0 if i == j else l2_distance(x[i], x[j], sigma2=0.1) for j in range(4)] for i in range(4)])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
+
+
+def test_alpha_many_near_pairs_within_clusters(rng):
+    """Two clusters of 95 shapes, 0.3 either side of the mean shape and 1e-9 apart within a cluster:
+    8,930 pairs much closer to each other than to the reference (more than two batches of the
+    cancellation-free recomputation), each equal to its blocks' value and to l2_distance."""
+    u = rng.normal(size=(3, 2))
+    step = np.array([0.3, 0.0])
+    x = np.concatenate([u + step + 1e-9 * rng.normal(size=(95, 3, 2)), u - step + 1e-9 * rng.normal(size=(95, 3, 2))])
+    full = alpha_bound_matrix(x, sigma2=0.5, n_threads=1)
+    blocks = np.concatenate([alpha_bound_block(x[i:i + 10], x, sigma2=0.5, n_threads=1) for i in range(0, 190, 10)])
+    off = ~np.eye(190, dtype=bool)
+    np.testing.assert_allclose(full[off], blocks[off], rtol=1e-12, atol=0)
+    for i, j in [(0, 94), (3, 90), (95, 189), (100, 188), (0, 189)]:
+        assert full[i, j] == pytest.approx(l2_distance(x[i], x[j], sigma2=0.5), rel=1e-12, abs=0)
+
+
+def test_alpha_matrix_of_shapes_near_the_origin(rng):
+    """Landmarks within ~0.2 of the origin (offsets from the reference comparable to the coordinates
+    themselves), centred form: every entry equals l2_distance."""
+    x = rng.normal(size=(3, 2)) * 0.2 + 0.01 * rng.normal(size=(6, 3, 2))
+    got = alpha_bound_matrix(x, sigma2=0.5, n_threads=1)
+    want = np.array([[0.0 if i == j else l2_distance(x[i], x[j], sigma2=0.5) for j in range(6)] for i in range(6)])
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
