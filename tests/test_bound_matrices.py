@@ -264,3 +264,171 @@ def test_near_form_in_chunks_and_at_a_wide_sigma(rng):
     u = wide.normal(size=(5, 2))
     v = u + 0.5 * wide.normal(size=u.shape)
     assert l2_distance(u, v, sigma2=1e6) == pytest.approx(np.sqrt(_decimal_l2_sq(u, v, 1e6)), rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda x: alpha_bound_block(x[0], x, sigma2=0.5), r"^rows must have shape \(N, K, d\)"),
+    (lambda x: fisher_rao_bound_block(x, x[0], sigma2=0.5), r"^cols must have shape \(N, K, d\)"),
+    (lambda x: alpha_bound_block(x, x[:, :4], sigma2=0.5),
+     r"^rows and cols must have the same \(K, d\); got \(5, 2\) and \(4, 2\)$"),
+    (lambda x: bound_matrix_sweep(x[0], metric="alpha_bound", sigma2s=[0.5]), r"^shapes must have shape \(N, K, d\)"),
+    (lambda x: alpha_bound_matrix(x[0], sigma2=0.5), r"^shapes must have shape \(N, K, d\)"),
+    (lambda x: fisher_rao_bound_matrix(x, sigma2=0.5, grid_spacing=0), r"^grid_spacing must be a positive finite number"),
+    (lambda x: fisher_rao_bound_block(x, sigma2=0.5, grid_margin=-1.0), r"^grid_margin must be a positive finite number"),
+    (lambda x: fisher_rao_bound_matrix(x, sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=0.5),
+     r"^sigma2s must be a non-empty 1-D sequence of positive numbers; got 0.5$"),
+    (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[[0.5, 1.0]]),
+     r"^sigma2s must be a non-empty 1-D sequence of positive numbers"),
+    (lambda x: bound_block("alpha", x, sigma2=0.5), r"^metric must be one of \('alpha_bound', 'fisher_rao_bound'\); got 'alpha'$"),
+    (lambda x: bound_block("alpha_bound", x, sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: bound_block("fisher_rao_bound", x, x[:2], sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: alpha_bound_block(x, x[:2], sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: fisher_rao_bound_block(x, sigma2=0.5, n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[0.5], n_threads=0), r"^n_threads must be a positive integer"),
+    (lambda x: bound_matrix_sweep(x, metric="fisher_rao_bound", sigma2s=[0.5], n_threads=0),
+     r"^n_threads must be a positive integer"),
+])
+def test_each_entry_point_names_the_argument_at_fault(rng, call, message):
+    with pytest.raises(ValueError, match=message):
+        call(_population(rng, 4, 5, 2))
+
+
+@pytest.mark.parametrize("metric", ["alpha_bound", "fisher_rao_bound"])
+def test_bound_block_by_name_is_the_per_pair_bound_of_rows_against_cols(rng, metric):
+    """``bound_block(metric, rows, cols)``: entry (r, c) is the per-pair bound of rows[r] and
+    cols[c] (l2_distance; fisher_rao_lower_bound to its quadrature accuracy), not rows with itself."""
+    x = _population(rng, 5, 6, 2, size=1.5)
+    rows, cols = x[:2], x[2:]
+    got = bound_block(metric, rows, cols, sigma2=0.4, n_threads=1)
+    assert got.shape == (2, 3)
+    one = l2_distance if metric == "alpha_bound" else fisher_rao_lower_bound
+    want = np.array([[one(u, v, sigma2=0.4) for v in cols] for u in rows])
+    np.testing.assert_allclose(got, want, rtol=1e-12 if metric == "alpha_bound" else 1e-7, atol=0)
+
+
+def test_alpha_matrix_far_from_the_reference_is_quiet(rng):
+    """Shapes 5 apart at σ² = 0.01 (|δ|²/2σ² ~ 1e3), one of them mirrored (landmark offsets from the
+    reference in opposite directions): the centred form's exponentials overflow for the pairs and
+    self terms that use the plain overlaps, which must happen silently (no RuntimeWarning) and leave
+    every entry equal to l2_distance."""
+    import warnings
+
+    base = rng.normal(size=(4, 2)) * 3
+    x = np.stack([base + rng.normal(size=2) * 5 for _ in range(5)] + [-base])  # mirrored: δ_a·δ_b < 0
+    s2 = 0.01
+    want = np.array([[l2_distance(u, v, sigma2=s2) for v in x] for u in x])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = alpha_bound_matrix(x, sigma2=s2, n_threads=1)
+        sweep = bound_matrix_sweep(x, metric="alpha_bound", sigma2s=[s2, 2 * s2], n_threads=1)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(sweep[0], want, rtol=1e-12, atol=0)
+
+
+def _direct_fisher_rao(rows, cols, s2, spacing, margin):
+    """4 arcsin(‖ψ_r − ψ_c‖/4) with ψ = 2√p from gmm_density at the nodes of the grid covering both
+    sets, ‖·‖² the node sum times the node weight: the sum the batched bound evaluates, term by term."""
+    from shapelib.geometry.gmm import gmm_density
+    from shapelib.geometry.quadrature import make_grid
+
+    grid = make_grid(np.concatenate([rows, cols]), sigma2=s2, grid_spacing=spacing, grid_margin=margin)
+    psi = lambda xs: np.stack([2 * np.sqrt(gmm_density(grid.nodes, u, sigma2=s2)) for u in xs])  # noqa: E731
+    pr, pc = psi(rows), psi(cols)
+    sq = grid.weight * ((pr[:, None, :] - pc[None, :, :]) ** 2).sum(axis=-1)
+    return 4 * np.arcsin(np.minimum(np.sqrt(sq) / 4, 1.0)), len(grid.nodes)
+
+
+def test_fisher_rao_block_and_matrix_are_the_direct_sums_on_their_grid(rng):
+    """A narrow grid (step 0.2 σ, margin 2.5 σ: not the defaults) covering rows and columns
+    that are far apart (Bhattacharyya coefficient near 0), one column a 1e-7 copy of a row: every
+    entry is the direct sum w Σ (ψ_r − ψ_c)² on that grid (ψ from gmm_density), to rounding. The grid
+    has more nodes than one chunk of the ψ matrix, so the sums run over several chunks."""
+    s2 = 0.25
+    rows = rng.normal(size=(3, 4, 2)) * 1.5
+    cols = np.stack([rows[0] + 1e-7 * rng.normal(size=(4, 2)), rows[1] + [9.0, 0.0], rng.normal(size=(4, 2)) * 1.5])
+    want, n_nodes = _direct_fisher_rao(rows, cols, s2, 0.2, 2.5)
+    assert n_nodes > 8192 and want[1, 1] > 3.0 and want[0, 0] < 1e-5
+    got = fisher_rao_bound_block(rows, cols, sigma2=s2, grid_spacing=0.2, grid_margin=2.5, n_threads=1)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=0)
+    x = np.concatenate([rows, cols])
+    full, _ = _direct_fisher_rao(x, x, s2, 0.2, 2.5)
+    np.fill_diagonal(full, 0.0)
+    got = fisher_rao_bound_matrix(x, sigma2=s2, grid_spacing=0.2, grid_margin=2.5, n_threads=1)
+    np.testing.assert_allclose(got, full, rtol=1e-9, atol=0)
+
+
+@pytest.mark.parametrize("metric, n", [("alpha_bound", 130), ("fisher_rao_bound", 70)])
+def test_many_near_pairs_are_all_recomputed(rng, metric, n):
+    """n copies of one shape, each moved by ~1e-7 (a population as tight as that): more near pairs
+    than one batch of the cancellation-free recomputation (4096 pairs for α, more than 8192 here;
+    2048 for Fisher–Rao). The matrix equals its blocks of ten rows, each of which has fewer near
+    pairs than one batch; α pairs also equal l2_distance to 1e-12 (the offsets from the reference
+    shape are taken from the uncentred landmarks, so they keep their digits)."""
+    u = rng.normal(size=(3, 2))
+    x = u + 1e-7 * rng.normal(size=(n, 3, 2))
+    assert n * (n - 1) // 2 > (8192 if metric == "alpha_bound" else 2048)
+    full = bound_block(metric, x, sigma2=0.5, n_threads=1)
+    blocks = np.concatenate([bound_block(metric, x[i:i + 10], x, sigma2=0.5, n_threads=1) for i in range(0, n, 10)])
+    off = ~np.eye(n, dtype=bool)
+    assert np.all(full[off] > 0)
+    np.testing.assert_allclose(full[off], blocks[off], rtol=1e-6 if metric == "fisher_rao_bound" else 1e-12, atol=0)
+    if metric == "alpha_bound":
+        for i, j in rng.integers(0, n, size=(20, 2)):
+            if i != j:
+                assert full[i, j] == pytest.approx(l2_distance(x[i], x[j], sigma2=0.5), rel=1e-12, abs=0)
+
+
+def test_alpha_matrix_of_more_shapes_than_one_block_of_self_terms(rng):
+    """300 shapes: the self terms ⟨p_i, p_i⟩ and ‖p_i − p_m‖² are taken 256 shapes at a time; every
+    entry still equals l2_distance (a sample of pairs, including ones across the 256 boundary)."""
+    x = _population(rng, 300, 3, 2, spread=0.3)
+    a = alpha_bound_matrix(x, sigma2=0.5, n_threads=1)
+    pairs = [(0, 299), (255, 256), (256, 257), (10, 280), (299, 298)] + [tuple(p) for p in rng.integers(0, 300, size=(10, 2))]
+    for i, j in pairs:
+        want = 0.0 if i == j else l2_distance(x[i], x[j], sigma2=0.5)
+        assert a[i, j] == pytest.approx(want, rel=1e-12, abs=0), (i, j)
+
+
+def test_alpha_block_with_shapes_on_both_sides_of_the_reach(rng):
+    """Blocks whose rows are all within √2σ of the reference shape (centred form) and whose columns
+    include a shape far outside (plain overlaps), and the other way round; and a population whose
+    shapes sit 3σ-ish from their mean at σ² = 0.1, where the centred form would cancel e^{45}-sized
+    terms: every entry equals l2_distance."""
+    s2 = 0.5
+    base = rng.normal(size=(4, 2)) * 2
+    near = base + 0.01 * rng.normal(size=(5, 4, 2))
+    mixed = np.stack([base + 0.01 * rng.normal(size=(4, 2)), base + [5.0, 0.0]])
+    for rows, cols in ((near, mixed), (mixed, near)):
+        got = alpha_bound_block(rows, cols, sigma2=s2, n_threads=1)
+        want = np.array([[l2_distance(u, v, sigma2=s2) for v in cols] for u in rows])
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
+    directions = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    x = base + 3.0 * directions[:, None, :] + 0.01 * rng.normal(size=(4, 4, 2))
+    got = alpha_bound_matrix(x, sigma2=0.1, n_threads=1)
+    want = np.array([[0.0 if i == j else l2_distance(x[i], x[j], sigma2=0.1) for j in range(4)] for i in range(4)])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
+
+
+def test_alpha_many_near_pairs_within_clusters(rng):
+    """Two clusters of 95 shapes, 0.3 either side of the mean shape and 1e-9 apart within a cluster:
+    8,930 pairs much closer to each other than to the reference (more than two batches of the
+    cancellation-free recomputation), each equal to its blocks' value and to l2_distance."""
+    u = rng.normal(size=(3, 2))
+    step = np.array([0.3, 0.0])
+    x = np.concatenate([u + step + 1e-9 * rng.normal(size=(95, 3, 2)), u - step + 1e-9 * rng.normal(size=(95, 3, 2))])
+    full = alpha_bound_matrix(x, sigma2=0.5, n_threads=1)
+    blocks = np.concatenate([alpha_bound_block(x[i:i + 10], x, sigma2=0.5, n_threads=1) for i in range(0, 190, 10)])
+    off = ~np.eye(190, dtype=bool)
+    np.testing.assert_allclose(full[off], blocks[off], rtol=1e-12, atol=0)
+    for i, j in [(0, 94), (3, 90), (95, 189), (100, 188), (0, 189)]:
+        assert full[i, j] == pytest.approx(l2_distance(x[i], x[j], sigma2=0.5), rel=1e-12, abs=0)
+
+
+def test_alpha_matrix_of_shapes_near_the_origin(rng):
+    """Landmarks within ~0.2 of the origin (offsets from the reference comparable to the coordinates
+    themselves), centred form: every entry equals l2_distance."""
+    x = rng.normal(size=(3, 2)) * 0.2 + 0.01 * rng.normal(size=(6, 3, 2))
+    got = alpha_bound_matrix(x, sigma2=0.5, n_threads=1)
+    want = np.array([[0.0 if i == j else l2_distance(x[i], x[j], sigma2=0.5) for j in range(6)] for i in range(6)])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)

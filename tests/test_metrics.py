@@ -182,3 +182,93 @@ def test_psi_on_tensor_grid_matches_direct_log_space_evaluation(rng, d):
     ref = nk[near] / (len(theta) * s2 * np.sqrt(p[near]))[:, None]
     np.testing.assert_allclose(coef[near], ref, rtol=1e-10, atol=1e-14 * ref.max())
     assert np.all(np.isfinite(psi)) and np.all(np.isfinite(coef)) and np.all(psi[~near] < 1e-120)
+
+
+# ---------------------------------------------------------------------------------------------
+# the entry points' checks and options, and ψ in log space on nodes that are not a tensor grid
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: alpha_metric(np.zeros(4), sigma2=1.0), r"^theta must be a 2-D array"),
+    (lambda: fisher_rao_metric(np.zeros(4), sigma2=1.0), r"^theta must be a 2-D array"),
+    (lambda: alpha_quadratic_form(np.zeros(4), np.zeros((2, 2)), sigma2=1.0), r"^theta must be a 2-D array"),
+    (lambda: fisher_rao_quadratic_form(np.zeros(4), np.zeros((2, 2)), sigma2=1.0), r"^theta must be a 2-D array"),
+    (lambda: alpha_quadratic_form(np.zeros((2, 2)), np.zeros(4), sigma2=1.0), r"^velocity must be a 2-D array"),
+    (lambda: fisher_rao_quadratic_form(np.zeros((2, 2)), np.zeros(4), sigma2=1.0), r"^velocity must be a 2-D array"),
+    (lambda: alpha_quadratic_form(np.zeros((3, 2)), np.zeros((2, 2)), sigma2=1.0),
+     r"^velocity must have the shape of theta \(3, 2\); got \(2, 2\)$"),
+    (lambda: fisher_rao_quadratic_form(np.zeros((3, 2)), np.zeros((2, 2)), sigma2=1.0),
+     r"^velocity must have the shape of theta \(3, 2\); got \(2, 2\)$"),
+    (lambda: fisher_rao_quadratic_form(np.zeros((2, 2)), np.ones((2, 2)), sigma2=-1.0), r"^sigma2 must be"),
+    (lambda: fisher_rao_quadratic_form(np.zeros((2, 2)), np.ones((2, 2)), sigma2=1.0, grid_margin=0),
+     r"grid_margin"),
+])
+def test_entry_points_name_the_argument_at_fault(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()
+
+
+def test_fisher_rao_uses_the_grid_it_is_given(rng):
+    """A coarse, narrow grid (step 0.6 σ, margin 2.5 σ, far from the defaults): the tensor and the
+    quadratic form are the brute-force sums of eq. (6) on that very grid, to rounding — which they
+    are not on the default grid (the options are used, each of them)."""
+    theta, v = rng.normal(size=(2, 4, 2))
+    s2 = 0.3
+    _, ref = grid_metrics(theta, s2, spacing=0.6, margin=2.5)
+    g = fisher_rao_metric(theta, sigma2=s2, grid_spacing=0.6, grid_margin=2.5)
+    assert np.allclose(g, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    q = fisher_rao_quadratic_form(theta, v, sigma2=s2, grid_spacing=0.6, grid_margin=2.5)
+    assert q == pytest.approx(v.ravel() @ ref @ v.ravel(), rel=1e-12)
+    for spacing, margin in ((0.35, 2.5), (0.6, 6.0)):  # either default alone is another sum
+        other = fisher_rao_metric(theta, sigma2=s2, grid_spacing=spacing, grid_margin=margin)
+        assert np.abs(other - ref).max() > 1e-6 * np.abs(ref).max()
+        assert abs(fisher_rao_quadratic_form(theta, v, sigma2=s2, grid_spacing=spacing, grid_margin=margin) - q) > 1e-6 * q
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_psi_coef_on_scattered_nodes_matches_logsumexp(rng, d):
+    """Nodes that are not a tensor grid (``Grid.axes`` empty) are evaluated in log space
+    (``_psi_coef_nodes``): ψ = 2√p and ``coef_a = N_a/(Kσ²√p)`` against scipy's logsumexp of the
+    components, at nodes near the landmarks and at nodes where p is ~1e-100 to 1e-250 (below what
+    a direct sum of densities resolves); ``coef`` to 1e-12 of each node's largest entry."""
+    from scipy.special import logsumexp
+
+    from shapelib.geometry.quadrature import Grid
+
+    s2, k = 0.7, 5
+    theta = rng.normal(size=(k, d))
+    near = rng.normal(size=(200, d)) * 2.0
+    direction = rng.normal(size=(40, d))
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    far = direction * np.sqrt(2 * s2 * rng.uniform(300, 680, size=(40, 1)))  # |x − φ|²/2σ² ~ 300 … 690
+    nodes = np.concatenate([near, far])
+    grid = Grid(nodes=nodes, weight=1.0, shape=(len(nodes),))
+    psi, coef = psi_coef(theta, s2, grid)
+    log_n = -((nodes[:, None, :] - theta[None]) ** 2).sum(-1) / (2 * s2) - 0.5 * d * np.log(2 * np.pi * s2)
+    log_p = logsumexp(log_n, axis=1) - np.log(k)
+    assert log_p.min() < np.log(1e-250) and log_p.max() > np.log(1e-2)  # both regimes
+    np.testing.assert_allclose(psi, 2 * np.exp(0.5 * log_p), rtol=1e-12)
+    ref = np.exp(log_n - np.log(k * s2) - 0.5 * log_p[:, None])
+    assert np.all(np.abs(coef - ref) <= 1e-12 * ref.max(axis=1)[:, None])
+
+
+def test_fisher_rao_derivatives_where_the_density_underflows(rng):
+    """Two clusters 80σ apart: the grid between them has nodes where p underflows and ψ is exactly
+    0 (ψ̇ too). The quadratic form's gradient and second derivatives (numpy) stay finite there and
+    equal the compiled kernels' (another implementation of the same sums); ψ̇²/ψ is taken as 0."""
+    from shapelib.geometry.metrics import fr_qform_grad_hessian_compiled
+
+    s2 = 0.05
+    far = 80 * np.sqrt(s2) * np.eye(2)
+    theta = np.concatenate([rng.normal(size=(2, 2)) * 0.3 + far[0], rng.normal(size=(2, 2)) * 0.3 + far[1]])[None]
+    vel = rng.normal(size=theta.shape)
+    grid = make_grid(theta, sigma2=s2, grid_spacing=0.5, grid_margin=4)
+    psi, _ = psi_coef(theta[0], s2, grid)
+    assert np.sum(psi == 0) > 0  # the underflow is exercised
+    q, d_theta, d_vel = _fr_qform_grad(theta, vel, s2, grid)
+    hess = _fr_qform_hessian(theta, vel, s2, grid)
+    q_c, dt_c, dv_c, hess_c = fr_qform_grad_hessian_compiled(theta, vel, s2, grid)
+    for got, ref in zip((q, d_theta, d_vel, *hess), (q_c, dt_c, dv_c, *hess_c)):
+        assert np.all(np.isfinite(got))
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-10 * np.abs(ref).max())

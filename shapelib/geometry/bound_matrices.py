@@ -284,8 +284,11 @@ def _alpha_matrices(x, y, s2s, *, n_threads):
     origin = both.reshape(-1, both.shape[2]).mean(axis=0)
     x0, y0 = x, y  # as given: the pairs recomputed one by one use these (centring would round the
     x, y = x - origin, y - origin  # landmark displacements); centred: |x|² + |y|² − 2x·y keeps its digits
-    ref = both.mean(axis=0) - origin
-    dx, dy = x - ref, y - ref
+    ref = both.mean(axis=0)
+    # offsets from the uncentred shapes: x0 − ref is exact for landmarks near the reference (Sterbenz),
+    # (x0 − origin) − (ref − origin) rounds them to ~1e-16 of the coordinates
+    dx, dy = x0 - ref, y0 - ref
+    ref = ref - origin
     r, k, d = x.shape
     reach_x = np.einsum("nkd,nkd->nk", dx, dx).max(axis=1)
     reach_y = reach_x if triangle else np.einsum("nkd,nkd->nk", dy, dy).max(axis=1)
