@@ -69,6 +69,32 @@ def test_every_option_reaches_the_registration():
     assert not ref[2] and registration_misfits(U, V, max_iter=5)[2] is False   # an EM stopped at max_iter
 
 
+def test_converged_only_when_both_directions_converged():
+    # at 19 iterations the registration of U onto V has converged and that of V onto U not yet
+    one = sl.register(U, V, transform="nonrigid", w=0.0, **{**DEFAULTS, "max_iter": 19})
+    other = sl.register(V, U, transform="nonrigid", w=0.0, **{**DEFAULTS, "max_iter": 19})
+    assert one.converged and not other.converged
+    for u, v in ((U, V), (V, U)):
+        got = registration_misfits(u, v, max_iter=19)
+        _check(got, _reference(u, v, max_iter=19))
+        assert got[2] is False
+
+
+def test_the_backend_reaches_register_many():
+    for f in (registration_distance, registration_misfits):
+        with pytest.raises(ValueError, match="^backend must be one of"):
+            f(U, V, backend="cuda")
+    with pytest.raises(ValueError, match="^backend must be one of"):
+        registration_misfits_many([(U, V)], backend="cuda")
+
+
+def test_single_precision_input_is_read_as_its_float64_values():
+    u32, v32 = U.astype(np.float32), V.astype(np.float32)
+    got = registration_misfits(u32, v32)
+    ref = registration_misfits(u32.astype(np.float64), v32.astype(np.float64))
+    assert got[0] == pytest.approx(ref[0], rel=1e-12) and got[1] == pytest.approx(ref[1], rel=1e-12)
+
+
 def test_many_pairs_equal_the_pairs_one_by_one_in_order():
     pairs = [(U, V), (V, STAR), (TRIFOIL, U)]
     many = registration_misfits_many(pairs, max_iter=40)
