@@ -280,3 +280,149 @@ def test_the_population_checks_are_skipped_inside_a_checked_set(x):
         frechet_mean(x * 100, max_iter=0, warn=False, sigma2=SIGMA2, n_steps=4, n_jobs=1)
     if not UNDER_MUTMUT:
         assert record[0].filename == __file__
+
+
+class CountingExecutor:
+    """A thread pool that records the shapes of every task it is given (the log maps run for real)."""
+
+    def __init__(self):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.pool = ThreadPoolExecutor(2)
+        self.tasks = []
+
+    def submit(self, fn, base, shapes, *args, **kw):
+        self.tasks.append(len(shapes))
+        return self.pool.submit(fn, base, shapes, *args, **kw)
+
+
+def test_a_given_executor_runs_every_log_map_in_tasks_of_chunk_size(x, res):
+    ex = CountingExecutor()
+    try:
+        got = frechet_mean(x, tol=1e-6, executor=ex, chunk_size=2, sigma2=SIGMA2, n_steps=4)
+    finally:
+        ex.pool.shutdown()
+    np.testing.assert_allclose(got.mean, res.mean, atol=1e-10)
+    assert got.n_iter == res.n_iter and sum(ex.tasks) == got.n_log_maps
+    # every round of the 5 log maps in tasks of 2, 2 and 1
+    assert len(ex.tasks) == 3 * got.n_log_maps // len(x) and set(ex.tasks) == {1, 2} and ex.tasks.count(1) * len(x) == \
+        got.n_log_maps
+    assert "mode" not in got.log[-1]   # the caller's executor: no engine mode to record
+
+
+def test_where_the_log_maps_ran_is_recorded(x, res):
+    assert (res.log[-1]["mode"], res.log[-1]["n_workers"]) == ("in-process", 1)
+    auto = frechet_mean(x, tol=1e-6, sigma2=SIGMA2, n_steps=4)   # n_jobs=None: one log map timed, then decided
+    assert auto.log[-1]["mode"] == "in-process"
+    np.testing.assert_allclose(auto.mean, res.mean, atol=1e-12)
+
+
+@pytest.mark.parametrize("kw", [{"n_jobs": 2}, {"client": object()}, {"scheduler": "tcp://127.0.0.1:1"}])
+def test_an_executor_with_an_engine_keyword_is_refused(x, kw):
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as ex:
+        with pytest.raises(ValueError, match="^give executor, or n_jobs / client / scheduler, not both"):
+            frechet_mean(x, sigma2=SIGMA2, n_steps=4, executor=ex, **kw)
+
+
+def test_the_device_reaches_the_backend_check(x):
+    with pytest.raises(ValueError, match='^device="gpu" needs backend="jax"'):
+        frechet_mean(x, sigma2=SIGMA2, n_steps=4, n_jobs=1, device="gpu")
+    with pytest.raises(ValueError, match='^device="gpu" needs backend="jax"'):
+        geodesic_options("alpha", sigma2=SIGMA2, device="gpu")
+    assert geodesic_options("alpha", sigma2=SIGMA2, device="cpu").device == "cpu"
+    assert frechet_mean(x, sigma2=SIGMA2, n_steps=4, n_jobs=1, device="cpu", max_iter=0, warn=False).options.device == "cpu"
+
+
+def test_the_statistics_share_the_path_solves_defaults(x):
+    """geodesic_options' defaults (what tangent PCA at a given mean uses) are frechet_mean's."""
+    fm = frechet_mean(x, sigma2=SIGMA2, n_steps=4, n_jobs=1, max_iter=0, warn=False).options
+    o = geodesic_options("alpha", sigma2=SIGMA2, n_steps=4)
+    assert (o.tol, o.max_iter) == (fm.tol, fm.max_iter) == (1e-6, 200)
+
+
+def test_at_the_rounding_floor_a_step_that_does_not_lower_the_certificate_is_halved_up_to_four_times(x):
+    """tol = 1e-15 is below what rounding lets the certificate reach: the iteration runs to its default
+    30 iterations, and there steps stop lowering the certificate and are halved. g is of full rank here
+    (the projection is the identity), so each step's metric norm is the mean log's, ``grad_norm``,
+    halved once per backtrack (recorded with the next iteration)."""
+    r = frechet_mean(x, tol=1e-15, warn=False, **OPTS)
+    assert r.n_iter == 30 and not r.converged and r.converged is False and len(r.log) == 31
+    assert r.tangent.rank == 12
+    halvings = [h["backtracks"] for h in r.log[1:]]
+    assert max(halvings) == 4 and any(0 < b < 4 for b in halvings)
+    for h, b in zip(r.log[:-1], halvings):
+        assert h["step"] == pytest.approx(h["grad_norm"] * 0.5 ** b, rel=1e-6)
+    assert all(type(h["log_maps"]) is int and h["log_maps"] == len(x) * (b + 1) for h, b in zip(r.log[1:], halvings))
+    assert r.n_log_maps == len(x) * (1 + sum(b + 1 for b in halvings))
+
+
+def test_warm_started_paths_need_no_iteration(x, res):
+    """karcher_iteration from the mean with its own paths as the first warm starts: the path solves start
+    at their solutions (the geodesics' first-order conditions hold there already)."""
+    cold = karcher_iteration(x, res.mean, options=res.options, tol=1e-3, max_iter=0)
+    warm = karcher_iteration(x, res.mean, options=res.options, tol=1e-3, max_iter=0, inits=res.paths)
+    assert cold.log[0]["path_iterations"] > 0 and warm.log[0]["path_iterations"] == 0
+    np.testing.assert_allclose(warm.logs, res.logs, atol=1e-9)
+
+
+def test_karcher_iteration_warns_by_default(x, res):
+    with pytest.warns(shapelib.GeodesicWarning, match="after 0 Karcher iterations"):
+        karcher_iteration(x, procrustes_mean(x), options=res.options, tol=1e-12, max_iter=0)
+
+
+def test_the_seconds_are_measured_from_the_start(x):
+    import time
+
+    t0 = time.perf_counter()
+    r = frechet_mean(x, tol=1e-6, **OPTS)
+    wall = time.perf_counter() - t0
+    assert all(0 <= h["seconds"] <= wall for h in r.log)
+
+
+def test_the_procrustes_mean_has_the_shape_of_the_rotations_only_gpa_mean(x):
+    """A population that is not of similar copies: the mean's shape is the GPA mean of the unit-size
+    shapes rotated onto it (no per-shape scale), computed here independently."""
+    rng = np.random.default_rng(2)
+    y = x * rng.uniform(0.6, 1.6, len(x))[:, None, None]   # sizes differ
+    pre = np.stack([s - s.mean(axis=0) for s in y])
+    pre /= np.linalg.norm(pre, axis=(1, 2))[:, None, None]
+    mu = pre[0].copy()
+    for _ in range(200):
+        pre = np.stack([p @ _kabsch(p, mu) for p in pre])
+        new = pre.mean(axis=0)
+        new /= np.linalg.norm(new)
+        if np.linalg.norm(new - mu) < 1e-14:
+            break
+        mu = new
+    m = procrustes_mean(y)
+    mc = m - m.mean(axis=0)
+    mc /= np.linalg.norm(mc)
+    np.testing.assert_allclose(mu @ _kabsch(mu, mc), mc, atol=1e-8)
+    assert np.linalg.norm(m - m.mean(axis=0)) == pytest.approx(
+        np.mean([np.linalg.norm(s - s.mean(axis=0)) for s in y]), rel=1e-12)
+
+
+def test_the_summary_of_a_mean_whose_path_solves_converged_ends_with_the_discarded_share(res):
+    assert res.summary().endswith(f"{res.discarded_fraction:.1e} of the variance outside it")
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda x: frechet_mean(x, sigma2=SIGMA2, init=np.zeros((6, 2, 1)), n_jobs=1), "^init must be a 2-D array"),
+    (lambda x: frechet_mean(x, sigma2=SIGMA2, init=x[0, :4], n_jobs=1), r"^init must have shape \(6, 2\); got \(4, 2\)"),
+    (lambda x: frechet_mean(x[0], sigma2=SIGMA2, n_jobs=1), r"^shapes must have shape \(N, K, d\)"),
+    (lambda x: frechet_mean(np.zeros((3, 4, 4)), sigma2=SIGMA2, n_jobs=1), "^shapes: landmarks must have d = 2 or 3"),
+    (lambda x: procrustes_mean(x[0]), r"^shapes must have shape \(N, K, d\)"),
+])
+def test_bad_input_names_the_parameter(x, call, match):
+    with pytest.raises(ValueError, match=match):
+        call(x)
+
+
+@pytest.mark.parametrize("metric", ["alpha", "fisher_rao"])
+def test_the_pose_warning_names_the_metric(x, metric):
+    turned = x.copy()
+    turned[0] = x[0] @ _rot(0.4)
+    with pytest.warns(shapelib.PoseWarning, match=f"^{metric} depends on the pose"):
+        frechet_mean(turned, metric=metric, max_iter=0, warn=False, **OPTS)
