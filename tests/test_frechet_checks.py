@@ -222,6 +222,9 @@ def test_the_options_reach_the_geodesics(x):
         r = frechet_mean(x, metric="alpha", sigma2=SIGMA2, n_steps=3, log_tol=1e-5, log_max_iter=50, rcond=1e-6,
                          max_iter=0, n_jobs=1)
     assert (r.options.n_steps, r.options.tol, r.options.max_iter, r.options.rcond) == (3, 1e-5, 50, 1e-6)
+    fr = frechet_mean(x, metric="fisher_rao", sigma2=SIGMA2, n_steps=3, grid_spacing=0.4, grid_margin=2.5, max_iter=0,
+                      warn=False, n_jobs=1).options
+    assert (fr.metric, fr.grid_spacing, fr.grid_margin) == ("fisher_rao", 0.4, 2.5)
     assert len(r.paths[0]) == 4
     init = x[1]
     r = frechet_mean(x, init=init, max_iter=0, warn=False, **OPTS)
