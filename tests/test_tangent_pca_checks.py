@@ -4,6 +4,7 @@ the isometric coordinates built from the metric tensor's eigenvectors, the shape
 against the log map recomputed by the geodesic solver, the options and the refusals, and the
 scikit-learn transformer against the function."""
 
+import importlib
 import warnings
 
 import numpy as np
@@ -13,12 +14,14 @@ from sklearn.decomposition import PCA
 
 import shapelib
 from shapelib.solver.logexp import DEFAULT_LOG_STEPS, DEFAULT_RCOND, tangent_space
-from shapelib.statistics import tangent_pca as tpca_module
 from shapelib.statistics.frechet import frechet_mean
 from shapelib.statistics.tangent_pca import DEFAULT_SD, TangentPCA, tangent_pca
 from tests.conftest import ellipse_population
 
-UNDER_MUTMUT = any("__mutmut_" in name for name in vars(tpca_module))
+#: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions go
+#: through a trampoline, one more stack frame between the caller and the code (the module, not the
+#: function of the same name that shapelib.statistics exports)
+UNDER_MUTMUT = any("__mutmut_" in name for name in vars(importlib.import_module("shapelib.statistics.tangent_pca")))
 SIGMA2 = 1.0
 N_STEPS = 4
 
@@ -33,8 +36,10 @@ def fm(x):
     return frechet_mean(x, sigma2=SIGMA2, n_steps=N_STEPS, tol=1e-6, n_jobs=1)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def pca(x, fm):
+    # per test (a few hundredths of a second): mutmut counts a test as covering tangent_pca only when
+    # the call happens inside it, not in a module fixture set up by another test
     return tangent_pca(x, mean=fm, modes=(0, 1), sd=(-2.0, 0.0, 1.5), n_jobs=1)
 
 
@@ -156,10 +161,12 @@ def test_the_frechet_mean_is_computed_with_the_options_given(x, fm):
     assert res.frechet is not None and res.frechet.tol == 1e-6
     np.testing.assert_allclose(res.mean, fm.mean, atol=1e-12)
     assert res.frechet.options.n_steps == N_STEPS and res.options.n_steps == N_STEPS
-    o = tangent_pca(x, metric="alpha", sigma2=0.8, n_steps=3, rcond=1e-5, grid_spacing=0.4, grid_margin=2.5,
-                    log_tol=1e-7, log_max_iter=60, max_iter=0, warn=False, modes=(), n_jobs=1).options
-    assert (o.metric, o.sigma2, o.n_steps, o.rcond, o.grid_spacing, o.grid_margin, o.tol, o.max_iter) == \
-        ("alpha", 0.8, 3, 1e-5, 0.4, 2.5, 1e-7, 60)
+    fr = tangent_pca(x, metric="fisher_rao", sigma2=0.8, n_steps=3, rcond=1e-5, grid_spacing=0.4, grid_margin=2.5,
+                     log_tol=1e-7, log_max_iter=60, max_iter=0, warn=False, modes=(), n_jobs=1)
+    for o in (fr.options, fr.frechet.options):
+        assert (o.metric, o.sigma2, o.n_steps, o.rcond, o.grid_spacing, o.grid_margin, o.tol, o.max_iter) == \
+            ("fisher_rao", 0.8, 3, 1e-5, 0.4, 2.5, 1e-7, 60)
+    assert fr.frechet.n_iter == 0 and fr.frechet.log[-1]["mode"] == "in-process"
     f = tangent_pca(x, sigma2=0.8, n_steps=3, rcond=1e-5, log_tol=1e-7, log_max_iter=60, max_iter=0, warn=False,
                     modes=(), n_jobs=1).frechet.options
     assert (f.sigma2, f.n_steps, f.rcond, f.tol, f.max_iter) == (0.8, 3, 1e-5, 1e-7, 60)
@@ -181,13 +188,17 @@ def test_the_summary_states_the_shares(pca, x):
     ({"mean": "x0", "tol": 1e-3}, r"^options of the Fréchet mean \(tol\) given with mean="),
     ({"mean": "x0[:4]"}, r"^mean must have shape \(6, 2\)"),
     ({"mean": "fm", "n_jobs": 0}, "^n_jobs must be"),
-    ({"mean": "fm3"}, "^mean: a Fréchet mean of 3 shapes"),
+    ({"mean": "fm3"}, r"^mean: a Fréchet mean of 3 shapes of shape \(6, 2\), not of these 6 shapes of shape \(6, 2\)$"),
+    ({"sigma2": None, "mean": "x0"}, r"^tangent_pca needs sigma2=\.\.\. unless mean= is a FrechetMeanResult$"),
+    ({"mean": "x0", "tol": 1e-3, "max_iter": 3}, r"^options of the Fréchet mean \(max_iter, tol\) given with mean=$"),
+    ({"mean": "x0[None]"}, "^mean must be a 2-D array"),
+    ({"mean": "fm", "client": object(), "scheduler": "tcp://127.0.0.1:1"}, "^give client or scheduler, not both"),
 ])
 def test_bad_input_names_the_parameter(x, fm, kw, match):
     kw = dict(kw)
     warnings.simplefilter("ignore", shapelib.PoseWarning)
     if "mean" in kw:
-        kw["mean"] = {"x0": x[0], "x0[:4]": x[0, :4], "fm": fm,
+        kw["mean"] = {"x0": x[0], "x0[:4]": x[0, :4], "fm": fm, "x0[None]": x[:1],
                       "fm3": frechet_mean(x[:3], sigma2=SIGMA2, n_steps=N_STEPS, max_iter=0, warn=False, n_jobs=1)}[kw["mean"]]
     with pytest.raises(ValueError, match=match):
         tangent_pca(x, **{"sigma2": SIGMA2, "n_steps": N_STEPS, "modes": (), "n_jobs": 1, **kw})
@@ -273,3 +284,106 @@ def test_the_transformer_needs_sigma2_without_a_frechet_mean(x):
     for mean in (None, x[0]):
         with pytest.raises(ValueError, match="^TangentPCA needs sigma2"):
             TangentPCA(mean=mean).fit(x)
+
+
+def test_two_shapes_have_one_component_of_half_their_squared_log(x):
+    """At x0, the logs of (x0, x1) are 0 and v = log_x0(x1): centred ±v/2, whose sample variance (N − 1 = 1)
+    is ‖v‖²_g / 2, all in one component."""
+    res = tangent_pca(x[:2], sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, modes=(), n_jobs=1)
+    v = _log(x[0], x[1]).ravel()
+    g = tangent_space(x[0], sigma2=SIGMA2).metric_tensor
+    assert res.explained_variance[0] == pytest.approx(v @ g @ v / 2, rel=1e-5)
+    assert res.explained_variance_ratio[0] == pytest.approx(1.0, abs=1e-12)
+    est = TangentPCA(sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, n_components=1).fit(x[:2])
+    assert est.singular_values_[0] == pytest.approx(np.sqrt(v @ g @ v / 2), rel=1e-5)
+
+
+def test_bad_shapes_name_the_parameter(x):
+    with pytest.raises(ValueError, match=r"^shapes must have shape \(N, K, d\)"):
+        tangent_pca(x[0], sigma2=SIGMA2, n_jobs=1)
+    with pytest.raises(ValueError, match=r"^X must have shape \(N, K, d\)"):
+        TangentPCA(sigma2=SIGMA2).fit(x[..., None])
+    with pytest.raises(ValueError, match=r"^TangentPCA needs sigma2=\.\.\., as tangent_pca does \(or mean=, a "
+                                         r"FrechetMeanResult, which carries its own\)$"):
+        TangentPCA().fit(x)
+
+
+def test_the_pose_warning_names_the_metric(x):
+    turned = x.copy()
+    c, s = np.cos(0.4), np.sin(0.4)
+    turned[0] = x[0] @ np.array([[c, -s], [s, c]])
+    with pytest.warns(shapelib.PoseWarning, match="^fisher_rao depends on the pose"):
+        tangent_pca(turned, metric="fisher_rao", sigma2=SIGMA2, mean=x[1], n_steps=N_STEPS, modes=(), n_jobs=1)
+
+
+class CountingExecutor:
+    """A thread pool that records the size of every task it is given (the log maps run for real)."""
+
+    def __init__(self):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.pool = ThreadPoolExecutor(2)
+        self.tasks = []
+
+    def submit(self, fn, base, shapes, *args, **kw):
+        self.tasks.append(len(shapes))
+        return self.pool.submit(fn, base, shapes, *args, **kw)
+
+
+def test_the_log_maps_run_on_the_executor_in_tasks_of_chunk_size(x, fm):
+    ex = CountingExecutor()
+    try:
+        at = tangent_pca(x, sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, modes=(), executor=ex, chunk_size=4)
+        assert ex.tasks == [4, 2]   # the 6 log maps at the given shape
+        ref = tangent_pca(x, sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, modes=(), n_jobs=1)
+        np.testing.assert_allclose(at.scores, ref.scores, atol=1e-9)
+        ex.tasks.clear()
+        full = tangent_pca(x, sigma2=SIGMA2, n_steps=N_STEPS, tol=1e-6, modes=(), executor=ex, chunk_size=4)
+        assert sum(ex.tasks) == full.frechet.n_log_maps and set(ex.tasks) == {4, 2}   # the Fréchet mean's too
+        np.testing.assert_allclose(full.mean, fm.mean, atol=1e-10)
+        ex.tasks.clear()
+        est = TangentPCA(sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, executor=ex).fit(x)
+        assert sum(ex.tasks) == len(x) and est.get_params()["executor"] is ex
+        ex.tasks.clear()
+        np.testing.assert_allclose(est.transform(x[:3]), est.result_.scores[:3], atol=1e-6 * np.sqrt(ref.total_variance))
+        assert sum(ex.tasks) == 3
+    finally:
+        ex.pool.shutdown()
+    # the caller's executor with an engine keyword is refused
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as pool:
+        for kw in ({"n_jobs": 2}, {"client": object()}, {"scheduler": "tcp://127.0.0.1:1"}):
+            for mean in (x[0], None):
+                with pytest.raises(ValueError, match="^give executor, or n_jobs / client / scheduler, not both"):
+                    tangent_pca(x, sigma2=SIGMA2, mean=mean, n_steps=N_STEPS, modes=(), executor=pool, **kw)
+
+
+def test_n_jobs_none_decides_and_stays_in_this_process_for_a_small_population(x):
+    auto = tangent_pca(x, sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, modes=())   # one log map timed first
+    ref = tangent_pca(x, sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, modes=(), n_jobs=1)
+    np.testing.assert_allclose(auto.scores, ref.scores, atol=1e-12)
+    est = TangentPCA(sigma2=SIGMA2, n_steps=N_STEPS, tol=1e-4).fit(x)   # no executor: in this process
+    assert est.result_.frechet.log[-1]["mode"] == "in-process"
+
+
+def test_a_rank_deficient_tangent_space_discards_a_share_of_the_logs(x):
+    fm = frechet_mean(x, sigma2=SIGMA2, n_steps=N_STEPS, rcond=0.4, max_iter=1, warn=False, n_jobs=1)
+    res = tangent_pca(x, mean=fm, modes=(), n_jobs=1)
+    lam, vec = np.linalg.eigh(tangent_space(fm.mean, sigma2=SIGMA2).metric_tensor)
+    c = fm.logs.reshape(len(x), -1) @ vec
+    dropped = lam < 0.4 * lam.max()
+    expected = np.sum(lam[dropped] * c[:, dropped] ** 2) / np.sum(lam * c ** 2)
+    assert dropped.any() and expected > 1e-6 and res.discarded_fraction == pytest.approx(expected, rel=1e-6)
+    assert res.n_components == min(len(x), int((~dropped).sum()))
+
+
+def test_the_transformer_at_a_shape_that_is_not_a_mean(x):
+    """At x0 the logs do not average to zero (the centre is far from 0): transform still gives the
+    centred scores, and inverse_transform takes as many scores as there are components."""
+    est = TangentPCA(sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, n_components=3)
+    z = est.fit_transform(x)
+    assert est.result_.center @ est.result_.center > 0.01 * est.result_.total_variance
+    np.testing.assert_allclose(est.transform(x), z, atol=1e-6 * np.sqrt(est.result_.total_variance))
+    assert est.inverse_transform(z[:2]).shape == (2, 12)
+    assert est.result_.frechet is None and est.result_.options.tol == 1e-6   # geodesic_options' default path solves
