@@ -125,7 +125,7 @@ def test_modes_draws_what_it_is_asked_and_refuses_components_out_of_range(pca):
 
 
 def test_n_components_keeps_the_first_and_their_share_of_the_total(x, fm, pca):
-    two = tangent_pca(x, mean=fm, n_components=2, modes=(0, 5), sd=(1.0,), n_jobs=1)
+    two = tangent_pca(x, mean=fm, n_components=2, modes=(0, 2, 5), sd=(1.0,), n_jobs=1)
     assert two.n_components == 2 and list(two.mode_shapes) == [0]   # modes past n_components are not drawn
     np.testing.assert_allclose(two.explained_variance, pca.explained_variance[:2], rtol=1e-12)
     np.testing.assert_allclose(two.explained_variance_ratio, pca.explained_variance_ratio[:2], rtol=1e-12)
@@ -189,6 +189,7 @@ def test_the_summary_states_the_shares(pca, x):
     ({"mean": "x0[:4]"}, r"^mean must have shape \(6, 2\)"),
     ({"mean": "fm", "n_jobs": 0}, "^n_jobs must be"),
     ({"mean": "fm3"}, r"^mean: a Fréchet mean of 3 shapes of shape \(6, 2\), not of these 6 shapes of shape \(6, 2\)$"),
+    ({"shapes": 5, "mean": "fm"}, r"^mean: a Fréchet mean of 6 shapes of shape \(6, 2\), not of these 5 shapes of shape "),
     ({"sigma2": None, "mean": "x0"}, r"^tangent_pca needs sigma2=\.\.\. unless mean= is a FrechetMeanResult$"),
     ({"mean": "x0", "tol": 1e-3, "max_iter": 3}, r"^options of the Fréchet mean \(max_iter, tol\) given with mean=$"),
     ({"mean": "x0[None]"}, "^mean must be a 2-D array"),
@@ -200,8 +201,9 @@ def test_bad_input_names_the_parameter(x, fm, kw, match):
     if "mean" in kw:
         kw["mean"] = {"x0": x[0], "x0[:4]": x[0, :4], "fm": fm, "x0[None]": x[:1],
                       "fm3": frechet_mean(x[:3], sigma2=SIGMA2, n_steps=N_STEPS, max_iter=0, warn=False, n_jobs=1)}[kw["mean"]]
+    shapes = x[:kw.pop("shapes", len(x))]
     with pytest.raises(ValueError, match=match):
-        tangent_pca(x, **{"sigma2": SIGMA2, "n_steps": N_STEPS, "modes": (), "n_jobs": 1, **kw})
+        tangent_pca(shapes, **{"sigma2": SIGMA2, "n_steps": N_STEPS, "modes": (), "n_jobs": 1, **kw})
 
 
 def test_a_population_out_of_pose_is_warned_at_the_caller(x):
