@@ -39,7 +39,7 @@ def _rot(a):
 
 
 def _kabsch(a, b):
-    """The rotation R (det +1) minimising ‖a R − b‖ for centred a, b (numpy's SVD, independently of the library)."""
+    """The rotation R (det +1) minimising ‖a R − b‖ for centred a, b (numpy's SVD, not the library's)."""
     u, _, vt = np.linalg.svd(a.T @ b)
     s = np.eye(a.shape[1])
     s[-1, -1] = np.sign(np.linalg.det(u @ vt))
@@ -188,8 +188,8 @@ def test_a_step_that_does_not_lower_the_certificate_is_halved(x):
 
 
 def test_not_converged_warns_at_the_caller_and_warn_false_is_silent(x):
-    with pytest.warns(shapelib.GeodesicWarning, match=r"certificate ‖mean log‖/spread = .* > tol 1e-12 after 1 Karcher") \
-            as record:
+    warned = r"certificate ‖mean log‖/spread = .* > tol 1e-12 after 1 Karcher"
+    with pytest.warns(shapelib.GeodesicWarning, match=warned) as record:
         frechet_mean(x, tol=1e-12, max_iter=1, **OPTS)
     if not UNDER_MUTMUT:  # mutmut's trampoline adds a frame of its own
         assert record[0].filename == __file__
@@ -247,7 +247,8 @@ def test_mean_of_copies_is_that_shape_with_no_iteration(x):
 
 
 @pytest.mark.parametrize("kw, match", [
-    ({"tol": 0.0}, "^tol "), ({"tol": -1.0}, "^tol "), ({"max_iter": -1}, "^max_iter "), ({"max_iter": 1.5}, "^max_iter "),
+    ({"tol": 0.0}, "^tol "), ({"tol": -1.0}, "^tol "),
+    ({"max_iter": -1}, "^max_iter "), ({"max_iter": 1.5}, "^max_iter "),
 ])
 def test_bad_options_name_the_parameter(x, kw, match):
     with pytest.raises(ValueError, match=match):
@@ -335,7 +336,8 @@ def test_the_device_reaches_the_backend_check(x):
     with pytest.raises(ValueError, match='^device="gpu" needs backend="jax"'):
         geodesic_options("alpha", sigma2=SIGMA2, device="gpu")
     assert geodesic_options("alpha", sigma2=SIGMA2, device="cpu").device == "cpu"
-    assert frechet_mean(x, sigma2=SIGMA2, n_steps=4, n_jobs=1, device="cpu", max_iter=0, warn=False).options.device == "cpu"
+    r = frechet_mean(x, sigma2=SIGMA2, n_steps=4, n_jobs=1, device="cpu", max_iter=0, warn=False)
+    assert r.options.device == "cpu"
 
 
 def test_the_statistics_share_the_path_solves_defaults(x):
@@ -413,7 +415,8 @@ def test_the_summary_of_a_mean_whose_path_solves_converged_ends_with_the_discard
 
 @pytest.mark.parametrize("call, match", [
     (lambda x: frechet_mean(x, sigma2=SIGMA2, init=np.zeros((6, 2, 1)), n_jobs=1), "^init must be a 2-D array"),
-    (lambda x: frechet_mean(x, sigma2=SIGMA2, init=x[0, :4], n_jobs=1), r"^init must have shape \(6, 2\); got \(4, 2\)"),
+    (lambda x: frechet_mean(x, sigma2=SIGMA2, init=x[0, :4], n_jobs=1),
+     r"^init must have shape \(6, 2\); got \(4, 2\)"),
     (lambda x: frechet_mean(x[0], sigma2=SIGMA2, n_jobs=1), r"^shapes must have shape \(N, K, d\)"),
     (lambda x: frechet_mean(np.zeros((3, 4, 4)), sigma2=SIGMA2, n_jobs=1), "^shapes: landmarks must have d = 2 or 3"),
     (lambda x: procrustes_mean(x[0]), r"^shapes must have shape \(N, K, d\)"),

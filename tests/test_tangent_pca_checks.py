@@ -87,7 +87,8 @@ def test_the_components_are_the_axes_in_landmark_coordinates(x, fm, pca):
     np.testing.assert_allclose(c @ g @ c.T, np.eye(pca.n_components), atol=1e-9)
     flat = fm.logs.reshape(len(x), -1)
     np.testing.assert_allclose(flat @ g @ c.T - (flat @ g @ c.T).mean(axis=0), pca.scores, atol=1e-10)
-    np.testing.assert_allclose(pca.vector(pca.scores[2]).ravel(), pca.vector([]).ravel() + pca.scores[2] @ c, atol=1e-10)
+    np.testing.assert_allclose(pca.vector(pca.scores[2]).ravel(), pca.vector([]).ravel() + pca.scores[2] @ c,
+                               atol=1e-10)
     # all components kept and a full-rank g: the vector of a shape's scores is its log
     np.testing.assert_allclose(pca.vector(pca.scores[2]), fm.logs[2], atol=1e-9)
     np.testing.assert_allclose(pca.vector(pca.scores[2][:2]).ravel(),
@@ -177,7 +178,8 @@ def test_the_frechet_mean_is_computed_with_the_options_given(x, fm):
 def test_the_summary_states_the_shares(pca, x):
     text = pca.summary()
     r = pca.explained_variance_ratio
-    assert text.startswith(f"tangent PCA (alpha, σ² = 1) of {len(x)} shapes: PC1 {100 * r[0]:.1f} %, PC2 {100 * r[1]:.1f} %")
+    assert text.startswith(f"tangent PCA (alpha, σ² = 1) of {len(x)} shapes: "
+                           f"PC1 {100 * r[0]:.1f} %, PC2 {100 * r[1]:.1f} %")
     assert f"PC5 {100 * r[4]:.1f} %; total variance {pca.total_variance:.4g} in 12 retained directions" in text
     assert "PC6" not in text and text.endswith(f"({pca.discarded_fraction:.1e} of it outside)")
 
@@ -188,8 +190,10 @@ def test_the_summary_states_the_shares(pca, x):
     ({"mean": "x0", "tol": 1e-3}, r"^options of the Fréchet mean \(tol\) given with mean="),
     ({"mean": "x0[:4]"}, r"^mean must have shape \(6, 2\)"),
     ({"mean": "fm", "n_jobs": 0}, "^n_jobs must be"),
-    ({"mean": "fm3"}, r"^mean: a Fréchet mean of 3 shapes of shape \(6, 2\), not of these 6 shapes of shape \(6, 2\)$"),
-    ({"shapes": 5, "mean": "fm"}, r"^mean: a Fréchet mean of 6 shapes of shape \(6, 2\), not of these 5 shapes of shape "),
+    ({"mean": "fm3"},
+     r"^mean: a Fréchet mean of 3 shapes of shape \(6, 2\), not of these 6 shapes of shape \(6, 2\)$"),
+    ({"shapes": 5, "mean": "fm"},
+     r"^mean: a Fréchet mean of 6 shapes of shape \(6, 2\), not of these 5 shapes of shape "),
     ({"sigma2": None, "mean": "x0"}, r"^tangent_pca needs sigma2=\.\.\. unless mean= is a FrechetMeanResult$"),
     ({"mean": "x0", "tol": 1e-3, "max_iter": 3}, r"^options of the Fréchet mean \(max_iter, tol\) given with mean=$"),
     ({"mean": "x0[None]"}, "^mean must be a 2-D array"),
@@ -199,8 +203,8 @@ def test_bad_input_names_the_parameter(x, fm, kw, match):
     kw = dict(kw)
     warnings.simplefilter("ignore", shapelib.PoseWarning)
     if "mean" in kw:
-        kw["mean"] = {"x0": x[0], "x0[:4]": x[0, :4], "fm": fm, "x0[None]": x[:1],
-                      "fm3": frechet_mean(x[:3], sigma2=SIGMA2, n_steps=N_STEPS, max_iter=0, warn=False, n_jobs=1)}[kw["mean"]]
+        fm3 = frechet_mean(x[:3], sigma2=SIGMA2, n_steps=N_STEPS, max_iter=0, warn=False, n_jobs=1)
+        kw["mean"] = {"x0": x[0], "x0[:4]": x[0, :4], "fm": fm, "x0[None]": x[:1], "fm3": fm3}[kw["mean"]]
     shapes = x[:kw.pop("shapes", len(x))]
     with pytest.raises(ValueError, match=match):
         tangent_pca(shapes, **{"sigma2": SIGMA2, "n_steps": N_STEPS, "modes": (), "n_jobs": 1, **kw})
@@ -347,7 +351,8 @@ def test_the_log_maps_run_on_the_executor_in_tasks_of_chunk_size(x, fm):
         est = TangentPCA(sigma2=SIGMA2, mean=x[0], n_steps=N_STEPS, executor=ex).fit(x)
         assert sum(ex.tasks) == len(x) and est.get_params()["executor"] is ex
         ex.tasks.clear()
-        np.testing.assert_allclose(est.transform(x[:3]), est.result_.scores[:3], atol=1e-6 * np.sqrt(ref.total_variance))
+        np.testing.assert_allclose(est.transform(x[:3]), est.result_.scores[:3],
+                                   atol=1e-6 * np.sqrt(ref.total_variance))
         assert sum(ex.tasks) == 3
     finally:
         ex.pool.shutdown()
