@@ -58,6 +58,9 @@ def test_the_numpy_backend_is_register_with_every_option():
     assert (got.sigma2, got.n_iter, got.w) == (ref.sigma2, ref.n_iter, ref.w) != (default.sigma2, default.n_iter, default.w)
     np.testing.assert_array_equal(got.points, ref.points)
     assert len(got.path) == len(ref.path) == 6   # n_steps segments of the deformation's geodesic
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", shapelib.RegistrationWarning)
+        assert len(shapelib.register_many([(STAR, TRIFOIL)])[0].path) == len(default.path)   # register's default
     assert (timings["prep"], timings["assembly"], timings["device"]) == (0.0, 0.0, "numpy (CPU)")
     assert 0.0 < timings["search"] < 60.0
     # each option on its own changes the fit, and reaches register
