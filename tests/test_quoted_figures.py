@@ -187,7 +187,7 @@ def _leaves(obj, path=()):
 _TIME_KEY = re.compile(r"wall|cpu|second|time|_s$|hours")
 _RATIO_KEY = re.compile(r"speedup|_over_|ratio")
 _SCALE = {"ms": 1e3, "µs": 1e6, "s": 1.0, "seconds": 1.0, "min": 1 / 60, "minutes": 1 / 60, "h": 1 / 3600,
-          "hours": 1 / 3600, "core-hours": 1.0}
+          "hours": 1 / 3600, "core-hours": 1 / 3600}
 
 
 def _matches(printed: str, value: float) -> bool:
