@@ -148,3 +148,17 @@ def ellipse_population(rng, n, k=10, d=2, *, noise, second_mode=0.0):
             x = x + second_mode * rng.normal() * mode2
         out.append(x + noise * rng.normal(size=base.shape))
     return shapelib.pose_align(np.stack(out))[0]
+
+
+class CountingExecutor:
+    """A thread pool that records the size of every task it is given (the log maps run for real)."""
+
+    def __init__(self):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.pool = ThreadPoolExecutor(2)
+        self.tasks = []
+
+    def submit(self, fn, base, shapes, *args, **kw):
+        self.tasks.append(len(shapes))
+        return self.pool.submit(fn, base, shapes, *args, **kw)

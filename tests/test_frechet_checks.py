@@ -14,7 +14,7 @@ from shapelib.solver.logexp import DEFAULT_LOG_STEPS, DEFAULT_RCOND, tangent_spa
 from shapelib.statistics import frechet as frechet_module
 from shapelib.statistics.frechet import frechet_mean, geodesic_options, karcher_iteration, mean_certificate, \
     procrustes_mean
-from tests.conftest import ellipse_population
+from tests.conftest import CountingExecutor, ellipse_population
 
 #: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions go
 #: through a trampoline, one more stack frame between the caller and the code
@@ -284,20 +284,6 @@ def test_the_population_checks_are_skipped_inside_a_checked_set(x):
         frechet_mean(x * 100, max_iter=0, warn=False, sigma2=SIGMA2, n_steps=4, n_jobs=1)
     if not UNDER_MUTMUT:
         assert record[0].filename == __file__
-
-
-class CountingExecutor:
-    """A thread pool that records the shapes of every task it is given (the log maps run for real)."""
-
-    def __init__(self):
-        from concurrent.futures import ThreadPoolExecutor
-
-        self.pool = ThreadPoolExecutor(2)
-        self.tasks = []
-
-    def submit(self, fn, base, shapes, *args, **kw):
-        self.tasks.append(len(shapes))
-        return self.pool.submit(fn, base, shapes, *args, **kw)
 
 
 def test_a_given_executor_runs_every_log_map_in_tasks_of_chunk_size(x, res):

@@ -16,7 +16,7 @@ import shapelib
 from shapelib.solver.logexp import DEFAULT_LOG_STEPS, DEFAULT_RCOND, tangent_space
 from shapelib.statistics.frechet import frechet_mean
 from shapelib.statistics.tangent_pca import DEFAULT_SD, TangentPCA, tangent_pca
-from tests.conftest import ellipse_population
+from tests.conftest import CountingExecutor, ellipse_population
 
 #: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions go
 #: through a trampoline, one more stack frame between the caller and the code (the module, not the
@@ -320,20 +320,6 @@ def test_the_pose_warning_names_the_metric(x):
     turned[0] = x[0] @ np.array([[c, -s], [s, c]])
     with pytest.warns(shapelib.PoseWarning, match="^fisher_rao depends on the pose"):
         tangent_pca(turned, metric="fisher_rao", sigma2=SIGMA2, mean=x[1], n_steps=N_STEPS, modes=(), n_jobs=1)
-
-
-class CountingExecutor:
-    """A thread pool that records the size of every task it is given (the log maps run for real)."""
-
-    def __init__(self):
-        from concurrent.futures import ThreadPoolExecutor
-
-        self.pool = ThreadPoolExecutor(2)
-        self.tasks = []
-
-    def submit(self, fn, base, shapes, *args, **kw):
-        self.tasks.append(len(shapes))
-        return self.pool.submit(fn, base, shapes, *args, **kw)
 
 
 def test_the_log_maps_run_on_the_executor_in_tasks_of_chunk_size(x, fm):

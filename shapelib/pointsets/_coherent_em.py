@@ -236,30 +236,53 @@ def _estep(theta, y, s2, c, with_lse=True):
 
 
 @njit(cache=True, fastmath=False)
-def _em_map(u, q, qt, ev, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, with_f=True):
-    """One EM iteration from ``(W, σ²)`` with the factored kernel ``G = Q diag(ev) Qᵀ``: E-step, the
-    Woodbury M-step of the module docstring and σ²'s update (σ² kept when ``fixed``). Returns ``W``,
-    σ² and the objective ``F`` at the *input* ``(W, σ²)`` (its E-step's log-normalisers give it:
-    ``F = −Σ_j L_j − m log((1 − w)/n) + (m d/2) log(2πσ²) + (λ/2) tr(Wᵀ G W)``, ``log_wn`` is
-    ``log((1 − w)/n)``; NaN unless ``with_f``). ``c_unit`` is the outlier term at σ² = 1 (it scales
-    as ``σ^d``)."""
-    n, d = u.shape
-    gw = q @ (ev[:, None] * (qt @ coef))
-    p1, pt1, py, sse, lse = _estep(u + gw, y, s2, c_unit * s2 ** (d / 2), with_f)
-    f = np.nan
-    if with_f:
-        f = 0.5 * lam * np.sum(coef * gw) - lse - y.shape[0] * (log_wn - 0.5 * d * math.log(2.0 * math.pi * s2))
-    lam_s2 = lam * s2
-    b = py - p1[:, None] * u
+def _apply(q, qt, ev, full, coef):
+    """``G W`` (n, d): the factored weight-coordinate kernel ``Q diag(ev) Qᵀ`` (``q`` has columns), the
+    dense kernel on the means ``full`` (non-empty), or no kernel (zeros)."""
+    if full.shape[0] > 0:
+        return (full @ np.ascontiguousarray(coef).ravel()).reshape(coef.shape)
+    if q.shape[1] > 0:
+        return q @ (ev[:, None] * (qt @ coef))
+    return np.zeros_like(coef)
+
+
+@njit(cache=True, fastmath=False)
+def _m_step(q, qt, ev, full, p1, b, lam_s2):
+    """``W`` with ``(diag(P1) G + λσ² I) W = B`` (module docstring): Woodbury through the factored
+    kernel, or a dense solve with the kernel on the means."""
+    n, d = b.shape
+    if full.shape[0] > 0:
+        a = np.repeat(p1, d).reshape(-1, 1) * full
+        for k in range(n * d):
+            a[k, k] += lam_s2
+        return np.linalg.solve(a, np.ascontiguousarray(b).ravel()).reshape(n, d)
     dq = p1[:, None] * q
     inner = qt @ dq
     for a in range(inner.shape[0]):
         inner[a, a] += lam_s2 / ev[a]
-    coef = (b - dq @ np.linalg.solve(inner, qt @ b)) / lam_s2
+    return (b - dq @ np.linalg.solve(inner, qt @ b)) / lam_s2
+
+
+@njit(cache=True, fastmath=False)
+def _em_map(u, q, qt, ev, full, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, with_f=True):
+    """One EM iteration from ``(W, σ²)``: E-step, the M-step of the module docstring (:func:`_m_step`;
+    none without a kernel) and σ²'s update (σ² kept when ``fixed``). Returns ``W``, σ² and the
+    objective ``F`` at the *input* ``(W, σ²)`` (its E-step's log-normalisers give it:
+    ``F = −Σ_j L_j − m log((1 − w)/n) + (m d/2) log(2πσ²) + (λ/2) tr(Wᵀ G W)``, ``log_wn`` is
+    ``log((1 − w)/n)``; NaN unless ``with_f``). ``c_unit`` is the outlier term at σ² = 1 (it scales
+    as ``σ^d``)."""
+    n, d = u.shape
+    gw = _apply(q, qt, ev, full, coef)
+    p1, pt1, py, sse, lse = _estep(u + gw, y, s2, c_unit * s2 ** (d / 2), with_f)
+    f = np.nan
+    if with_f:
+        f = 0.5 * lam * np.sum(coef * gw) - lse - y.shape[0] * (log_wn - 0.5 * d * math.log(2.0 * math.pi * s2))
+    if full.shape[0] > 0 or q.shape[1] > 0:
+        coef = _m_step(q, qt, ev, full, p1, py - p1[:, None] * u, lam * s2)
+        theta = u + _apply(q, qt, ev, full, coef)
+        sse = pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.sum(theta * theta, axis=1)
     if fixed:
         return coef, s2, f
-    theta = u + q @ (ev[:, None] * (qt @ coef))
-    sse = pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.sum(theta * theta, axis=1)
     return coef, max(sse / (max(p1.sum(), 1e-300) * d), s2_floor), f
 
 
@@ -282,8 +305,8 @@ def _extrapolate(c0, s0, c1, s1, c2, s2, s2_floor):
 
 
 @njit(cache=True, fastmath=False)
-def _em_loop(u, q, ev, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor, log_wn, plain):
-    """:func:`run_em`'s iterations for a factored weight-coordinate kernel, compiled: ``plain`` EM
+def _em_loop(u, q, ev, full, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor, log_wn, plain):
+    """:func:`run_em`'s iterations, compiled (the kernel as :func:`_apply` takes it): ``plain`` EM
     iterations, then the cycle of the module docstring (two EM iterations, SQUAREM's extrapolation,
     one EM iteration from it, kept only if ``F`` did not increase). Returns ``W``, σ², the EM
     iterations run (the extrapolated ones included) and whether one EM iteration changed σ² by less
@@ -296,19 +319,19 @@ def _em_loop(u, q, ev, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor,
     qt = np.ascontiguousarray(q.T)
     it = 0
     while it < max_iter:
-        c1, s1, _ = _em_map(u, q, qt, ev, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, False)
+        c1, s1, _ = _em_map(u, q, qt, ev, full, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, False)
         it += 1
         if not fixed and abs(s1 - s2) <= tol * s2:
             return c1, s1, it, True
         if it <= plain or it + 2 > max_iter:
             coef, s2 = c1, s1
             continue
-        c2, s2b, f1 = _em_map(u, q, qt, ev, y, yy, c1, s1, c_unit, lam, fixed, s2_floor, log_wn)
+        c2, s2b, f1 = _em_map(u, q, qt, ev, full, y, yy, c1, s1, c_unit, lam, fixed, s2_floor, log_wn)
         it += 1
         if not fixed and abs(s2b - s1) <= tol * s1:
             return c2, s2b, it, True
         cx, sx = _extrapolate(coef, s2, c1, s1, c2, s2b, s2_floor)
-        c3, s3, fx = _em_map(u, q, qt, ev, y, yy, cx, sx, c_unit, lam, fixed, s2_floor, log_wn)
+        c3, s3, fx = _em_map(u, q, qt, ev, full, y, yy, cx, sx, c_unit, lam, fixed, s2_floor, log_wn)
         it += 1
         if not fx <= f1:  # the extrapolation did not decrease F (or is not a number): the EM iterate
             coef, s2 = c2, s2b
@@ -349,16 +372,6 @@ class Kernel:
     def energy(self, coef):
         """``tr(Wᵀ G W)``."""
         return float(np.sum(coef * self.apply(coef)))
-
-    def solve(self, p1, b, lam_s2):
-        """``W`` with ``(diag(p1) G + lam_s2 I) W = b``."""
-        n, d = b.shape
-        if self.full is not None:
-            a = p1.repeat(d)[:, None] * self.full + lam_s2 * np.eye(n * d)
-            return np.linalg.solve(a, b.ravel()).reshape(n, d)
-        dq = p1[:, None] * self.q
-        inner = self.q.T @ dq + np.diag(lam_s2 / self.ev)
-        return (b - dq @ np.linalg.solve(inner, self.q.T @ b)) / lam_s2
 
 
 @dataclass
@@ -402,63 +415,19 @@ def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12, 
     fixed = fixed_s2 is not None
     log_wn = math.log((1 - st.w) / n)
     plain = PLAIN_ITER - st.it if accelerate else max_iter  # iterations of this call before the acceleration
+    q, ev, full = np.zeros((n, 0)), np.zeros(0), np.zeros((0, 0))  # no kernel: σ² alone
     if k is not None and k.full is None:
-        coef, s2, it, ok = _em_loop(np.ascontiguousarray(st.u, dtype=float), np.ascontiguousarray(k.q), k.ev, y,
-                                    np.ascontiguousarray(st.coef, dtype=float), float(st.s2),
-                                    outlier_term(n, d, 1.0, st.w, volume), float(lam), int(max_iter), float(tol),
-                                    fixed, float(s2_floor), log_wn, int(plain))
-    else:
-        coef, s2, it, ok = _squarem_py(st, y, lam=lam, volume=volume, max_iter=max_iter, tol=tol, fixed=fixed,
-                                       s2_floor=s2_floor, log_wn=log_wn, plain=plain)
+        q, ev = np.ascontiguousarray(k.q, dtype=float), np.ascontiguousarray(k.ev, dtype=float)
+    elif k is not None:
+        full = np.ascontiguousarray(k.full, dtype=float)
+    coef, s2, it, ok = _em_loop(np.ascontiguousarray(st.u, dtype=float), q, ev, full, y,
+                                np.ascontiguousarray(st.coef, dtype=float), float(st.s2),
+                                outlier_term(n, d, 1.0, st.w, volume), float(lam), int(max_iter), float(tol), fixed,
+                                float(s2_floor), log_wn, int(plain))
     st.coef, st.s2, st.it = coef, s2, st.it + it
     if fixed or ok:
         st.ok, st.why = True, "tolerance"
     return st
-
-
-def _squarem_py(st, y, *, lam, volume, max_iter, tol, fixed, s2_floor, log_wn, plain):
-    """:func:`_em_loop` with a dense kernel on the means (``Kernel.full``) or none (σ² alone)."""
-    n, d = st.u.shape
-    m = len(y)
-    yy = np.einsum("jd,jd->j", y, y)
-
-    def em_map(coef, s2):
-        gw = st.kernel.apply(coef) if st.kernel is not None else np.zeros_like(st.u)
-        theta = st.u + gw
-        p1, pt1, py, sse, lse = _estep(np.ascontiguousarray(theta), y, s2, outlier_term(n, d, s2, st.w, volume))
-        f = 0.5 * lam * float(np.sum(coef * gw)) - lse - m * (log_wn - 0.5 * d * math.log(2.0 * math.pi * s2))
-        if st.kernel is not None:
-            coef = st.kernel.solve(p1, py - p1[:, None] * st.u, lam * s2)
-            theta = st.u + st.kernel.apply(coef)
-            sse = float(pt1 @ yy - 2.0 * np.sum(py * theta) + p1 @ np.einsum("id,id->i", theta, theta))
-        if fixed:
-            return coef, s2, f
-        return coef, max(sse / (max(float(p1.sum()), 1e-300) * d), s2_floor), f
-
-    coef, s2 = np.array(st.coef, dtype=float), float(st.s2)
-    it = 0
-    while it < max_iter:
-        c1, s1, _ = em_map(coef, s2)
-        it += 1
-        if not fixed and abs(s1 - s2) <= tol * s2:
-            return c1, s1, it, True
-        if it <= plain or it + 2 > max_iter:
-            coef, s2 = c1, s1
-            continue
-        c2, s2b, f1 = em_map(c1, s1)
-        it += 1
-        if not fixed and abs(s2b - s1) <= tol * s1:
-            return c2, s2b, it, True
-        cx, sx = _extrapolate(coef, s2, c1, s1, c2, s2b, s2_floor)
-        c3, s3, fx = em_map(cx, sx)
-        it += 1
-        if not fx <= f1:
-            coef, s2 = c2, s2b
-            continue
-        if not fixed and abs(s3 - sx) <= tol * sx:
-            return c3, s3, it, True
-        coef, s2 = c3, s3
-    return coef, s2, it, False
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
