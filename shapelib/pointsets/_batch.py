@@ -23,9 +23,9 @@ The batched path is the search of :mod:`shapelib.pointsets._nonrigid` with the e
    :func:`~shapelib.pointsets._coherent_em.run_em`'s acceleration (two EM iterations, SQUAREM's
    extrapolation and one iteration from it, kept if the objective did not increase), each pass of
    a second loop one cycle: all three iterations computed and the cycle's outcome selected, so that
-   a fit stops where the compiled loop stops. Screening runs ``SCREEN_ITER`` iterations from every start at ``W_SCREEN``; the
-   ``N_KEEP`` starts of least objective (chosen on the host, stable order, as
-   :func:`~shapelib.pointsets._nonrigid.fit_all` does) are fitted at every weight of the grid: at
+   a fit stops where the compiled loop stops. Screening runs ``SCREEN_ITER`` iterations from every
+   start at ``W_SCREEN``; the ``N_KEEP`` starts of least objective (chosen on the host, stable
+   order, as :func:`~shapelib.pointsets._nonrigid.fit_all` does) are fitted at every weight of the grid: at
    ``W_SCREEN`` by continuing the screening's EM, at the others from the start.
 4. **Results.** The fits go back to the host as
    :class:`~shapelib.pointsets._coherent_em.EMState` objects, and each pair's

@@ -176,9 +176,9 @@ def _estep(theta, y, s2, c, with_lse=True):
     """The sums the M-step needs, without the (n, m) matrix: ``P1 = Σ_j P_ij`` (n,), ``Pᵀ1`` (m,),
     ``P y`` (n, d) and ``Σ_ij P_ij |y_j − θ_i|²``, with ``c`` the outlier term of ``P``'s
     denominator, and the sum of the denominators' logarithms ``Σ_j log(Σ_i exp(−|y_j − θ_i|²/2σ²) + c)``
-    (the log-likelihood up to terms in σ², w and n: :func:`_em_map`; 0 unless ``with_lse``). Each column is scaled by its
-    largest term, ``exp(−r_min/2σ²)``, and the terms ``PRUNE`` below it are dropped (the same sums
-    to float64 precision); a column skipped for taking no posterior adds ``−r_min/2σ²``, its
+    (the log-likelihood up to terms in σ², w and n: :func:`_em_map`; 0 unless ``with_lse``). Each
+    column is scaled by its largest term, ``exp(−r_min/2σ²)``, and the terms ``PRUNE`` below it are
+    dropped (the same sums to float64 precision); a column skipped for taking no posterior adds ``−r_min/2σ²``, its
     logarithm to within ``log n``."""
     n, d = theta.shape
     m = y.shape[0]
