@@ -48,9 +48,10 @@ likelihood), so the safeguard costs nothing, and ``F`` never increases from one 
 The fixed points are EM's: a fit stops when one EM iteration changes σ² by less than the tolerance.
 The first iterations stay plain EM because they decide the basin: σ² shrinks from the spread of the
 whole target, and an extrapolation there jumps past the slow shrinking (measured on the
-Chui–Rangarajan samples 1–5: accelerated from the first iteration, several fits end in worse basins;
-after ``PLAIN_ITER``, the same fits as plain EM, 15 % fewer iterations in all, and 279 of 280
-registrations meeting their tolerance instead of 259).
+Chui–Rangarajan samples 1–5: accelerated from the first iteration, several fits end in worse
+basins and a registration of the tests failed silently; after ``PLAIN_ITER``, about the same fits as
+plain EM (27 failures of 280 against 26, mean error 0.0257 against 0.0259), 15 % fewer iterations
+in all, and 279 of 280 registrations meeting their tolerance instead of 259).
 
 References
 ----------
