@@ -436,8 +436,8 @@ def _programs():
             p = jnp.where(live[None, :], e / jnp.where(live, den, 1.0)[None, :], 0.0)
             # the columns' log-normalisers (a column whose every term underflows: its largest term's log)
             rmin = jnp.min(jnp.where(pair, r, jnp.inf), axis=0)
-            lse = jnp.sum(jnp.where(ymask, jnp.where(live, jnp.log(jnp.where(live, den, 1.0)),
-                                                     -jnp.where(ymask, rmin, 0.0) / (2.0 * s2)), 0.0))
+            lse = jnp.sum(jnp.where(ymask, jnp.where(live, jnp.log(jnp.where(live, den, 1.0)), -rmin / (2.0 * s2)),
+                                    0.0))
             f = 0.5 * lam * jnp.sum(coef * gw) - lse - m_real * (log_wn - 0.5 * d * jnp.log(2 * jnp.pi * s2))
             p1, pt1, py = jnp.sum(p, axis=1), jnp.sum(p, axis=0), p @ y
             lam_s2 = lam * s2

@@ -116,7 +116,8 @@ def _exp_neg(a, out, bits):
     """``out[i] = exp(−a[i])`` for ``0 ≤ a[i] ≤ 700``, vectorised.
 
     ``math.exp`` in a compiled loop is a scalar library call (no vector math library here), about
-    half of the E-step's time (46 µs of 90 for 98 × 98 points); this is the textbook exponential written so that the compiler vectorises it:
+    half of the E-step's time (46 µs of 90 for 98 × 98 points); this is the textbook exponential
+    written so that the compiler vectorises it:
     ``x = k ln 2 + r`` with ``k = round(x / ln 2)`` and ``|r| ≤ ln 2 / 2`` (Cody–Waite reduction),
     ``exp(r)`` by its Taylor polynomial of degree 13 (remainder ``|r|¹⁴/14! < 1e-17``) in Horner form,
     and ``2^k`` built from its exponent bits. Within one unit in the last place of ``np.exp`` over
@@ -291,7 +292,7 @@ def _em_map(u, q, qt, ev, full, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, l
 def _extrapolate(c0, s0, c1, s1, c2, s2, s2_floor):
     """SQUAREM's step (scheme S3 of [2]_) from three successive EM iterates ``x0, x1 = M(x0),
     x2 = M(x1)`` of ``x = (W, log σ²)``: ``r = x1 − x0``, ``v = x2 − 2 x1 + x0``,
-    ``α = −min(‖r‖/‖v‖, …)`` held at most −1, and ``x' = x0 − 2α r + α² v`` (``α = −1`` gives ``x2``).
+    ``α = −‖r‖/‖v‖`` held at most −1, and ``x' = x0 − 2α r + α² v`` (``α = −1`` gives ``x2``).
     Returns ``W'`` and σ²' (at least ``s2_floor``)."""
     l0, l1, l2 = math.log(s0), math.log(s1), math.log(s2)
     rl, vl = l1 - l0, l2 - 2.0 * l1 + l0
@@ -312,7 +313,7 @@ def _em_loop(u, q, ev, full, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_
     one EM iteration from it, kept only if ``F`` did not increase). Returns ``W``, σ², the EM
     iterations run (the extrapolated ones included) and whether one EM iteration changed σ² by less
     than ``tol`` (relative)."""
-    n, d = u.shape
+    d = u.shape[1]
     yy = np.zeros(y.shape[0])
     for j in range(y.shape[0]):
         for k in range(d):
