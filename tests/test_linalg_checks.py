@@ -7,7 +7,7 @@ tests/test_solver_pieces.py."""
 
 import numpy as np
 import pytest
-import sklearn.utils._openmp_helpers  # noqa: F401  loads scikit-learn's OpenMP runtime before any test runs
+import sklearn.cluster  # noqa: F401  its k-means extension loads the OpenMP runtime before any test runs
 from threadpoolctl import threadpool_info
 
 from shapelib.solver.linalg import block_cholesky, block_solve, block_tridiagonal_dense, hess_vec, one_blas_thread
