@@ -246,6 +246,12 @@ def _loo_terms(sq, s2, d):
     return ll, r, ea - d / 2, hess
 
 
+def _loo_em_step(r, sq, d):
+    """EM's update of σ² for ℓ_LOO, ``σ² = Σ_ij r_ij |x_i − x_j|² / (n d)``, from the responsibilities
+    ``r`` at the current σ² and the squared distances ``sq``: it never decreases ℓ_LOO."""
+    return float(np.sum(r * sq) / (len(r) * d))
+
+
 def _loo(x, tol, max_iter, floor):
     """Maximise ℓ_LOO over log σ²: Newton steps where ℓ_LOO is concave there, the EM fixed point
     (which never decreases ℓ_LOO) otherwise. Returns σ², ℓ_LOO, the scores and the second derivative
@@ -262,10 +268,10 @@ def _loo(x, tol, max_iter, floor):
             step = -g / hess
             s2_new = s2 * float(np.exp(np.clip(step, -2.0, 2.0)))
         else:
-            s2_new = float(np.sum(r * sq) / (n * d))
+            s2_new = _loo_em_step(r, sq, d)
         new = _loo_terms(sq, s2_new, d)
         if new[0] < ll:  # Newton overshot: the EM step instead
-            s2_new = float(np.sum(r * sq) / (n * d))
+            s2_new = _loo_em_step(r, sq, d)
             new = _loo_terms(sq, s2_new, d)
         if s2_new <= floor:
             return s2_new, new[0], new[2], new[3], it, False, "degenerate"
