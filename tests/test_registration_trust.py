@@ -82,6 +82,19 @@ def test_a_part_only_the_source_has_matches_nothing():
     assert np.mean(res.target_correspondence >= 0) > 0.8  # and most target points have one
 
 
+def test_a_fit_leaving_over_a_third_of_the_source_unmatched_is_flagged_and_a_small_gap_is_not():
+    x = fish()
+    small, _ = register_quietly(x, warp(x, 0.25)[:52])  # 8 of 60 source points without a counterpart
+    assert small.reliable, small.reasons
+    large, warned = register_quietly(x, warp(x, 0.25)[:42])  # 18 of 60: the warp only extrapolates them
+    assert not large.reliable and warned
+    assert any("match no target point" in r for r in large.reasons)
+    # the share it reports is that of the source points whose posteriors sum to under one half
+    share = float(np.mean(large.probabilities.sum(axis=1) < 0.5))
+    assert large.diagnostics["unmatched_source_share"] == pytest.approx(share)
+    assert share > 1 / 3 > float(np.mean(small.probabilities.sum(axis=1) < 0.5))
+
+
 def test_a_symmetric_shape_is_flagged_as_ambiguous():
     t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
     ellipse = np.column_stack([1.6 * np.cos(t), np.sin(t)])  # the same shape after a half turn

@@ -184,8 +184,10 @@ class RegistrationResult:
         False when something says that the registration probably failed (non-rigid): another pose
         explains the target about as well with a different fit (objectives within 0.2 per target
         point: a near-symmetric shape, or a target that no pose explains), the fit leaves σ above
-        2 target point spacings, or more than half of the source points match no target point.
-        (The thresholds were chosen on samples 1–5 of the Chui–Rangarajan benchmark.) ``register`` then warns (:class:`RegistrationWarning`) and ``summary()`` says so.
+        2 target point spacings, or more than a third of the source points match no target point
+        (the warp only extrapolates them). The thresholds were chosen on samples 1–5 of the
+        Chui–Rangarajan benchmark (and the last also on two samples of the 3-D benchmark's surfaces).
+        ``register`` then warns (:class:`RegistrationWarning`) and ``summary()`` says so.
     reasons : tuple of str
         Why ``reliable`` is False (empty when it is True).
     diagnostics : dict
