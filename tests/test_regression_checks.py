@@ -355,3 +355,29 @@ def test_the_warm_start_moves_the_ends_of_the_previous_path():
     assert np.allclose(np.diff(out - path, 2, axis=0), 0.0, atol=1e-14)  # linear in the node index
     move = rng.normal(size=(3, 2))
     assert np.allclose(regression_module._moved_path(prev, path[0] + move, path[-1] + move), path + move, atol=1e-15)
+
+
+def test_the_velocity_at_either_end_is_the_log_map_along_the_fit(curved):
+    """At ``t_ref = t_min`` the velocity is ``log_{γ(t_min)} γ(t_max) / (t_max − t_min)`` and at
+    ``t_max`` minus the log map back, both on a fresh ``path_steps``-segment geodesic between the
+    fit's ends (on a curved fit the two differ)."""
+    y, t = curved
+    lo, hi = t.min(), t.max()
+    first = geodesic_regression(y, t, t_ref=lo, tol=1e-4, path_steps=3, **OPTS)
+    last = geodesic_regression(y, t, t_ref=hi, tol=1e-4, path_steps=3, mean=first.mean, **OPTS)
+    a, b = first.path[0], first.path[-1]
+    assert np.allclose(first.intercept, a, atol=0) and np.allclose(last.intercept, b, atol=1e-9)
+    forward = shapelib.log_map(a, b, sigma2=S2, n_steps=3, tol=1e-12) / (hi - lo)
+    backward = -shapelib.log_map(b, a, sigma2=S2, n_steps=3, tol=1e-12) / (hi - lo)
+    assert np.abs(forward - backward).max() > 1e-3
+    assert np.allclose(first.velocity, forward, atol=1e-6) and np.allclose(last.velocity, backward, atol=1e-6)
+
+
+def test_an_unreachable_tolerance_stops_at_the_loss_floor(flat):
+    """With ``tol`` below what rounding allows, the iteration stops when no damping lowers the
+    loss (its floor), before ``max_iter``, not converged, at the least-squares line."""
+    y, t, a, b = flat
+    with pytest.warns(shapelib.GeodesicWarning, match="certificate"):
+        res = _fit_flat(y, t, tol=1e-300, max_iter=40)
+    assert not res.converged and res.n_iter < 40 and res.log[-1]["backtracks"] == 7
+    assert np.allclose(res.intercept, a, atol=1e-7) and np.allclose(res.velocity, b, atol=1e-7)
