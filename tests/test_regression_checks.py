@@ -371,6 +371,12 @@ def test_the_velocity_at_either_end_is_the_log_map_along_the_fit(curved):
     backward = -shapelib.log_map(b, a, sigma2=S2, n_steps=3, tol=1e-12) / (hi - lo)
     assert np.abs(forward - backward).max() > 1e-3
     assert np.allclose(first.velocity, forward, atol=1e-6) and np.allclose(last.velocity, backward, atol=1e-6)
+    # outside the range: the velocity at the nearer end (documented), the intercept on the exponential map
+    before = geodesic_regression(y, t, t_ref=lo - 1.0, tol=1e-4, path_steps=3, mean=first.mean, **OPTS)
+    after = geodesic_regression(y, t, t_ref=hi + 1.0, tol=1e-4, path_steps=3, mean=first.mean, **OPTS)
+    assert np.allclose(before.velocity, forward, atol=1e-6) and np.allclose(after.velocity, backward, atol=1e-6)
+    assert np.array_equal(before.intercept, before.predict(lo - 1.0))
+    assert np.array_equal(after.intercept, after.predict(hi + 1.0))
 
 
 def test_an_unreachable_tolerance_stops_at_the_loss_floor(flat):
