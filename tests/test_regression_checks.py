@@ -200,6 +200,7 @@ def test_the_fit_is_stationary_and_records_its_options(curved):
     o = res.options
     assert (o.metric, o.sigma2, o.n_steps, o.tol, o.max_iter, o.rcond, o.grid_spacing, o.grid_margin) == (
         "alpha", S2, 5, 1e-9, 300, 1e-8, 0.3, 5.0)
+    assert res.mean.options == o  # the Fréchet mean of R² with the same options
     assert res.tol == 1e-3 and res.converged and res.certificate <= 1e-3 and len(res.path) == 4
     rng = np.random.default_rng(0)
     eps = 1e-4
@@ -387,3 +388,37 @@ def test_an_unreachable_tolerance_stops_at_the_loss_floor(flat):
         res = _fit_flat(y, t, tol=1e-300, max_iter=40)
     assert not res.converged and res.n_iter < 40 and res.log[-1]["backtracks"] == 7
     assert np.allclose(res.intercept, a, atol=1e-7) and np.allclose(res.velocity, b, atol=1e-7)
+
+
+def test_the_defaults_are_the_frechet_means(flat, flat_fit):
+    """The residual geodesics' options default to those of :func:`shapelib.frechet_mean`; the stop
+    to ``tol = 1e-3``."""
+    from shapelib.statistics.frechet import geodesic_options
+
+    y, t, _, _ = flat
+    assert flat_fit.options == geodesic_options("alpha", sigma2=FLAT_S2)
+    res = _fit_flat(y, t)
+    assert res.tol == 1e-3 and res.options == flat_fit.options
+
+
+def test_the_retained_subspace_does_not_move_the_fit(curved):
+    """``rcond`` sets the subspace the mean's tangent space keeps (here one of 12 directions is
+    dropped); the ends move in their own (``step_rcond``), so the fitted geodesic is the same."""
+    y, t = curved
+    full = geodesic_regression(y, t, tol=1e-6, path_steps=2, **OPTS)
+    cut = geodesic_regression(y, t, tol=1e-6, path_steps=2, rcond=0.1, **OPTS)
+    assert cut.mean.discarded_fraction > 0 and cut.options.rcond == 0.1
+    assert np.allclose(cut.path, full.path, atol=1e-9)
+
+
+def test_shapes_out_of_pose_warn_once_from_the_callers_line(curved):
+    y, t = curved
+    turned = y.copy()
+    c, s = np.cos(0.3), np.sin(0.3)
+    turned[2] = turned[2] @ np.array([[c, -s], [s, c]])
+    with pytest.warns(shapelib.PoseWarning, match="^fisher_rao depends on the pose") as record:
+        geodesic_regression(turned[:4], t[:4], metric="fisher_rao", max_iter=0, warn=False, sigma2=S2, n_steps=2,
+                            path_steps=1, n_jobs=1)
+    assert sum(issubclass(w.category, shapelib.PoseWarning) for w in record) == 1
+    if not UNDER_MUTMUT:  # mutmut's trampoline adds frames of its own
+        assert record[0].filename == __file__
