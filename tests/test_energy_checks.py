@@ -46,7 +46,8 @@ def _fd_gradient(model, path, eps=1e-6):
         plus, minus = path.copy(), path.copy()
         plus[(idx[0] + 1, *idx[1:])] += eps
         minus[(idx[0] + 1, *idx[1:])] -= eps
-        out[idx] = (path_energy(model, plus, gradient=False)[0] - path_energy(model, minus, gradient=False)[0]) / (2 * eps)
+        e_plus, e_minus = path_energy(model, plus, gradient=False)[0], path_energy(model, minus, gradient=False)[0]
+        out[idx] = (e_plus - e_minus) / (2 * eps)
     return out
 
 
