@@ -64,6 +64,9 @@ def test_the_start_is_the_least_squares_line_which_the_flat_limit_accepts_at_onc
     assert np.allclose(res.intercept, a, atol=1e-8) and np.allclose(res.velocity, b, atol=1e-8)
     assert np.allclose(res.path[0], a + (t.min() - t.mean()) * b, atol=1e-8)
     assert np.allclose(res.path[-1], a + (t.max() - t.mean()) * b, atol=1e-8)
+    # a covariate of small spread (Σ(t − t̄)² < 1) as well
+    small = _fit_flat(y, t / 100, tol=1e-6, max_iter=0)
+    assert small.converged and np.allclose(small.velocity, 100 * b, atol=1e-6)
 
 
 def test_prediction_outside_the_range_continues_the_line(flat, flat_fit):
@@ -87,7 +90,7 @@ def test_predict_takes_any_real_scalar_and_refuses_a_non_finite_one(flat, flat_f
     assert np.allclose(flat_fit.predict(t.min()), flat_fit.path[0], atol=0, rtol=0)
     assert np.allclose(flat_fit.predict(t.max()), flat_fit.path[-1], atol=0, rtol=0)
     for bad in (np.nan, [10.0, np.inf]):
-        with pytest.raises(ValueError, match="t must be finite"):
+        with pytest.raises(ValueError, match="^t must be finite$"):
             flat_fit.predict(bad)
 
 
@@ -208,7 +211,7 @@ def test_the_fit_is_stationary_and_records_its_options(curved):
         da, db = rng.normal(size=(2, *y[0].shape))
         lp = _loss_and_fitted(res.path[0] + eps * da, res.path[-1] + eps * db, y, t, 3)[0]
         lm = _loss_and_fitted(res.path[0] - eps * da, res.path[-1] - eps * db, y, t, 3)[0]
-        assert abs(lp - lm) / (2 * eps) < 0.05 * res.ss_residual
+        assert abs(lp - lm) / (2 * eps) < 2e-3 * res.ss_residual  # ~2e-4 measured
     # the speed is the metric norm of the velocity: the α tensor written out
     g = shapelib.alpha_metric(res.intercept, sigma2=S2)
     assert res.speed == pytest.approx(np.sqrt(res.velocity.ravel() @ g @ res.velocity.ravel()), rel=1e-10)
@@ -225,7 +228,7 @@ def test_the_fit_is_a_geodesic_and_r2_is_against_the_frechet_mean_of_its_metric(
                               n_jobs=1)
     assert res.mean.options == res.options and res.options.metric == metric
     again = shapelib.geodesic(res.path[0], res.path[-1], metric=metric, sigma2=S2, n_steps=2, tol=1e-12)
-    assert np.abs(again.path - res.path).max() < 1e-7
+    assert np.abs(again.path - res.path).max() < 1e-9
     energies = [shapelib.geodesic(res.mean.mean, x, metric=metric, sigma2=S2, n_steps=3, tol=1e-12).energy for x in y]
     assert res.ss_total == pytest.approx(sum(energies), rel=1e-7)
     fitted = [shapelib.geodesic(f, x, metric=metric, sigma2=S2, n_steps=3, tol=1e-12).energy
@@ -242,7 +245,7 @@ def test_a_given_mean_is_used_and_a_wrong_one_refused(curved):
     assert res.r2 == pytest.approx(1 - res.ss_residual / float(np.sum(mean.energies)), rel=1e-14)
     other = shapelib.frechet_mean(y[:-1], tol=1e-4, **OPTS)
     for bad in (other, mean.mean):
-        with pytest.raises(ValueError, match="mean must be the FrechetMeanResult of these shapes"):
+        with pytest.raises(ValueError, match="^mean must be the FrechetMeanResult of these shapes$"):
             geodesic_regression(y, t, mean=bad, **OPTS)
 
 
@@ -285,8 +288,12 @@ def test_not_converging_warns_from_the_callers_line_unless_told_not_to(curved):
 
 
 def test_the_history_records_a_decreasing_loss(curved):
+    import time
+
     y, t = curved
+    start = time.perf_counter()
     res = geodesic_regression(y, t, tol=1e-6, path_steps=2, **OPTS)
+    elapsed = time.perf_counter() - start
     assert res.converged and len(res.log) == res.n_iter + 1 >= 2
     losses = [h["loss"] for h in res.log]
     assert all(b < a for a, b in zip(losses, losses[1:])) and losses[-1] == res.ss_residual
@@ -297,7 +304,7 @@ def test_the_history_records_a_decreasing_loss(curved):
                for a, b in zip(res.log, res.log[1:]) if a["backtracks"] == 0)
     assert all("backtracks" in h for h in res.log[:-1]) and "backtracks" not in res.log[-1]
     seconds = [h["seconds"] for h in res.log]
-    assert seconds == sorted(seconds) and seconds[0] >= 0
+    assert seconds == sorted(seconds) and seconds[0] >= 0 and seconds[-1] <= elapsed  # since the fit began
     assert res.log[-1]["mode"] == "in-process"
 
 
