@@ -49,7 +49,7 @@ def _fit_flat(y, t, **kw):
         return geodesic_regression(y, t, sigma2=FLAT_S2, n_jobs=1, **kw)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture  # a few hundredths of a second; per test, so that mutmut counts the fit towards each test that reads it
 def flat_fit(flat):
     y, t, _, _ = flat
     return _fit_flat(y, t, tol=1e-9)
