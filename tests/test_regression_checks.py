@@ -429,3 +429,15 @@ def test_shapes_out_of_pose_warn_once_from_the_callers_line(curved):
     assert sum(issubclass(w.category, shapelib.PoseWarning) for w in record) == 1
     if not UNDER_MUTMUT:  # mutmut's trampoline adds frames of its own
         assert record[0].filename == __file__
+
+
+def test_identical_shapes_give_a_standing_geodesic_and_no_r2():
+    """Shapes that do not vary: the geodesic stands still at the shape, with zero loss (certificate
+    0: nothing left to explain) and zero total sum of squares, so R² is undefined (nan)."""
+    from tests.conftest import ellipse
+
+    y = np.stack([ellipse(5)] * 4)
+    res = geodesic_regression(y, [0.0, 1.0, 2.0, 3.0], tol=1e-6, path_steps=2, **OPTS)
+    assert res.converged and res.n_iter == 0 and res.certificate == 0.0
+    assert res.ss_residual == 0.0 and res.ss_total == 0.0 and np.isnan(res.r2)
+    assert np.allclose(res.path, y[0], atol=1e-12) and np.allclose(res.velocity, 0.0, atol=1e-12)
