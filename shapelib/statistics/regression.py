@@ -86,7 +86,8 @@ class GeodesicRegressionResult:
     intercept : ndarray (K, d)
         ``γ(t_ref)``.
     velocity : ndarray (K, d)
-        ``dγ/dt`` at ``t_ref`` (per unit of ``t``).
+        ``dγ/dt`` at ``t_ref`` (per unit of ``t``); for ``t_ref`` outside ``t_range``, at the nearer
+        end of the range (the velocity the exponential map continues the geodesic with).
     fitted : ndarray (N, K, d)
         ``γ(t_i)``.
     residuals : ndarray (N, K, d)
@@ -248,7 +249,8 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
     metric, sigma2
         The metric (eq. 22 or eq. 6).
     t_ref : float, optional
-        Where ``intercept`` and ``velocity`` are reported (default the mean of ``t``).
+        Where ``intercept`` and ``velocity`` are reported (default the mean of ``t``); outside the
+        range of ``t`` the velocity is the one at the nearer end of the range.
     mean : FrechetMeanResult, optional
         The Fréchet mean of ``shapes`` for ``R²`` (computed when not given).
     tol, max_iter
