@@ -346,7 +346,9 @@ def test_bad_input_is_refused_naming_the_parameter(flat):
     with pytest.raises(ValueError, match="^shapes: landmarks must have d = 2 or 3"):
         geodesic_regression(np.concatenate([y, y[..., :1], y[..., :1]], axis=2), t, sigma2=FLAT_S2, n_jobs=1)
     for name, value, match in (("tol", 0.0, "^tol must be"), ("max_iter", -1, "^max_iter must be"),
-                               ("path_steps", 0, "^path_steps must be")):
+                               ("path_steps", 0, "^path_steps must be"), ("step_rcond", 0.0, "^step_rcond must be"),
+                               ("step_rcond", float("nan"), "^step_rcond must be"),
+                               ("step_rcond", 1.0, "^step_rcond must be below 1")):
         with pytest.raises(ValueError, match=match):
             geodesic_regression(y, t, sigma2=FLAT_S2, n_jobs=1, **{name: value})
 

@@ -261,7 +261,7 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
         The residual geodesics and the retained subspace (as :func:`~shapelib.statistics.frechet.frechet_mean`).
     step_rcond : float
         The ends of the geodesic move in the directions whose metric eigenvalue exceeds this share
-        of the largest (module docstring).
+        of the largest (module docstring); in (0, 1).
     executor, chunk_size
         Where the residual log maps run (:mod:`shapelib.statistics.population_logs`).
     n_jobs, client, scheduler
@@ -296,6 +296,9 @@ def geodesic_regression(shapes, t, *, metric: str = "alpha", sigma2, t_ref: floa
     lo, hi = float(tt.min()), float(tt.max())
     if hi == lo:
         raise ValueError(f"t is constant ({lo!r}): there is nothing to regress on")
+    step_rcond = check_positive(step_rcond, name="step_rcond")
+    if step_rcond >= 1:
+        raise ValueError(f"step_rcond must be below 1 (a share of the largest eigenvalue); got {step_rcond!r}")
     opts = geodesic_options(metric, sigma2=sigma2, n_steps=n_steps, log_tol=log_tol, log_max_iter=log_max_iter, rcond=rcond,
                             grid_spacing=grid_spacing, grid_margin=grid_margin)
     tol = check_positive(tol, name="tol")
