@@ -152,15 +152,19 @@ def summarise_range(levels: dict, samples: list[int], methods=METHODS, families=
     return out
 
 
-def summarise(levels: dict, samples: list[int] | None = None, **kw) -> dict:
-    """The summary of every range: 1–5, 6–10 and 1–10 when all ten samples ran, else the range that ran."""
+def summarise(levels: dict, samples: list[int] | None = None, *, tuned=range(1, 6), **kw) -> dict:
+    """The summary of every range: the samples the defaults were ``tuned`` on (1–5 here), the rest
+    and all of them when every sample of ``tuned`` and some more ran (1–5, 6–10 and 1–10 for all
+    ten), else the range that ran."""
     if samples is None:
         samples = sorted({s for n in levels for s in levels[n]["shapelib"]["samples"]}) if levels else []
     if not samples:
         return {}
     ranges = [samples]
-    if set(range(1, 11)) <= set(samples):
-        ranges = [list(range(1, 6)), list(range(6, 11)), list(range(1, 11))]
+    tuned = sorted(tuned)
+    rest = sorted(set(samples) - set(tuned))
+    if set(tuned) <= set(samples) and rest:
+        ranges = [tuned, rest, sorted(samples)]
     return {f"{min(r)}-{max(r)}": summarise_range(levels, r, **kw) for r in ranges}
 
 

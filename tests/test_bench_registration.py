@@ -67,6 +67,11 @@ def test_summarise_counts_failures_flags_and_ranges_of_a_hand_made_record():
     assert set(whole["families"]) == {"fish_def", "chinese_rot"}
     # only the range that ran when not all ten did
     assert list(bench.summarise(levels, [1, 2, 3], methods=("shapelib", "cpd"))) == ["1-3"]
+    # the 3-D benchmark's split: the samples a threshold was tuned on, the rest, all
+    split = bench.summarise(levels, [1, 2, 3, 4, 5], methods=("shapelib", "cpd"), tuned=(1, 2))
+    assert list(split) == ["1-2", "3-5", "1-5"]
+    assert split["1-2"]["methods"]["shapelib"]["registrations"] == 2 * len(levels)
+    assert split["3-5"]["methods"]["shapelib"]["registrations"] == 3 * len(levels)
     assert bench.parse_samples("6-10") == [6, 7, 8, 9, 10] and bench.parse_samples("3") == [1, 2, 3]
     with pytest.raises(ValueError, match="samples"):
         bench.parse_samples("0-4")
