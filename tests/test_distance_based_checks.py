@@ -4,6 +4,8 @@ against closed forms, leave-one-out k-NN against a brute-force vote and scikit-l
 cross_val_predict, classical MDS against NumPy's eigendecomposition of Gower's matrix, the Mantel
 correlation against SciPy, and the validation of distance matrices at its tolerances."""
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -165,6 +167,12 @@ def test_the_table_adds_up():
     assert (t.loc[["group", "age"], "ss_type"] == "III (marginal)").all()
     assert t.loc["group", "p_tests"] == "no effect of group given age (residuals of the model without group permuted)"
     assert set(res.null) == {"group", "age"} and res.null["age"].shape == (9,)
+    text = res.summary().splitlines()
+    assert text[0] == ("PERMANOVA, 9 permutations (Freedman-Lane: residuals of the model without the term "
+                       "permuted); sums of squares marginal (type III)")
+    row = next(line for line in text if line.startswith("group "))  # four significant digits
+    assert f" {t.loc['group', 'pseudo_F']:.4g} " in row and f"{t.loc['group', 'pseudo_F']:.6g}" not in row
+    assert text[-2:] == [f"p of group: {t.loc['group', 'p_tests']}", f"p of age: {t.loc['age', 'p_tests']}"]
 
 
 def test_a_sequential_table_says_what_it_tests_and_notes_a_shared_effect():
@@ -186,7 +194,9 @@ def test_a_sequential_table_says_what_it_tests_and_notes_a_shared_effect():
     assert (t.loc[["x", "z"], "ss_type"] == "I (sequential)").all()
     assert t.loc["x", "p_tests"] == "no effect of x given z (residuals of the model without x permuted)"
     assert len(seq.notes) == 1 and seq.notes[0].startswith(f"x: F = {t.loc['x', 'pseudo_F']:.4g} is x given")
-    assert f"{1 - ss_own / ss_seq:.0%} of its sequential sum of squares is shared with z" in seq.notes[0]
+    assert f"; {1 - ss_own / ss_seq:.0%} of its sequential sum of squares is shared with z, " in seq.notes[0]
+    # the note does not depend on the units of the distances
+    assert permanova(1e-3 * d, {"x": x, "z": z}, by="terms", n_permutations=19).notes == seq.notes
     text = seq.summary()
     assert text.splitlines()[0] == ("PERMANOVA, 19 permutations (Freedman-Lane: residuals of the model without the "
                                     "term permuted); sums of squares sequential (type I)")
@@ -217,9 +227,12 @@ def test_a_note_needs_the_own_share_below_half():
         y = np.c_[x + z, rng.normal(size=n)] + 0.3 * rng.normal(size=(n, 2))
         one = np.ones((n, 1))
         full = np.column_stack([one, x, z])
-        share = (_rss(np.column_stack([one, z]), y) - _rss(full, y)) / (_rss(one, y) - _rss(np.column_stack([one, x]), y))
+        own = _rss(np.column_stack([one, z]), y) - _rss(full, y)
+        share = own / (_rss(one, y) - _rss(np.column_stack([one, x]), y))
         res = permanova(cdist(y, y), {"x": x, "z": z}, by="terms", n_permutations=9)
         assert (len(res.notes) == 1) == (share < 0.5), (w, share)
+        if res.notes:
+            assert f"; {1 - share:.0%} of its sequential sum of squares" in res.notes[0]
         seen.add(share < 0.5)
     assert seen == {True, False}
 
@@ -387,6 +400,50 @@ def test_mds_shares_are_gowers_eigenvalues_over_its_trace():
     np.testing.assert_allclose(coords @ coords.T, (vec[:, :3] * lam[:3]) @ vec[:, :3].T, atol=1e-9)
 
 
+def test_mds_gives_two_axes_by_default_and_refuses_without_numpy_warnings():
+    rng = np.random.default_rng(2)
+    y = rng.normal(size=(7, 3))
+    coords, explained = classical_mds(cdist(y, y))
+    assert coords.shape == (7, 2) and explained.shape == (2,)
+    # three objects breaking the triangle inequality: one positive eigenvalue, one negative
+    bad = np.array([[0.0, 1.0, 1.0], [1.0, 0.0, 3.0], [1.0, 3.0, 0.0]])
+    assert (np.linalg.eigvalsh(gower_centered(bad)) < -1e-9).sum() == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the square root of the negative one is not warned about
+        with pytest.raises(ValueError, match="only 1 positive eigenvalues"):
+            classical_mds(bad, n_components=2)
+    # a star whose arms are far shorter than the distances between their tips: Gower's matrix has two
+    # positive eigenvalues, a third axis takes the square root of a (rounding-)negative one
+    star = np.full((4, 4), 3.0)
+    star[0, :] = star[:, 0] = 1.0
+    np.fill_diagonal(star, 0.0)
+    with np.errstate(invalid="warn"), warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="only 2 positive eigenvalues"):
+            classical_mds(star, n_components=3)
+    with pytest.raises(ValueError, match=r"^distances are all zero: there is nothing to ordinate$"):
+        classical_mds(np.zeros((4, 4)), n_components=1)
+
+
+def test_mds_counts_positive_eigenvalues_relative_to_the_largest():
+    """A second dimension 1e-13 of the first (in eigenvalue) is not an axis at any scale; one 1e-10
+    of the first is. Checked on the same shape in kilometres and millimetres."""
+    t = np.linspace(0.0, 1.0, 7)
+    wiggle = np.arange(7) % 2 - 0.5
+    lam1 = np.linalg.eigvalsh(gower_centered(cdist(t[:, None], t[:, None])))[-1]
+    for scale in (1e-6, 1e6):
+        for ratio, axes in ((1e-13, 1), (1e-10, 2)):
+            pts = scale * np.column_stack([t, np.sqrt(ratio * lam1 / np.sum(wiggle ** 2)) * wiggle])
+            d = cdist(pts, pts)
+            lam = np.linalg.eigvalsh(gower_centered(d))[::-1]
+            assert lam[1] / lam[0] == pytest.approx(ratio, rel=0.05)
+            if axes == 2:
+                assert classical_mds(d, n_components=2)[0].shape == (7, 2)
+            else:
+                with pytest.raises(ValueError, match="only 1 positive eigenvalues"):
+                    classical_mds(d, n_components=2)
+
+
 def test_mds_takes_up_to_n_minus_one_axes():
     """Four points of a regular simplex in three dimensions: three equal positive eigenvalues."""
     simplex = np.eye(4)
@@ -429,9 +486,140 @@ def test_mantel_is_the_correlation_of_the_upper_triangles():
     # the seed fixes the draws
     assert mantel_test(a, b, n_permutations=199, seed=3) == (r_s, p_s)
     flat = np.ones((9, 9)) - np.eye(9)
-    with pytest.raises(ValueError, match=r"x has all off-diagonal distances equal \(1.0\)"):
+    with pytest.raises(ValueError, match=r"^x has all off-diagonal distances equal \(1.0\): its correlation with "
+                                         r"anything is undefined$"):
         mantel_test(flat, b)
+    # every pair counts: three objects whose two longer distances are equal are not constant
+    three = np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 2.0], [2.0, 2.0, 0.0]])
+    other = np.array([[0.0, 1.0, 3.0], [1.0, 0.0, 2.0], [3.0, 2.0, 0.0]])
+    assert mantel_test(three, other, method="pearson", n_permutations=5)[0] == pytest.approx(
+        pearsonr([1.0, 2.0, 2.0], [1.0, 3.0, 2.0])[0], rel=1e-12)
     with pytest.raises(ValueError, match=r"x\[0, 1\] = -\S+ is negative"):
         mantel_test(-a, b)
     with pytest.raises(ValueError, match=r"y\[0, 1\] = -\S+ is negative"):
         mantel_test(a, -b)
+
+
+def test_mantel_defaults_are_999_permutations_and_seed_0():
+    rng = np.random.default_rng(15)
+    y = rng.normal(size=(8, 2))
+    a = cdist(y, y)
+    b = a ** 2 + 0.01 * cdist(*[rng.normal(size=(8, 2))] * 2)
+    r, p = mantel_test(a, b)
+    assert p == pytest.approx(1 / 1000, abs=1e-15)  # the strongest evidence 999 permutations give
+    rng = np.random.default_rng(15)
+    a = cdist(*[rng.normal(size=(8, 2))] * 2)
+    weak = cdist(*[rng.normal(size=(8, 2))] * 2) + 0.3 * a
+    r, p = mantel_test(a, weak, n_permutations=99)
+    assert (r, p) == mantel_test(a, weak, n_permutations=99, seed=0)
+    assert p != mantel_test(a, weak, n_permutations=99, seed=1)[1]  # (0.13 against 0.10)
+
+
+def test_mantel_without_scikit_bio_says_how_to_install_it(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "skbio.stats.distance", None)  # an import of it fails
+    a = cdist(*[np.arange(5.0)[:, None]] * 2)
+    with pytest.raises(ImportError, match=r"^mantel_test runs scikit-bio's Mantel test: pip install scikit-bio "
+                                          r"\(it comes with the study extra, pip install 'shapelib\[study\]'\)$"):
+        mantel_test(a, a ** 2)
+
+
+def test_knn_defaults_are_five_neighbours_999_permutations_and_seed_0():
+    rng = np.random.default_rng(16)
+    y = rng.normal(size=(16, 2))
+    d = cdist(y, y)
+    g = np.array(list("ab") * 8)
+    res = knn_loo_accuracy(d, g)
+    same = knn_loo_accuracy(d, g, n_neighbors=5, n_permutations=999, seed=0)
+    assert res.n_neighbors == 5 and res.n_permutations == 999 and res.null.shape == (999,)
+    np.testing.assert_array_equal(res.null, same.null)
+    np.testing.assert_array_equal(res.predictions, np.array(list("ab"))[_brute_force_knn(d, (g == "b").astype(int), 5)])
+    assert not np.array_equal(res.null, knn_loo_accuracy(d, g, seed=1).null)
+
+
+def test_factor_levels_of_any_type_and_a_numeric_covariate_far_from_zero():
+    """Labels of mixed types (sorted as text) are a factor; an all-True boolean is a factor with a
+    single level; a numeric covariate is centred before anything else, so an offset a hundred billion
+    times its spread changes nothing (uncentred, it would look collinear with the intercept)."""
+    rng = np.random.default_rng(17)
+    y = rng.normal(size=(12, 2))
+    d = cdist(y, y)
+    mixed = np.array([1, "a"] * 6, dtype=object)
+    as_text = np.array(["1", "a"] * 6)
+    pd.testing.assert_frame_equal(permanova(d, {"m": mixed}, n_permutations=9).table,
+                                  permanova(d, {"m": as_text}, n_permutations=9).table)
+    with pytest.raises(ValueError, match=r"covariate 'f' has a single level \[.*True_?\]: nothing to test"):
+        permanova(d, {"f": np.ones(12, dtype=bool)})
+    age = np.arange(12.0)
+    base = permanova(d, {"age": age}, n_permutations=19).table
+    far = permanova(d, {"age": 1e12 + age}, n_permutations=19).table
+    pd.testing.assert_frame_equal(base, far, rtol=1e-6)
+
+
+def test_a_covariate_is_collinear_below_1e_minus_10_of_its_own_part():
+    """b = a + ε w with w orthogonal to the intercept and a: after centring and scaling to unit
+    length, the part of b outside (1, a) has length ε; it is a term of its own for ε = 1.5e-10
+    and collinear for ε = 0.5e-10."""
+    rng = np.random.default_rng(18)
+    n = 10
+    y = rng.normal(size=(n, 2))
+    d = cdist(y, y)
+    basis, _ = np.linalg.qr(np.column_stack([np.ones(n), rng.normal(size=(n, 2))]))
+    a, w = basis[:, 1], basis[:, 2]  # centred, unit, orthogonal
+    res = permanova(d, {"a": a, "b": a + 1.5e-10 * w}, n_permutations=5).table
+    assert res.loc["b", "df"] == 1 and res.loc["Residual", "df"] == n - 3
+    with pytest.raises(ValueError, match=r"^term 'b' is collinear with the terms before it"):
+        permanova(d, {"a": a, "b": a + 0.5e-10 * w}, n_permutations=5)
+
+
+def test_permanova_defaults_are_999_permutations_and_seed_0():
+    rng = np.random.default_rng(19)
+    y = rng.normal(size=(9, 2))
+    d = cdist(y, y)
+    g = np.array(list("aab") * 3)
+    res = permanova(d, {"g": g})
+    assert res.n_permutations == 999 and res.seed == 0 and res.null["g"].shape == (999,)
+    np.testing.assert_array_equal(res.null["g"], permanova(d, {"g": g}, n_permutations=999, seed=0).null["g"])
+    assert not np.array_equal(res.null["g"], permanova(d, {"g": g}, seed=1).null["g"])
+    with pytest.raises(ValueError, match=r"^no terms to test$"):
+        permanova(d, {"g": g}, terms=())
+    with pytest.raises(ValueError, match=r"^distances are all zero: there is no variation to test$"):
+        permanova(np.zeros((9, 9)), {"g": g})
+
+
+def test_three_terms_name_all_the_others():
+    """x = z + w + noise: x's sequential sum of squares is shared with both later terms, and its
+    p tests x given z + w."""
+    rng = np.random.default_rng(20)
+    n = 30
+    z, w = rng.normal(size=n), rng.normal(size=n)
+    x = z + w + 0.05 * rng.normal(size=n)
+    y = np.c_[z, w] + 0.5 * rng.normal(size=(n, 2))
+    res = permanova(cdist(y, y), {"x": x, "z": z, "w": w}, by="terms", n_permutations=9)
+    t = res.table
+    assert t.loc["x", "p_tests"] == "no effect of x given z + w (residuals of the model without x permuted)"
+    assert t.loc["z", "p_tests"] == "no effect of z given x + w (residuals of the model without z permuted)"
+    one = np.ones((n, 1))
+    full = np.column_stack([one, x, z, w])
+    share = 1 - (_rss(np.column_stack([one, z, w]), y) - _rss(full, y)) / (
+        _rss(one, y) - _rss(np.column_stack([one, x]), y))
+    assert share > 0.5 and res.notes[0].startswith("x: ")
+    assert f"; {share:.0%} of its sequential sum of squares is shared with z + w, which" in res.notes[0]
+    assert not any(note.startswith("w: ") for note in res.notes)  # the last term has nothing after it
+
+
+def test_ties_of_a_huge_f_count_within_a_relative_tolerance():
+    """Two tight, far-apart clusters: F ~ 5e6, and exactly the draws that keep or swap the two groups
+    reach it (counted here from the labels, no arithmetic); their permuted F differ from the
+    observed one by rounding only, which the tolerance relative to F absorbs."""
+    rng = np.random.default_rng(1)
+    pts = np.r_[rng.normal(size=(4, 2)) * 1e-3, 1.0 + rng.normal(size=(4, 2)) * 1e-3]
+    g = np.array(["a"] * 4 + ["b"] * 4)
+    res = permanova(cdist(pts, pts), {"g": g}, permute="rows", n_permutations=999, seed=1)
+    assert res.table.loc["g", "pseudo_F"] > 1e6
+    r = np.random.default_rng(1)
+    draws = [r.permutation(8) for _ in range(999)]
+    same = sum(np.array_equal(g[p], g) or np.array_equal(g[p], g[::-1]) for p in draws)
+    assert same > 0
+    assert res.table.loc["g", "p_value"] == pytest.approx((1 + same) / 1000, abs=1e-15)
