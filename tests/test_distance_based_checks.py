@@ -63,6 +63,17 @@ def test_tolerances_are_relative_to_the_largest_entry():
     assert as_distance_matrix(bad, atol=1e-6)[0, 4] == pytest.approx(4.0 + 0.5e-6, rel=1e-15)
 
 
+def test_any_real_array_like_is_read_as_floats():
+    """Exact fractions (an object array to NumPy) are read as the floats they round to."""
+    from fractions import Fraction
+
+    exact = [[Fraction(0), Fraction(1, 3), Fraction(2, 3)], [Fraction(1, 3), Fraction(0), Fraction(1, 3)],
+             [Fraction(2, 3), Fraction(1, 3), Fraction(0)]]
+    out = as_distance_matrix(exact)
+    assert out.dtype == np.float64
+    np.testing.assert_array_equal(out, [[0, 1 / 3, 2 / 3], [1 / 3, 0, 1 / 3], [2 / 3, 1 / 3, 0]])
+
+
 def test_validation_messages_name_the_entry():
     d = cdist(*[np.arange(5.0)[:, None]] * 2)
     bad = d.copy()
@@ -151,6 +162,7 @@ def test_the_table_adds_up():
     full = np.column_stack([one, dummies, age])
     ss_total = float(np.sum((y - y.mean(axis=0)) ** 2))
     assert list(t.index) == ["group", "age", "Residual", "Total"]
+    assert list(t.columns) == ["df", "sum_of_squares", "r2", "pseudo_F", "p_value", "ss_type", "p_tests"]
     assert t.loc["group", "df"] == 2 and t.loc["age", "df"] == 1
     assert t.loc["Residual", "df"] == n - 4 and t.loc["Total", "df"] == n - 1
     assert t.loc["group", "sum_of_squares"] == pytest.approx(
