@@ -57,6 +57,12 @@ def test_tolerances_are_relative_to_the_largest_entry():
         diag[2, 2] = 2e-9 * d.max()
         with pytest.raises(ValueError, match=r"distances\[2, 2\] = .*: the diagonal must be zero"):
             as_distance_matrix(diag)
+    # atol = 0: exact symmetry and an exactly zero diagonal pass, the least asymmetry does not
+    np.testing.assert_array_equal(as_distance_matrix(base, atol=0.0), base)
+    bad = base.copy()
+    bad[0, 4] = np.nextafter(4.0, 5.0)
+    with pytest.raises(ValueError, match="not symmetric"):
+        as_distance_matrix(bad, atol=0.0)
     # a looser atol accepts what the default refuses
     bad = base.copy()
     bad[0, 4] += 1e-6
@@ -86,7 +92,8 @@ def test_validation_messages_name_the_entry():
         as_distance_matrix(bad, name="M")
     bad = d.copy()
     bad[4, 0] = 9.0
-    with pytest.raises(ValueError, match=r"^M is not symmetric: \[0, 4\] = 4.0 but \[4, 0\] = 9.0 "):
+    with pytest.raises(ValueError, match=r"^M is not symmetric: \[0, 4\] = 4.0 but \[4, 0\] = 9.0 "
+                                         r"\(symmetrise an asymmetric measure first\)$"):
         as_distance_matrix(bad, name="M")
     bad = d.copy()
     bad[3, 3] = 0.25
