@@ -25,37 +25,12 @@ from shapelib.solver.minimise import (
     newton_certificate,
 )
 
+from test_solver_pieces import FlatMetric  # Q = c |v|², exact Hessian: the path energy is a quadratic
+
 #: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions
 #: go through a trampoline, one more stack frame between the caller and the code
 UNDER_MUTMUT = any("__mutmut_" in name for name in vars(minimise_module))
 
-
-class FlatMetric(sl.PathMetric):
-    """``Q = c |v|²`` (g = c I) with its exact Hessian: the path energy is a quadratic."""
-
-    name = "flat"
-    has_exact_hessian = True
-
-    def __init__(self, c):
-        self.c = c
-
-    def qform(self, theta, vel, ctx):
-        return self.c * np.einsum("mkd,mkd->m", vel, vel)
-
-    def qform_grad(self, theta, vel, ctx):
-        return self.qform(theta, vel, ctx), np.zeros_like(theta), 2 * self.c * vel
-
-    def tensors(self, theta, ctx):
-        m, k, d = theta.shape
-        return np.broadcast_to(self.c * np.eye(k * d), (m, k * d, k * d)).copy()
-
-    def qform_hessian(self, theta, vel, ctx):
-        m, k, d = theta.shape
-        z = np.zeros((m, k * d, k * d))
-        return z, z.copy(), np.broadcast_to(2 * self.c * np.eye(k * d), (m, k * d, k * d)).copy()
-
-    def lower_bound(self, u, v):
-        return float(np.sqrt(self.c) * np.linalg.norm(v - u))
 
 
 def _ends(rng, k=5):
