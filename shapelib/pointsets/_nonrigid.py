@@ -119,8 +119,8 @@ AMBIGUOUS_PER_POINT = 0.2
 RESIDUAL_SPACINGS = 2.0
 #: the fit misses a part when more than this share of the source points explains no target point (a
 #: third: chosen on samples 1–5 of the Chui–Rangarajan benchmark and samples 1–2 of the 3-D surfaces
-#: of ``benchmarks/bench_registration_3d.py``, where the failed fits of an occluded surface leave
-#: 0.38–0.51 of the source unmatched and the good ones at most 0.23; a half caught none of them)
+#: of ``benchmarks/bench_registration_3d.py``, where the failed fits a half let through, mostly of
+#: occluded surfaces, left 0.38–0.49 of the source unmatched and the good fits at most 0.23)
 UNMATCHED_SHARE = 1 / 3
 
 
