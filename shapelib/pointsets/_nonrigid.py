@@ -119,8 +119,8 @@ AMBIGUOUS_PER_POINT = 0.2
 RESIDUAL_SPACINGS = 2.0
 #: the fit misses a part when more than this share of the source points explains no target point (a
 #: third: chosen on samples 1–5 of the Chui–Rangarajan benchmark and samples 1–2 of the 3-D surfaces
-#: of ``benchmarks/bench_registration_3d.py``, where the failed fits a half let through, mostly of
-#: occluded surfaces, left 0.38–0.49 of the source unmatched and the good fits at most 0.23)
+#: of ``benchmarks/bench_registration_3d.py``, where 7 of the 9 failed fits a half let through
+#: left 0.38–0.49 of the source unmatched, the other two 0.28–0.29, and the good fits at most 0.23)
 UNMATCHED_SHARE = 1 / 3
 
 
