@@ -22,7 +22,8 @@ is needed, and FilterReg and GMMTree are still rigid only.
 Some peers take tens of seconds on some of these sets (GMMTree, probreg's CPD): a registration still
 running after ``--time-limit`` seconds (default 10, the same for every method) is stopped and
 counted as a failure (``TimeoutError``), which bounds the run: on the 2-core machine of the performance
-page sample 1 took about 6 s per level (5 minutes in all) and samples 1–5 about 20 s per level and sample.
+page sample 1 took about 6 s per level (5 minutes in all); on samples 1–5 the first six levels took
+about 20 s per level and sample.
 
     python benchmarks/bench_registration_3d.py [--samples 1-2] [--points 200] [--time-limit 10] [--levels torus,rot] [--json out.json] [--record]
 
