@@ -359,6 +359,8 @@ def test_the_code_line_check_finds_wide_lines_in_code_blocks_only():
     assert long_code_lines(text) == [(4, len(wide))]
 
 
+@needs(importlib.util.find_spec("sphinx_gallery") is not None,
+       "sphinx-gallery splits the gallery examples into blocks: the docs extra (pip install -e '.[docs]')")
 def test_code_lines_of_the_pages_and_examples_fit_their_blocks():
     from sphinx_gallery.py_source_parser import split_code_and_text_blocks
 
