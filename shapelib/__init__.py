@@ -73,7 +73,9 @@ _LAZY_FUNCTIONS = {"read_point_sets": "io", "write_point_set": "io", "read_slide
                    "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple",
                    "shape_lm": "statistics.linear_model", "ShapeLinearModel": "statistics.linear_model",
                    "procrustes_coordinates": "statistics.linear_model", "allometry": "statistics.allometry",
-                   "AllometryResult": "statistics.allometry"}
+                   "AllometryResult": "statistics.allometry", "morphological_disparity": "statistics.disparity",
+                   "DisparityResult": "statistics.disparity", "two_block_pls": "statistics.pls",
+                   "PLSResult": "statistics.pls"}
 
 
 def __getattr__(name):
@@ -106,6 +108,10 @@ __all__ = [
     "procrustes_coordinates",
     "allometry",
     "AllometryResult",
+    "morphological_disparity",
+    "DisparityResult",
+    "two_block_pls",
+    "PLSResult",
     "as_point_set",  # shapelib.pointsets
     "as_point_sets",
     "density_inner",

@@ -127,7 +127,8 @@ AREAS = (
     Area("statistics", "Statistics",
          "Intrinsic statistics on the information manifolds — log and exp maps of the discrete "
          "geodesic, the Fréchet mean, tangent PCA, geodesic regression, a permutation test of a "
-         "difference in mean shape — and tests and ordinations on distance matrices. "
+         "difference in mean shape — tests and ordinations on distance matrices, and geomorph's "
+         "analyses of Procrustes coordinates: linear models, allometry, disparity and two-block PLS. "
          "``frechet_mean``, ``tangent_pca``, ``geodesic_regression`` and ``mean_difference_test`` "
          "are the same functions as ``shapelib.statistics.frechet_mean`` and so on, documented "
          "once, under their top-level names; their log maps run on the engine's workers "
@@ -135,7 +136,7 @@ AREAS = (
          ("shapelib.solver.logexp", "shapelib.statistics", "shapelib.statistics.frechet",
           "shapelib.statistics.tangent_pca", "shapelib.statistics.regression", "shapelib.statistics.group",
           "shapelib.statistics.distance_based", "shapelib.statistics.sweep", "shapelib.statistics.linear_model",
-          "shapelib.statistics.allometry"),
+          "shapelib.statistics.allometry", "shapelib.statistics.disparity", "shapelib.statistics.pls"),
          """
          shapelib.log_map
          shapelib.exp_map
@@ -167,6 +168,10 @@ AREAS = (
          shapelib.procrustes_coordinates
          shapelib.allometry
          shapelib.AllometryResult
+         shapelib.morphological_disparity
+         shapelib.DisparityResult
+         shapelib.two_block_pls
+         shapelib.PLSResult
          shapelib.holm_adjust
          """),
     Area("engine", "Engine",
