@@ -187,3 +187,82 @@ def test_pls_bad_input(b, match):
     with pytest.raises(ValueError, match="n_permutations"):
         sl.two_block_pls(np.random.default_rng(1).normal(size=(8, 2)), np.random.default_rng(2).normal(size=(8, 2)),
                          n_permutations=5)
+
+
+def test_disparity_summary_defaults_and_options():
+    rng = np.random.default_rng(9)
+    shapes, labels = _groups(rng, [0.02, 0.05], n=6)
+    res = sl.morphological_disparity(shapes, labels)
+    assert res.n_permutations == 999 and res.about == "group"
+    np.testing.assert_array_equal(res.p_values, sl.morphological_disparity(shapes, labels, seed=0).p_values)
+    text = res.summary()
+    assert "about its group's mean, 999 permutations" in text
+    for g, v in zip(res.groups, res.value):
+        assert f"{g:>12}  n = 6    PV = {v:.4g}" in text
+    assert f"g0 vs g1: |ΔPV| = {res.differences[0, 1]:.4g}, p = {res.p_values[0, 1]:.4g}" in text
+    grand = sl.morphological_disparity(shapes, labels, about="grand", n_permutations=19)
+    assert grand.about == "grand" and "about the grand mean" in grand.summary()
+    # aligned shapes are flattened as they are; unaligned ones are aligned first (pose-free)
+    y = sl.procrustes_coordinates(shapes).reshape(shapes.shape)
+    flat = sl.morphological_disparity(y.reshape(len(y), -1), labels, n_permutations=19)
+    as_given = sl.morphological_disparity(y, labels, aligned=True, n_permutations=19)
+    np.testing.assert_allclose(as_given.value, flat.value, rtol=1e-14)
+    np.testing.assert_allclose(as_given.value, res.value, rtol=1e-10)
+    raw = sl.morphological_disparity(shapes, labels, aligned=True, n_permutations=19)
+    assert not np.allclose(raw.value, res.value, rtol=1e-3)  # the raw coordinates carry pose and size
+    # two specimens per group are enough
+    two = sl.morphological_disparity(rng.normal(size=(4, 3)), ["a", "a", "b", "b"], n_permutations=19)
+    assert list(two.sizes) == [2, 2]
+
+
+def test_disparity_errors_name_the_parameter():
+    with pytest.raises(ValueError, match="shapes"):
+        sl.morphological_disparity(np.ones((1, 3, 2)), ["a"])
+    with pytest.raises(ValueError, match="n_permutations must be a positive integer"):
+        sl.morphological_disparity(np.random.default_rng(0).normal(size=(4, 3)), ["a", "a", "b", "b"],
+                                   n_permutations=2.5)
+
+
+def test_pls_with_one_variable_is_its_regression_direction():
+    rng = np.random.default_rng(10)
+    x = rng.normal(size=(20, 4))
+    size = x @ [1.0, -0.5, 0, 0] + 0.5 * rng.normal(size=20)
+    res = sl.two_block_pls(x, size, n_permutations=19)
+    xc, yc = x - x.mean(axis=0), size - size.mean()
+    t1 = xc @ (xc.T @ yc)  # S₁₂ is one column: u₁ ∝ X₁ᵀ y
+    assert res.value == pytest.approx(abs(np.corrcoef(t1, yc)[0, 1]), rel=1e-12)
+    assert res.weights2.shape == (1, 1) and res.singular_values[0] == pytest.approx(
+        np.linalg.norm(xc.T @ yc) / 19, rel=1e-12)
+    text = res.summary()
+    assert text.startswith("two-block PLS (20 specimens, blocks of 4 and 1 variables): r_PLS = ")
+    assert "19 permutations" in text and f"z = {res.z:.3g}" in text and "100.0 %" in text
+
+
+def test_pls_of_two_orthonormal_bases_of_the_specimens_is_always_one():
+    # each block an orthonormal basis of the N − 1 centred dimensions: whatever the pairing of the rows,
+    # the covariance is largest for equal scores, so r_PLS is 1 for every permutation and the test
+    # cannot reject (p = 1, no effect: z = 0)
+    rng = np.random.default_rng(11)
+    c = rng.normal(size=(4, 3))
+    q1, _ = np.linalg.qr(c - c.mean(axis=0))
+    turn, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    res = sl.two_block_pls(q1, q1 @ turn + 1.0)
+    assert res.value == pytest.approx(1.0) and res.n_permutations == 999
+    np.testing.assert_allclose(res.null, 1.0)
+    assert res.p_value == 1.0 and res.z == 0.0
+    np.testing.assert_allclose(res.singular_values, 1 / 3)  # XᵀX₂ = turn, all singular values 1, over N − 1
+    shares = res.covariance_share
+    assert f"{100 * shares[0]:.1f} %, {100 * shares[1]:.1f} %, {100 * shares[2]:.1f} %" in res.summary()
+
+
+def test_pls_smallest_inputs_and_the_constant_check():
+    rng = np.random.default_rng(12)
+    three = sl.two_block_pls(rng.normal(size=(3, 1)), rng.normal(size=(3, 1)), n_permutations=19)
+    assert three.scores1.shape == (3, 1)
+    with pytest.raises(ValueError, match=r"got shape \(2, 3\)"):
+        sl.two_block_pls(rng.normal(size=(2, 3)), rng.normal(size=(2, 3)))
+    # variation relative to the values, not absolute: 1e6 ± 1e-8 is constant, 0.5 ± 1.5e-12 is not
+    with pytest.raises(ValueError, match="block1: every variable is constant"):
+        sl.two_block_pls(1e6 + 1e-8 * rng.normal(size=(5, 2)), rng.normal(size=(5, 2)))
+    tiny = 0.5 + np.array([[3e-12], [0.0], [3e-12], [0.0], [3e-12], [0.0]])
+    sl.two_block_pls(tiny, rng.normal(size=(6, 2)), n_permutations=19)

@@ -56,7 +56,8 @@ class PLSResult:
     p_value : float
         Its permutation p-value.
     z : float
-        Its standard deviate in the permutation distribution (the effect size).
+        Its standard deviate in the permutation distribution (the effect size); 0 when every
+        permutation gives the same r_PLS as the data (to rounding).
     singular_values : ndarray (r,)
         ``σ_k`` of ``S₁₂`` (covariances of the score pairs), largest first.
     covariance_share : ndarray (r,)
@@ -198,7 +199,9 @@ def two_block_pls(block1, block2, *, n_permutations: int = 999, seed: int | None
     rng = np.random.default_rng(seed)
     null = np.array([_first_r(a1, a2[rng.permutation(n)]) for _ in range(n_permutations)])
     p = (1.0 + np.sum(null >= value * (1 - 1e-12))) / (1.0 + n_permutations)
-    sd = null.std(ddof=1)
-    z = float((value - null.mean()) / sd) if sd > 0 else float("inf")
+    sd, gap, tol = null.std(ddof=1), value - null.mean(), 1e-12 * max(abs(value), 1.0)
+    # a permutation distribution without spread (every pairing gives the same r_PLS, to rounding): no effect
+    # when r_PLS is that value, an infinite one when it lies above
+    z = float(gap / sd) if sd > tol else (0.0 if abs(gap) <= tol else float(np.copysign(np.inf, gap)))
     return PLSResult(value=value, p_value=float(p), z=z, singular_values=s, covariance_share=s**2 / np.sum(s**2),
                      weights1=u, weights2=v, scores1=t1, scores2=t2, n_permutations=n_permutations, null=null)
