@@ -14,6 +14,7 @@ from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorph
 from .distances import MetricInfo, distance, metric_info, pair_record, register_metric
 from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, geodesics, path_length
 from .solver.logexp import exp_map, log_map, tangent_space
+from .solver.transport import parallel_transport
 from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
 from .solver.result import BracketStopReason, StopReason
 from .geometry.gmm import gmm_density, l2_distance
@@ -171,6 +172,7 @@ __all__ = [
     "landmark_spacing",
     "l2_distance",
     "log_map",
+    "parallel_transport",
     "landmark_diffeomorphism",
     "mean_difference_test",
     "pair_record",

@@ -126,14 +126,14 @@ AREAS = (
          """),
     Area("statistics", "Statistics",
          "Intrinsic statistics on the information manifolds — log and exp maps of the discrete "
-         "geodesic, the Fréchet mean, tangent PCA, geodesic regression, a permutation test of a "
+         "geodesic, parallel transport, the Fréchet mean, tangent PCA, geodesic regression, a permutation test of a "
          "difference in mean shape — tests and ordinations on distance matrices, and geomorph's "
          "analyses of Procrustes coordinates: linear models, allometry, disparity and two-block PLS. "
          "``frechet_mean``, ``tangent_pca``, ``geodesic_regression`` and ``mean_difference_test`` "
          "are the same functions as ``shapelib.statistics.frechet_mean`` and so on, documented "
          "once, under their top-level names; their log maps run on the engine's workers "
          "(``n_jobs``, ``client``, ``scheduler``) or on any ``executor``.",
-         ("shapelib.solver.logexp", "shapelib.statistics", "shapelib.statistics.frechet",
+         ("shapelib.solver.logexp", "shapelib.solver.transport", "shapelib.statistics", "shapelib.statistics.frechet",
           "shapelib.statistics.tangent_pca", "shapelib.statistics.regression", "shapelib.statistics.group",
           "shapelib.statistics.distance_based", "shapelib.statistics.sweep", "shapelib.statistics.linear_model",
           "shapelib.statistics.allometry", "shapelib.statistics.disparity", "shapelib.statistics.pls"),
@@ -141,6 +141,7 @@ AREAS = (
          shapelib.log_map
          shapelib.exp_map
          shapelib.tangent_space
+         shapelib.parallel_transport
          shapelib.frechet_mean
          shapelib.tangent_pca
          shapelib.TangentPCA
