@@ -92,7 +92,7 @@ def test_disparity_limits():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(groups=["a"] * 6), "two groups"),
+    (dict(groups=["a"] * 6), "^groups: need at least two groups to compare$"),
     (dict(groups=["a"] * 5 + ["b"]), "group 'b' has 1"),
     (dict(groups=["a"] * 5), "one label per specimen"),
     (dict(groups=["a", "b"] * 3, about="median"), "about"),
@@ -194,8 +194,13 @@ def test_disparity_summary_defaults_and_options():
     shapes, labels = _groups(rng, [0.02, 0.05], n=6)
     res = sl.morphological_disparity(shapes, labels)
     assert res.n_permutations == 999 and res.about == "group"
-    np.testing.assert_array_equal(res.p_values, sl.morphological_disparity(shapes, labels, seed=0).p_values)
+    # the default seed is 0: a p-value far from 0 differs from seed to seed
+    mixed = labels[np.random.default_rng(3).permutation(len(labels))]
+    p0 = sl.morphological_disparity(shapes, mixed).p_values[0, 1]
+    assert p0 == sl.morphological_disparity(shapes, mixed, seed=0).p_values[0, 1]
+    assert p0 != sl.morphological_disparity(shapes, mixed, seed=1).p_values[0, 1]
     text = res.summary()
+    assert text.count(" vs ") == 1 and all(line.startswith("  ") for line in text.splitlines()[1:])
     assert "about its group's mean, 999 permutations" in text
     for g, v in zip(res.groups, res.value):
         assert f"{g:>12}  n = 6    PV = {v:.4g}" in text
@@ -266,3 +271,25 @@ def test_pls_smallest_inputs_and_the_constant_check():
         sl.two_block_pls(1e6 + 1e-8 * rng.normal(size=(5, 2)), rng.normal(size=(5, 2)))
     tiny = 0.5 + np.array([[3e-12], [0.0], [3e-12], [0.0], [3e-12], [0.0]])
     sl.two_block_pls(tiny, rng.normal(size=(6, 2)), n_permutations=19)
+
+
+def test_pls_rank_defaults_and_names():
+    rng = np.random.default_rng(13)
+    x = rng.normal(size=(10, 3))
+    # a second block of one direction twice: S₁₂ has rank 1, and only that pair is reported
+    col = x @ [1.0, 2.0, 0.0] + rng.normal(size=10)
+    res = sl.two_block_pls(x, np.column_stack([col, col]), n_permutations=19)
+    assert res.singular_values.shape == (1,) and res.covariance_share[0] == 1.0 and res.weights2.shape == (2, 1)
+    np.testing.assert_allclose(np.abs(res.weights2[:, 0]), np.sqrt(0.5))
+    # exactly uncorrelated blocks: S₁₂ = 0, r_PLS = 0
+    zero = sl.two_block_pls([[1.0], [-1.0], [1.0], [-1.0]], [[1.0], [1.0], [-1.0], [-1.0]], n_permutations=19)
+    assert zero.value == 0.0 and zero.singular_values.shape == (1,) and zero.covariance_share[0] == 0.0
+    # the default seed is 0
+    y = rng.normal(size=(10, 2))
+    np.testing.assert_array_equal(sl.two_block_pls(x, y).null, sl.two_block_pls(x, y, seed=0).null)
+    bad = y.copy()
+    bad[3, 0] = np.nan
+    with pytest.raises(ValueError, match="^block2: variable 0 of specimen 3"):
+        sl.two_block_pls(x, bad)
+    with pytest.raises(ValueError, match="n_permutations must be a positive integer"):
+        sl.two_block_pls(x, y, n_permutations=2.5)

@@ -61,7 +61,8 @@ class PLSResult:
     singular_values : ndarray (r,)
         ``σ_k`` of ``S₁₂`` (covariances of the score pairs), largest first.
     covariance_share : ndarray (r,)
-        ``σ_k² / Σ σ²``: each pair's share of the squared covariance between the blocks.
+        ``σ_k² / Σ σ²``: each pair's share of the squared covariance between the blocks (0 for blocks
+        that do not covary at all).
     weights1, weights2 : ndarray (p, r), (q, r)
         The singular vectors ``u_k``, ``v_k`` (columns; the sign of each pair is arbitrary but shared).
     scores1, scores2 : ndarray (N, r)
@@ -199,9 +200,11 @@ def two_block_pls(block1, block2, *, n_permutations: int = 999, seed: int | None
     rng = np.random.default_rng(seed)
     null = np.array([_first_r(a1, a2[rng.permutation(n)]) for _ in range(n_permutations)])
     p = (1.0 + np.sum(null >= value * (1 - 1e-12))) / (1.0 + n_permutations)
-    sd, gap, tol = null.std(ddof=1), value - null.mean(), 1e-12 * max(abs(value), 1.0)
-    # a permutation distribution without spread (every pairing gives the same r_PLS, to rounding): no effect
-    # when r_PLS is that value, an infinite one when it lies above
-    z = float(gap / sd) if sd > tol else (0.0 if abs(gap) <= tol else float(np.copysign(np.inf, gap)))
-    return PLSResult(value=value, p_value=float(p), z=z, singular_values=s, covariance_share=s**2 / np.sum(s**2),
+    # a permutation distribution without spread (every pairing gives the same r_PLS, to rounding, and so
+    # does the data's own pairing): no effect
+    sd = null.std(ddof=1)
+    z = float((value - null.mean()) / sd) if sd > 1e-12 * max(abs(value), 1.0) else 0.0
+    total = np.sum(s**2)
+    share = s**2 / total if total > 0 else np.zeros_like(s)  # blocks that do not covary at all: no shares
+    return PLSResult(value=value, p_value=float(p), z=z, singular_values=s, covariance_share=share,
                      weights1=u, weights2=v, scores1=t1, scores2=t2, n_permutations=n_permutations, null=null)
