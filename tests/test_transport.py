@@ -39,6 +39,14 @@ def test_the_geodesic_velocity_is_transported_to_minus_the_reverse_log():
     assert _rel(w, -back) < _rel(coarse, -back)
 
 
+def test_the_fisher_rao_ladder_uses_the_fisher_rao_maps():
+    a, b = np.array([[0, 0], [1, 0.0]]), np.array([[0, 0], [1.3, 0.3]])
+    opts = dict(sigma2=S2, metric="fisher_rao", n_steps=4)
+    u, back = sl.log_map(a, b, **opts), sl.log_map(b, a, **opts)
+    w = sl.parallel_transport(a, u, b, n_rungs=1, **opts)
+    assert _rel(w, -back) < 0.03  # the α ladder misses by 14 %
+
+
 def test_the_metric_norm_is_kept_and_the_error_falls_with_the_steps():
     v = sl.log_map(SQUARE, SHEAR, sigma2=S2, n_steps=16)
     norm_a = sl.tangent_space(SQUARE, sigma2=S2).norm(v)
@@ -63,13 +71,15 @@ def test_transport_commutes_with_a_rigid_motion():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(end=np.zeros((3, 2))), "end"),
-    (dict(n_rungs=0), "n_rungs"),
-    (dict(n_steps=1.5), "n_steps"),
+    (dict(end=np.zeros((3, 2))), r"\bend\b"),
+    (dict(vector=np.zeros((3, 2))), r"\bvector\b"),
+    (dict(base=np.full((4, 2), np.nan)), r"\bbase\b"),
+    (dict(n_rungs=0), r"\bn_rungs\b"),
+    (dict(n_steps=1.5), r"\bn_steps\b"),
     (dict(metric="euclid"), "metric"),
 ])
 def test_bad_input_names_the_parameter(kwargs, match):
-    args = dict(end=WIDE, metric="alpha", sigma2=S2)
+    args = dict(base=SQUARE, vector=SHEAR - SQUARE, end=WIDE, metric="alpha", sigma2=S2)
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
-        sl.parallel_transport(SQUARE, SHEAR - SQUARE, args.pop("end"), **args)
+        sl.parallel_transport(args.pop("base"), args.pop("vector"), args.pop("end"), **args)
