@@ -127,6 +127,7 @@ def test_pls_agrees_with_scikit_learn():
         np.testing.assert_allclose(sign * res.weights2[:, k], ref.y_weights_[:, k], atol=1e-10)
         np.testing.assert_allclose(sign * res.scores1[:, k], sx[:, k], atol=1e-9)
     assert res.value == pytest.approx(np.corrcoef(sx[:, 0], sy[:, 0])[0, 1], rel=1e-12)
+    assert res.summary().count(" %") == 3  # the first three pairs' shares
     # σ_k is the covariance of the k-th pair of scores, and the shares sum to one
     cov = np.array([np.cov(res.scores1[:, k], res.scores2[:, k])[0, 1] for k in range(4)])
     np.testing.assert_allclose(cov, res.singular_values, rtol=1e-10)
@@ -221,7 +222,7 @@ def test_disparity_summary_defaults_and_options():
 
 
 def test_disparity_errors_name_the_parameter():
-    with pytest.raises(ValueError, match="shapes"):
+    with pytest.raises(ValueError, match=r"^shapes must contain at least 2"):
         sl.morphological_disparity(np.ones((1, 3, 2)), ["a"])
     with pytest.raises(ValueError, match="n_permutations must be a positive integer"):
         sl.morphological_disparity(np.random.default_rng(0).normal(size=(4, 3)), ["a", "a", "b", "b"],
@@ -281,8 +282,10 @@ def test_pls_rank_defaults_and_names():
     res = sl.two_block_pls(x, np.column_stack([col, col]), n_permutations=19)
     assert res.singular_values.shape == (1,) and res.covariance_share[0] == 1.0 and res.weights2.shape == (2, 1)
     np.testing.assert_allclose(np.abs(res.weights2[:, 0]), np.sqrt(0.5))
+    assert "blocks of 3 and 2 variables" in res.summary()
     # exactly uncorrelated blocks: S₁₂ = 0, r_PLS = 0
-    zero = sl.two_block_pls([[1.0], [-1.0], [1.0], [-1.0]], [[1.0], [1.0], [-1.0], [-1.0]], n_permutations=19)
+    zero = sl.two_block_pls([[1.0, 1.0], [-1.0, 1.0], [1.0, -1.0], [-1.0, -1.0]],
+                            [[1.0, 2.0], [-1.0, -2.0], [-1.0, -2.0], [1.0, 2.0]], n_permutations=19)
     assert zero.value == 0.0 and zero.singular_values.shape == (1,) and zero.covariance_share[0] == 0.0
     # the default seed is 0
     y = rng.normal(size=(10, 2))
