@@ -1,0 +1,379 @@
+"""The non-rigid search's pieces (shapelib.pointsets._nonrigid) against independent values: the start
+rotations against scipy's rotation groups and brute-force signed permutations, every fit of the search
+against EM run by hand from its start and its objective against scipy's log-densities, the reliability
+reasons at and around their thresholds on configurations whose answer is known by construction (a
+count of far points, a posterior of exactly one half), and the kernel's factor against its matrix."""
+
+import itertools
+import re
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from scipy.special import logsumexp
+from scipy.stats import multivariate_normal
+
+from shapelib.pointsets import _nonrigid as nr
+from shapelib.pointsets._coherent_em import EMState, Kernel, run_em
+
+
+def _fish(n=20):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return np.column_stack([np.cos(t) + 0.45 * np.cos(2 * t), 0.55 * np.sin(t) + 0.12 * np.sin(2 * t)])
+
+
+def _normalised(a):
+    a = a - a.mean(axis=0)
+    return a / np.sqrt(np.mean(np.sum(a * a, axis=1)))
+
+
+def _gauss_kernel(u, s2g=0.5):
+    d2 = np.sum((u[:, None, :] - u[None, :, :]) ** 2, axis=2)
+    return np.exp(-d2 / (4 * s2g))
+
+
+def _neg_log_posterior(st, y, lam, volume):
+    """F by scipy's log-densities: −Σ_j log[(1 − w)/n Σ_i N(y_j; θ_i, σ²I) + w/V] + (λ/2) tr(Wᵀ G W)."""
+    theta = st.theta
+    n, d = theta.shape
+    comp = np.array([multivariate_normal(mean=t, cov=st.s2 * np.eye(d)).logpdf(y) for t in theta])
+    terms = [logsumexp(comp, axis=0) + np.log((1 - st.w) / n)]
+    if st.w > 0:
+        terms.append(np.full(len(y), np.log(st.w / volume)))
+    g = st.kernel.q @ np.diag(st.kernel.ev) @ st.kernel.q.T
+    return -logsumexp(np.stack(terms), axis=0).sum() + 0.5 * lam * np.sum(st.coef * (g @ st.coef))
+
+
+def _posterior_sums(theta, y, s2, w, volume):
+    """Σ_j P_ij by the CPD posterior written out point by point (module docstring of _coherent_em)."""
+    n, d = theta.shape
+    c = (2 * np.pi * s2) ** (d / 2) * w / (1 - w) * n / volume
+    out = np.zeros(n)
+    for j in range(len(y)):
+        e = np.array([np.exp(-np.sum((y[j] - t) ** 2) / (2 * s2)) for t in theta])
+        out += e / (e.sum() + c)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------
+# The starts
+# ---------------------------------------------------------------------------------------------------
+
+
+def _keys(mats):
+    return sorted(tuple(np.round(m, 9).ravel()) for m in mats)
+
+
+def test_the_cube_rotations_are_scipys_octahedral_group():
+    rots = nr.cube_rotations()
+    assert len(rots) == 24
+    group = Rotation.create_group("O").as_matrix()
+    assert _keys(rots) == _keys(group)
+
+
+def test_the_3d_starts_with_mirrors_are_every_signed_permutation_matrix():
+    rots = nr.start_rotations(3, reflection=True)
+    assert len(rots) == 48
+    # brute force: the 48 signed permutation matrices, the proper ones first
+    every = [np.eye(3)[list(p)] * np.array(s)[:, None] for p in itertools.permutations(range(3))
+             for s in itertools.product((1.0, -1.0), repeat=3)]
+    assert _keys(rots) == _keys(every)
+    dets = np.array([np.linalg.det(r) for r in rots])
+    np.testing.assert_allclose(dets[:24], 1.0)
+    np.testing.assert_allclose(dets[24:], -1.0)
+    assert _keys(nr.start_rotations(3, reflection=False)) == _keys(rots[:24])
+
+
+def test_the_2d_starts_turn_by_every_sixteenth_of_a_turn_and_their_mirrors_reflect():
+    rots = nr.start_rotations(2, reflection=False)
+    assert len(rots) == nr.N_ROT_2D == 16
+    e1 = np.array([1.0, 0.0])
+    for k, r in enumerate(rots):
+        np.testing.assert_allclose(r.T @ r, np.eye(2), atol=1e-15)
+        assert np.linalg.det(r) == pytest.approx(1.0)
+        angle = np.arctan2(*(r @ e1)[::-1])  # where the first axis goes
+        assert angle % (2 * np.pi) == pytest.approx(k * np.pi / 8, abs=1e-12)
+    both = nr.start_rotations(2, reflection=True)
+    assert len(both) == 32
+    for k, m in enumerate(both[16:]):
+        # a reflection: determinant −1, fixes the first axis turned by k/16 of a turn... of its own line
+        assert np.linalg.det(m) == pytest.approx(-1.0)
+        np.testing.assert_allclose(m @ m, np.eye(2), atol=1e-14)
+        # the mirror image of the start k: the same turn applied after flipping the second coordinate
+        np.testing.assert_allclose(m @ np.array([1.0, 0.0]), rots[k] @ e1, atol=1e-15)
+        np.testing.assert_allclose(m @ np.array([0.0, 1.0]), -(rots[k] @ np.array([0.0, 1.0])), atol=1e-15)
+    for a, b in zip(both[:16], rots):
+        np.testing.assert_array_equal(a, b)
+
+
+# ---------------------------------------------------------------------------------------------------
+# The search
+# ---------------------------------------------------------------------------------------------------
+
+
+def _pair():
+    x = _fish(20)
+    y = x + np.column_stack([0.05 * np.sin(2 * x[:, 1]), 0.25 * x[:, 0] ** 2])
+    c, s = np.cos(2.2), np.sin(2.2)
+    y = y @ np.array([[c, -s], [s, c]]).T + 0.02 * np.random.default_rng(0).normal(size=y.shape)
+    return _normalised(x), _normalised(y)
+
+
+def _by_hand(xn, yn, r, w, *, lam, max_iter, tol, fixed_s2=None, s2_floor=1e-6):
+    """One fit of the search run by hand: the source turned by r, CPD's start σ² (the mean squared
+    distance over d, brute force), EM at the weight w for max_iter iterations in one call."""
+    u = xn @ r.T
+    s2 = fixed_s2 if fixed_s2 is not None else np.mean(np.sum((yn[None] - u[:, None]) ** 2, axis=2)) / u.shape[1]
+    volume = float(np.prod(yn.max(axis=0) - yn.min(axis=0)))
+    st = EMState(u=u, kernel=Kernel.of(_gauss_kernel(u)), coef=np.zeros_like(u), s2=s2, w=w)
+    return run_em(st, yn, lam=lam, volume=volume, max_iter=max_iter, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
+
+
+def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative_log_posterior():
+    """tol = 0: a fit stops early only on σ²'s floor, so each fit at the screening weight (the screening's
+    EM continued) is the same max_iter iterations as one call from its start, and the others start afresh."""
+    xn, yn = _pair()
+    lam, max_iter = 3.0, 60
+    volume = float(np.prod(yn.max(axis=0) - yn.min(axis=0)))
+    fits, rots, screened = nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=lam, w=None,
+                                      fixed_s2=None, reflection=False, max_iter=max_iter, tol=0.0, s2_floor=1e-6)
+    assert len(rots) == 16 and len(screened) == 16 and len(fits) == nr.N_KEEP * len(nr.W_GRID)
+    # the screening: every start once, SCREEN_ITER iterations each, ordered by objective
+    assert sorted(k for _, k, _ in screened) == list(range(16))
+    assert [f for f, _, _ in screened] == sorted(f for f, _, _ in screened)
+    for f, k, st in screened:
+        assert st.it == nr.SCREEN_ITER and st.w == nr.W_SCREEN
+        assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume), rel=1e-9)
+    kept = {k for _, k, _ in screened[:nr.N_KEEP]}
+    # the fits: each kept start at each weight, best first, each the EM run by hand
+    assert [f for f, _, _ in fits] == sorted(f for f, _, _ in fits)
+    assert sorted((k, st.w) for _, k, st in fits) == sorted(itertools.product(kept, nr.W_GRID))
+    for f, k, st in fits:
+        if st.w == nr.W_SCREEN:  # (here none of these reaches the floor)
+            assert st.it == max_iter and not st.ok
+        hand = _by_hand(xn, yn, rots[k], st.w, lam=lam, max_iter=max_iter, tol=0.0)
+        np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-8, atol=1e-10)
+        assert st.s2 == pytest.approx(hand.s2, rel=1e-8)
+        assert (st.it, st.ok) == (hand.it, hand.ok)
+        assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume), rel=1e-9)
+    # the right pose wins: the best fit lies on the target
+    assert np.mean(np.linalg.norm(fits[0][2].theta - yn, axis=1)) < 0.05
+
+
+def test_a_fit_that_converges_in_the_screening_is_kept_as_it_stopped():
+    """A loose tolerance: every screening EM meets it within SCREEN_ITER iterations; the fit at the
+    screening weight is then that fit, not run further."""
+    xn, yn = _pair()
+    fits, rots, screened = nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=0.1,
+                                      fixed_s2=None, reflection=False, max_iter=150, tol=0.05, s2_floor=1e-8)
+    assert len(fits) == nr.N_KEEP and all(st.w == 0.1 for _, _, st in fits)
+    best = {k: st for _, k, st in screened}
+    for f, k, st in fits:
+        assert st.ok and st.why == "tolerance"
+        assert st.it == best[k].it < nr.SCREEN_ITER
+        np.testing.assert_array_equal(st.coef, best[k].coef)
+        assert st.s2 == best[k].s2
+        hand = _by_hand(xn, yn, rots[k], 0.1, lam=2.0, max_iter=150, tol=0.05)
+        assert hand.it == st.it and hand.s2 == pytest.approx(st.s2, rel=1e-10)
+
+
+def test_a_given_weight_a_fixed_sigma2_and_the_floor_reach_every_fit():
+    xn, yn = _pair()
+    common = dict(kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, reflection=True, tol=1e-6)
+    fits, rots, screened = nr.fit_all(xn, yn, w=0.3, fixed_s2=0.02, max_iter=12, s2_floor=1e-8, **common)
+    assert len(rots) == len(screened) == 32 and len(fits) == nr.N_KEEP
+    for _, k, st in fits:  # the fixed σ² never moves; fixed-σ² EM runs its max_iter and counts as converged
+        assert st.s2 == 0.02 and st.w == 0.3 and st.it == 12 and st.ok
+        hand = _by_hand(xn, yn, rots[k], 0.3, lam=2.0, max_iter=12, tol=1e-6, fixed_s2=0.02)
+        np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-9, atol=1e-11)
+    for _, _, st in screened:
+        assert st.s2 == 0.02 and st.it == 12
+    # on the grid of weights too: the fits that start afresh keep the fixed σ²
+    fits, rots, _ = nr.fit_all(xn, yn, w=None, fixed_s2=0.02, max_iter=12, s2_floor=1e-8, **common)
+    assert sorted(st.w for _, _, st in fits) == sorted(nr.W_GRID * nr.N_KEEP)
+    for _, k, st in fits:
+        assert st.s2 == 0.02 and st.it == 12 and st.ok
+        hand = _by_hand(xn, yn, rots[k], st.w, lam=2.0, max_iter=12, tol=1e-6, fixed_s2=0.02)
+        np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-9, atol=1e-11)
+    # a floor above every σ² EM reaches: each fit ends on it
+    fits, _, _ = nr.fit_all(xn, yn, w=None, fixed_s2=None, max_iter=30, s2_floor=0.5, **common)
+    assert [st.s2 for _, _, st in fits] == [0.5] * len(fits)
+
+
+def test_progress_counts_every_screening_and_every_fit():
+    xn, yn = _pair()
+    calls = []
+    nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=0.2, fixed_s2=None,
+               reflection=False, max_iter=45, tol=1e-4, s2_floor=1e-8, progress=lambda *a: calls.append(a))
+    total = 16 + nr.N_KEEP
+    assert calls == [(i, total) for i in range(1, total + 1)]
+
+
+# ---------------------------------------------------------------------------------------------------
+# The reliability reasons
+# ---------------------------------------------------------------------------------------------------
+
+
+def _fit(theta, s2=1e-3, w=0.0):
+    return EMState(u=np.asarray(theta, float), kernel=None, coef=np.zeros_like(theta), s2=s2, w=w)
+
+
+def _grid(k=4):
+    g = np.linspace(-1.0, 1.0, k)
+    return np.array([(a, b) for a in g for b in g])  # 16 points, spacing 2/3
+
+
+def test_a_distinct_fit_of_another_start_within_the_gap_says_another_pose():
+    y = _grid()
+    m = len(y)
+    best = _fit(y)
+    other = _fit(y + [0.2, 0.0])  # every point 0.2 away: distinct (mean distance over 0.1)
+    near = 0.2 * m  # (f − f0)/m exactly at the threshold: not "less than" it
+    assert near / m == nr.AMBIGUOUS_PER_POINT
+    reasons, _ = nr.assess([(0.0, 0, best), (near, 3, other)], y, spacing2=1.0)
+    assert reasons == []
+    reasons, _ = nr.assess([(0.0, 0, best), (0.15 * m, 3, other)], y, spacing2=1.0)
+    assert len(reasons) == 1 and reasons[0].startswith("another pose explains the target almost as well")
+    assert re.search(r"objective 0\.150 per target point higher", reasons[0])
+    # a negative objective: the gap is a difference, per target point
+    reasons, _ = nr.assess([(-10.0, 0, best), (-10.0 + 0.05 * m, 3, other)], y, spacing2=1.0)
+    assert re.search(r"objective 0\.050 per target point", reasons[0])
+
+
+def test_the_same_start_or_a_fit_no_farther_than_distinct_is_no_other_pose():
+    y = _grid()
+    best = _fit(y)
+    same_start = _fit(y + [0.5, 0.0])
+    close = _fit(y + [nr.DISTINCT, 0.0])  # mean distance exactly DISTINCT: not "more than" it
+    assert np.mean(np.linalg.norm(close.theta - y, axis=1)) == nr.DISTINCT
+    far = _fit(y + [0.0, 0.3])
+    assert nr.assess([(0.0, 2, best), (0.1, 2, same_start), (0.2, 4, close)], y, spacing2=1.0)[0] == []
+    # the same start skipped, not the end of the comparison: a later distinct start still counts
+    reasons, _ = nr.assess([(0.0, 2, best), (0.1, 2, same_start), (0.2, 5, far)], y, spacing2=1.0)
+    assert len(reasons) == 1 and "another pose" in reasons[0]
+    # two other poses: said once
+    reasons, _ = nr.assess([(0.0, 2, best), (0.1, 5, far), (0.2, 6, same_start)], y, spacing2=1.0)
+    assert len(reasons) == 1
+
+
+def test_sigma_is_measured_in_target_point_spacings():
+    y = _grid()
+    spacing2 = 0.01
+    for s2, flagged in ((4.0 * spacing2, False), (4.5 * spacing2, True), (0.5 * spacing2, False)):
+        fit = _fit(y, s2=s2)
+        reasons, diag = nr.assess([(0.0, 0, fit)], y, spacing2=spacing2)
+        assert diag["sigma_over_spacing"] == pytest.approx(np.sqrt(s2) / np.sqrt(spacing2), rel=1e-15)
+        assert any("sigma" in r for r in reasons) == flagged
+    reasons, _ = nr.assess([(0.0, 0, _fit(y, s2=9.0 * spacing2))], y, spacing2=spacing2)
+    assert "the fit leaves sigma = 3.00 target point spacings" in reasons
+
+
+@pytest.mark.parametrize("far, flagged", [(4, False), (5, False), (6, True), (12, True)])
+def test_the_unmatched_share_is_the_count_of_source_points_far_from_the_target(far, flagged):
+    """15 source points, ``far`` of them 50 units from the target: those explain no target point; at 5
+    of 15 the share is exactly a third, not more than it."""
+    y = _grid()[np.linspace(0, 15, 15 - far).astype(int)]  # spread over the grid: a box of area 4
+    theta = np.vstack([y, 50.0 + np.arange(far)[:, None] * [1.0, 0.0]])
+    reasons, diag = nr.assess([(0.0, 0, _fit(theta, s2=1e-3, w=0.1))], y, spacing2=1.0)
+    assert diag["unmatched_source_share"] == far / 15
+    assert [r for r in reasons if "match no target point" in r] == (
+        [f"{round(100 * far / 15)} % of the source points match no target point"] if flagged else [])
+
+
+def test_a_source_point_with_exactly_half_a_target_point_is_matched():
+    """Two source points on one target point, w = 0: each takes P = 1/2 exactly (not less than a half);
+    a third far away takes nothing."""
+    y = np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 5.0]])
+    theta = np.array([[0.0, 0.0], [0.0, 0.0], [5.0, 0.0], [0.0, 5.0], [40.0, 40.0]])
+    _, diag = nr.assess([(0.0, 0, _fit(theta, s2=0.01, w=0.0))], y, spacing2=1.0)
+    assert diag["unmatched_source_share"] == 1 / 5
+
+
+def test_the_unmatched_share_uses_the_fits_outlier_weight_and_the_targets_box():
+    """Source points between the target's points, at a σ² where the outlier term decides: the share
+    against Σ_j P_ij written out point by point with the fit's w and the target's bounding box."""
+    rng = np.random.default_rng(11)
+    y = rng.uniform(-1.0, 1.0, size=(25, 2)) * [2.0, 0.5]
+    theta = y[:20] + 0.25 * rng.normal(size=(20, 2))
+    volume = float(np.prod(y.max(axis=0) - y.min(axis=0)))
+    shares = {}
+    for w in (0.0, 0.5, 0.9):
+        _, diag = nr.assess([(0.0, 0, _fit(theta, s2=0.02, w=w))], y, spacing2=1.0)
+        shares[w] = diag["unmatched_source_share"]
+        assert shares[w] == np.mean(_posterior_sums(theta, y, 0.02, w, volume) < 0.5)
+    assert len(set(shares.values())) == 3  # the weight matters here
+    # the box is the target's: the same fit with the target stretched away from the source matches less
+    y2 = np.vstack([y, [[30.0, 30.0]]])
+    _, diag = nr.assess([(0.0, 0, _fit(theta, s2=0.02, w=0.5))], y2, spacing2=1.0)
+    v2 = float(np.prod(y2.max(axis=0) - y2.min(axis=0)))
+    assert diag["unmatched_source_share"] == np.mean(_posterior_sums(theta, y2, 0.02, 0.5, v2) < 0.5)
+    assert diag["unmatched_source_share"] != shares[0.5]
+
+
+def test_the_reasons_use_the_best_fits_sigma_and_points_not_the_others():
+    y = _grid()
+    best = _fit(y, s2=1e-3)
+    bad = _fit(y + 30.0, s2=50.0)  # far, wide, and far worse in objective
+    reasons, diag = nr.assess([(0.0, 0, best), (1e6, 1, bad)], y, spacing2=1e-2)
+    assert reasons == [] and diag["unmatched_source_share"] == 0.0
+    assert diag["sigma_over_spacing"] == pytest.approx(np.sqrt(0.1))
+
+
+# ---------------------------------------------------------------------------------------------------
+# The refit and the kernel
+# ---------------------------------------------------------------------------------------------------
+
+
+def test_the_refit_starts_at_cpds_sigma2_or_the_fixed_one_with_the_given_weight():
+    xn, yn = _pair()
+    u = xn @ nr.start_rotations(2, False)[5].T
+    seen = []
+
+    def kernel_of(v):
+        seen.append(v)
+        return Kernel.of(_gauss_kernel(v))
+
+    opts = dict(volume=3.0, lam=2.0, max_iter=0, tol=1e-5, s2_floor=1e-8)
+    st = nr.refit(u, yn, 0.35, kernel_of, fixed_s2=None, **opts)
+    assert seen[0] is u and st.u is u and st.w == 0.35 and st.it == 0
+    dense = np.mean(np.sum((yn[None] - u[:, None]) ** 2, axis=2)) / 2  # Σ_ij |y_j − u_i|² / (d n m)
+    assert st.s2 == pytest.approx(dense, rel=1e-12)
+    np.testing.assert_array_equal(st.coef, 0.0)
+    st = nr.refit(u, yn, 0.35, kernel_of, fixed_s2=0.07, **opts)
+    assert st.s2 == 0.07
+    st = nr.refit(u, yn, 0.35, kernel_of, fixed_s2=0.07, **dict(opts, max_iter=5))
+    assert st.s2 == 0.07 and st.it == 5 and st.ok  # a fixed σ² stays through EM
+    # and with iterations, the EM of run_em from there with every option passed on
+    opts.update(max_iter=25)
+    st = nr.refit(u, yn, 0.35, kernel_of, fixed_s2=None, **opts)
+    hand = run_em(EMState(u=u, kernel=Kernel.of(_gauss_kernel(u)), coef=np.zeros_like(u), s2=dense, w=0.35), yn,
+                  lam=2.0, volume=3.0, max_iter=25, tol=1e-5, s2_floor=1e-8)
+    assert st.it == hand.it and st.ok == hand.ok
+    np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-10, atol=1e-12)
+    st = nr.refit(u, yn, 0.35, kernel_of, fixed_s2=None, **dict(opts, s2_floor=0.4))
+    assert st.s2 == 0.4
+
+
+def test_with_kernel_factors_a_weight_kernel_once_when_invariant_and_keeps_a_mean_kernel_dense():
+    rng = np.random.default_rng(2)
+    u = rng.normal(size=(9, 2))
+    calls = []
+
+    def weights(v):
+        calls.append(v)
+        return _gauss_kernel(v)
+
+    of = nr.with_kernel(weights, invariant=True)
+    k1 = of(u)
+    k2 = of(u @ nr.start_rotations(2, False)[3].T)
+    assert k1 is k2 and len(calls) == 1
+    assert k1.full is None
+    np.testing.assert_allclose(k1.q @ np.diag(k1.ev) @ k1.q.T, _gauss_kernel(u), atol=1e-12)
+    of = nr.with_kernel(weights, invariant=False)
+    k3 = of(u + 1.0)
+    k4 = of(2.0 * u)
+    assert len(calls) == 3 and k3 is not k4
+    np.testing.assert_allclose(k4.q @ np.diag(k4.ev) @ k4.q.T, _gauss_kernel(2.0 * u), atol=1e-12)
+    means = nr.with_kernel(lambda v: np.kron(_gauss_kernel(v), np.eye(2)), invariant=False)(u)
+    assert means.q is None
+    np.testing.assert_array_equal(means.full, np.kron(_gauss_kernel(u), np.eye(2)))
