@@ -210,12 +210,17 @@ def test_the_outlier_term_and_the_box_are_their_definitions():
     assert outlier_term(10, 2, 0.5, 0.2, 4.0) == pytest.approx(np.pi * 0.25 * 10 / 4.0, rel=1e-14)
     assert outlier_term(7, 3, 2.0, 0.5, 3.0) == pytest.approx((4 * np.pi) ** 1.5 * 7 / 3.0, rel=1e-14)
     assert outlier_term(7, 3, 2.0, 0.0, 3.0) == 0.0
+    # each side of the box is at least the target's spacing, the median distance to the nearest other point
+    grid = np.stack(np.meshgrid(np.arange(3.0), np.arange(4.0)), axis=-1).reshape(-1, 2)  # spacing 1, sides 2, 3
+    assert box_volume(grid) == pytest.approx(2.0 * 3.0, rel=1e-15)
     y = np.array([[0.0, 1.0], [2.0, -1.0], [0.5, 3.0]])
-    assert box_volume(y) == pytest.approx(2.0 * 4.0, rel=1e-15)
-    assert box_volume(np.array([[0.0, 1.0, 2.0], [3.0, -1.0, 2.5]])) == pytest.approx(3 * 2 * 0.5, rel=1e-15)
-    # a flat target (all on one line) still has a positive, negligible volume
+    nearest = [min(np.linalg.norm(y[i] - y[j]) for j in range(3) if j != i) for i in range(3)]
+    assert box_volume(y) == pytest.approx(max(2.0, np.median(nearest)) * 4.0, rel=1e-15)
+    pair = np.array([[0.0, 1.0, 2.0], [3.0, -1.0, 2.5]])
+    assert box_volume(pair) == pytest.approx(np.linalg.norm(pair[1] - pair[0]) ** 3, rel=1e-14)
+    # a flat target (all on one line) is a slab one spacing thick
     line = np.column_stack([np.linspace(0, 2, 5), np.zeros(5)])
-    assert 0.0 < box_volume(line) <= 2.0 * 1e-12
+    assert box_volume(line) == pytest.approx(2.0 * 0.5, rel=1e-15)
 
 
 def test_the_posteriors_are_the_models_and_a_point_no_component_reaches_takes_none():
