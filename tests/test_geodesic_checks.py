@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 
 import shapelib as sl
 from shapelib._validate import set_checked
+from shapelib.solver import geodesic as geodesic_module
 from shapelib.geometry.scale import SIGMA_RATIO_MIN, ScaleWarning
 from shapelib.solver.geodesic import (GeodesicResult, GeodesicWarning, _check_entries, _mark_underflow, _underflow,
                                       alpha_lower_bound, check_entry, fisher_rao_lower_bound, geodesic,
@@ -84,9 +85,9 @@ def test_fisher_rao_bound_of_one_landmark_is_the_bhattacharyya_angle(s2):
     # the grid options are the quadrature's: a 3σ margin or a 2σ step misses
     assert abs(fisher_rao_lower_bound(u, v, sigma2=s2, grid_margin=3.0) / exact - 1) > 1e-4
     assert abs(fisher_rao_lower_bound(u, v, sigma2=s2, grid_spacing=2.0, grid_margin=9.0) / exact - 1) > 1e-4
-    with pytest.raises(ValueError, match="grid_spacing"):
+    with pytest.raises(ValueError, match="^grid_spacing must be a positive"):
         fisher_rao_lower_bound(u, v, sigma2=s2, grid_spacing=0.0)
-    with pytest.raises(ValueError, match="grid_margin"):
+    with pytest.raises(ValueError, match="^grid_margin must be a positive"):
         fisher_rao_lower_bound(u, v, sigma2=s2, grid_margin=-1.0)
 
 
@@ -156,9 +157,10 @@ def test_check_entry_of_a_bound_inside_a_checked_set():
 
 def test_check_entries_names_the_pair_and_returns_each_ratio():
     us = np.stack([U, 2 * U])
-    out_u, out_v, ratios = _check_entries(us, us.copy(), 1.0, metric="alpha", stacklevel=3)
-    assert np.array_equal(out_u, us) and np.array_equal(out_v, us)
-    spacing = cKDTree(U).query(U, k=2)[0][:, 1].mean()
+    vs = us + 0.01
+    out_u, out_v, ratios = _check_entries(us, vs, 1.0, metric="alpha", stacklevel=3)
+    assert np.array_equal(out_u, us) and np.array_equal(out_v, vs)
+    spacing = cKDTree(U).query(U, k=2)[0][:, 1].mean()  # (u and u + 0.01 have the same spacing)
     assert ratios == pytest.approx([1 / spacing, 1 / (2 * spacing)], rel=1e-12)
     bad = us.copy()
     bad[1, 2, 0] = np.nan
@@ -272,6 +274,87 @@ def test_geodesic_options_and_errors():
         geodesic(U, v, sigma2=0.5, hessian="bfgs")
 
 
+def test_geodesics_on_the_cpu_pass_every_option_to_geodesic():
+    rng = np.random.default_rng(10)
+    vs = np.stack([sl.procrustes_align(U, U + 0.3 * rng.normal(size=U.shape), scaling=False) for _ in range(2)])
+    us = np.stack([U, U])
+    kw = dict(metric="fisher_rao", sigma2=0.5, n_steps=3, tol=1e-9, max_iter=6, window=2, grid_spacing=0.5,
+              grid_margin=7.0, hessian="model", warn=False)
+    out = geodesics(us, vs, backend="cpu", **kw)
+    for r, v in zip(out, vs):
+        one = geodesic(U, v, **kw)
+        assert np.array_equal(r.path, one.path) and r.n_iter == one.n_iter <= 6 and r.log["hessian"] == "model"
+        assert (r.log["grid_spacing"], r.log["grid_margin"], r.log["tol"]) == (0.5, 7.0, 1e-9)
+    with pytest.warns(GeodesicWarning, match="did not converge"):
+        geodesics(us, vs, backend="cpu", **{**kw, "warn": True, "max_iter": 1})
+
+
+def _batched_on_the_cpu(calls):
+    """A stand-in for shapelib.solver.batched.batched_geodesics (JAX): each pair by the CPU solver."""
+    def run(us, vs, *, metric, sigma2, n_steps, tol, max_iter, window, grid_spacing, grid_margin, device, batch_size,
+            warn):
+        calls.append(dict(us=np.array(us), vs=np.array(vs), metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol,
+                          max_iter=max_iter, window=window, grid=(grid_spacing, grid_margin), device=device,
+                          batch_size=batch_size, warn=warn))
+        return [geodesic(u, v, metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window,
+                         grid_spacing=grid_spacing, grid_margin=grid_margin, warn=False) for u, v in zip(us, vs)]
+    return run
+
+
+def test_geodesics_on_a_device_hand_the_checked_batch_over(monkeypatch):
+    """backend="jax" (the default): the pairs are checked as geodesic checks them, handed to the batched
+    solver in one call with every option, marked where they underflow, and one warning names the failures.
+    The batch is solved here pair by pair by the CPU solver (no JAX needed)."""
+    calls = []
+    monkeypatch.setattr(geodesic_module, "batched_geodesics", _batched_on_the_cpu(calls))
+    rng = np.random.default_rng(13)
+    vs = np.stack([sl.procrustes_align(U, U + 0.3 * rng.normal(size=U.shape), scaling=False) for _ in range(2)])
+    us = np.stack([U, U])
+    out = geodesics(us.tolist(), vs, sigma2=1, device="cpu")
+    call = calls[-1]
+    assert (call["metric"], call["sigma2"], call["n_steps"], call["tol"], call["max_iter"], call["window"]) \
+        == ("alpha", 1.0, 16, 1e-6, 500, 5)  # geodesic's defaults
+    assert type(call["sigma2"]) is float and call["grid"] == (0.35, 6.0) and call["device"] == "cpu"
+    assert call["batch_size"] is None and call["warn"] is False
+    assert np.array_equal(call["us"], us) and np.array_equal(call["vs"], vs)
+    for r, v in zip(out, vs):
+        assert r.converged and r.length == geodesic(U, v, sigma2=1.0).length
+    geodesics(us, vs, metric="fisher_rao", sigma2=0.5, n_steps=3, tol=1e-4, max_iter=40, window=3, grid_spacing=0.5,
+              grid_margin=7.0, device="cpu", batch_size=7)
+    call = calls[-1]
+    assert (call["metric"], call["n_steps"], call["tol"], call["max_iter"], call["window"], call["grid"],
+            call["batch_size"]) == ("fisher_rao", 3, 1e-4, 40, 3, (0.5, 7.0), 7)
+    # a pair that stops early: one warning for the batch, naming the count and the first failure
+    with pytest.warns(GeodesicWarning, match=r"alpha geodesics: 2 of 2 pairs did not converge \(first: ") as seen:
+        stuck = geodesics(us, vs, sigma2=0.5, max_iter=1, device="cpu")
+    assert len([w for w in seen if issubclass(w.category, GeodesicWarning)]) == 1
+    assert stuck[0].summary() in str(seen[0].message) and not any(r.converged for r in stuck)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GeodesicWarning)
+        geodesics(us, vs, sigma2=0.5, max_iter=1, device="cpu", warn=False)
+        geodesics(us, vs, sigma2=0.5, device="cpu")  # all converge: no warning
+    # the underflow rule marks each pair as geodesic does
+    far = 10.0 * np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ScaleWarning)
+        warnings.simplefilter("ignore", sl.PoseWarning)
+        with pytest.warns(GeodesicWarning, match="1 of 2 pairs"):
+            marked = geodesics(np.stack([far / 10, far]), np.stack([far / 10 + 0.01, far + [[0.05, 0], [0, 0], [0, 0]]]),
+                               sigma2=1.6e-7 * 100, n_steps=2, device="cpu")
+    assert [r.log["stopped_by"] for r in marked][1] == "underflow" and marked[0].converged
+    # the entry checks name the pair
+    bad = vs.copy()
+    bad[1, 0, 0] = np.nan
+    with pytest.raises(ValueError, match=r"vs\[1\]"):
+        geodesics(us, bad, sigma2=0.5, device="cpu")
+    with pytest.raises(ValueError, match="sigma2"):
+        geodesics(us, vs, sigma2=0.0, device="cpu")
+    with pytest.raises(ValueError, match="metric must be"):
+        geodesics(us, vs, metric="l2", sigma2=0.5, device="cpu")
+    with pytest.raises(ValueError, match="device"):
+        geodesics(us, vs, sigma2=0.5, device="tpu")
+
+
 def test_geodesics_on_the_cpu_are_geodesic_pair_by_pair():
     rng = np.random.default_rng(9)
     vs = np.stack([sl.procrustes_align(U, U + 0.2 * rng.normal(size=U.shape), scaling=False) for _ in range(2)])
@@ -380,12 +463,20 @@ def test_geodesic_acceleration_checks_its_step():
 # --------------------------------------------------------------------------------------------- where warnings point
 
 
+#: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions
+#: are trampolines: a frame more between the caller and the warning, so no stacklevel names the caller
+UNDER_MUTMUT = any("__mutmut_" in name for name in vars(geodesic_module))
+
+
 def _caught(fn, category):
+    """The warnings of ``category`` that ``fn`` emits; each names this file (outside mutmut)."""
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
         fn()
     hits = [w for w in seen if issubclass(w.category, category)]
     assert hits, f"no {category.__name__}"
+    if UNDER_MUTMUT:
+        return [warnings.WarningMessage(w.message, w.category, __file__, w.lineno) for w in hits]
     return hits
 
 

@@ -4,6 +4,7 @@ dense metric tensor of shapelib.alpha_metric and NumPy's eigendecomposition, fin
 path energy (shapelib.solver.energy) for the segment derivatives, the first-order condition of the path
 energy along the exponential's path, round trips, and the documented option checks."""
 
+import time
 import warnings
 
 import numpy as np
@@ -91,8 +92,19 @@ def test_tangent_space_options_record_wins():
     assert abs(coarse.metric_tensor[0, 0] * 0.5 - 1) > 1e-4
     assert abs(tangent_space(A, metric="fisher_rao", sigma2=0.5, grid_spacing=2.0, grid_margin=9.0)
                .metric_tensor[0, 0] * 0.5 - 1) > 1e-4
-    with pytest.raises(ValueError, match="base"):
+    with pytest.raises(ValueError, match="^base contains non-finite"):
         tangent_space(np.full((3, 2), np.nan), sigma2=0.5)
+
+
+def test_tangent_space_refuses_a_metric_that_overflows_or_underflows():
+    """g_α = I/(8πK²σ⁴) on the diagonal: σ² = 1e-200 overflows it (eigh of inf failed with NumPy's
+    "Eigenvalues did not converge"), σ² = 1e200 underflows it to zero (the error said σ² was too small)."""
+    with np.errstate(divide="ignore", invalid="ignore"), \
+            pytest.raises(ValueError, match=r"^the metric tensor at base is not finite \(sigma2 far too small"):
+        tangent_space(U, sigma2=1e-200)
+    with pytest.raises(ValueError, match=r"^the metric tensor at base is zero \(sigma2 far too large"):
+        tangent_space(U, sigma2=1e200)
+    assert tangent_space(U, sigma2=1e100).eigenvalues[0] > 0  # tiny (1e-202) but not zero: accepted
 
 
 def test_tangent_space_products_are_those_of_the_metric_tensor():
@@ -160,8 +172,12 @@ def test_log_map_solver_options_reach_the_solve():
     rng = np.random.default_rng(1)
     v = sl.procrustes_align(U, U + 0.3 * rng.normal(size=U.shape), scaling=False)
     with pytest.warns(sl.GeodesicWarning, match=r"log map: the alpha path solver stopped after 0 iterations "
-                                                r"without converging \(max_iter\)"):
+                                                r"without converging \(max_iter\)") as seen:
+        t0 = time.perf_counter()
         stuck = log_map(U, v, sigma2=0.5, max_iter=0, return_result=True)
+        elapsed = time.perf_counter() - t0
+    assert len([w for w in seen if issubclass(w.category, sl.GeodesicWarning)]) == 1  # the log map's own only
+    assert 0 < stuck.seconds <= elapsed
     assert stuck.n_iter == 0 and not stuck.converged and stuck.stop_reason == "max_iter"
     assert np.allclose(stuck.path, np.linspace(U, v, 5))  # the straight start, untouched
     best = log_map(U, v, sigma2=0.5, n_steps=5, tol=1e-12, return_result=True)
@@ -319,6 +335,36 @@ def test_exp_path_options():
     assert info["converged"] and max(info["residuals"]) <= 1e-12
 
 
+def test_exp_map_passes_its_grid_and_checks_the_scale():
+    own = exp_map(U, V0, metric="fisher_rao", sigma2=0.5)
+    wide = exp_map(U, V0, metric="fisher_rao", sigma2=0.5, grid_spacing=2.5)
+    narrow = exp_map(U, V0, metric="fisher_rao", sigma2=0.5, grid_margin=2.0)
+    assert np.abs(wide - own).max() > 1e-5 and np.abs(narrow - own).max() > 1e-5
+    with pytest.warns(sl.ScaleWarning):
+        exp_map(10 * U, V0, sigma2=0.01)
+
+
+def test_exp_path_converged_only_if_every_point_did():
+    """A long step whose first point needs more Newton iterations than the later ones: with a budget
+    of two, the first point stops short and the path is not converged although the last point is."""
+    opts = GeodesicOptions("alpha", 0.5, n_steps=4)
+    far = 10 * np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    _, info = exp_path(U, far, options=opts, max_newton=2)
+    iters = info["newton_iters"]
+    assert iters[0] == 2 and iters[-1] < 2  # the first point stopped at the budget, the last converged
+    assert info["converged"] is False
+    _, info = exp_path(U, far, options=opts, max_newton=6)
+    assert info["converged"] and all(i < 6 for i in info["newton_iters"])
+
+
+def test_exp_path_without_newton_iterations():
+    """max_newton = 0: every point is the constant-velocity guess, none converged, residual inf."""
+    opts = GeodesicOptions("alpha", 0.5, n_steps=4)
+    path, info = exp_path(U, V0, options=opts, max_newton=0)
+    assert not info["converged"] and info["newton_iters"] == [0, 0, 0] and info["residuals"] == [np.inf] * 3
+    assert np.allclose(path, U + np.linspace(0, 1, 5)[:, None, None] * V0)
+
+
 def test_exp_map_warns_when_a_newton_solve_stops(monkeypatch):
     real = logexp.exp_path
     monkeypatch.setattr(logexp, "exp_path", lambda *a, **k: real(*a, **k, newton_tol=1e-14, max_newton=1))
@@ -355,18 +401,21 @@ def test_path_as_result_measures_a_straight_path():
     assert r.max_step_over_sigma == pytest.approx(dist / 4 / np.sqrt(0.5), rel=1e-12)
     assert r.log == {"stopped_by": "trivial", "note": 1}
     assert path_as_result(path, options=GeodesicOptions("alpha", 0.5)).log == {"stopped_by": "trivial"}
+    ints = path_as_result([[[0, 0]], [[1, 0]], [[2, 0]]], options=GeodesicOptions("alpha", 0.5))
+    assert ints.path.dtype == np.float64 and ints.length == pytest.approx(2 * np.sqrt(G_ALPHA(0.5)), rel=1e-10)
 
 
 # --------------------------------------------------------------------------------------------- magnify
 
 
 def test_magnify_a_flat_geodesic_scales_the_straight_line():
-    geo = sl.geodesic(A, B, metric="fisher_rao", sigma2=0.5, n_steps=4, grid_margin=9.0)
+    a, b = A + [[0.5, -0.3]], B + [[0.5, -0.3]]  # away from the origin: the velocity is a difference
+    geo = sl.geodesic(a, b, metric="fisher_rao", sigma2=0.5, n_steps=4, grid_margin=9.0)
     for mag, steps in [(1.5, 6), (0.4, 2), (0.1, 1), (2.2, 9)]:  # round(mag · 4), at least 1
         out = magnify(geo, mag)
-        assert out.n_steps == steps and out.log["magnification"] == mag
-        assert np.allclose(out.path[-1], A + mag * (B - A), atol=1e-9)
-        assert np.allclose(out.path[:, 0], np.linspace(A[0], (A + mag * (B - A))[0], steps + 1), atol=1e-9)
+        assert out.n_steps == steps and out.log["magnification"] == mag and out.log["exp"]["converged"]
+        assert np.allclose(out.path[-1], a + mag * (b - a), atol=1e-9)
+        assert np.allclose(out.path[:, 0], np.linspace(a[0], (a + mag * (b - a))[0], steps + 1), atol=1e-9)
         assert out.length == pytest.approx(mag * geo.length, rel=1e-9)
         assert out.metric == "fisher_rao" and out.sigma2 == 0.5
     # the grid of the result (a 3σ margin: errors of 1e-3) is the magnified one's
@@ -376,11 +425,25 @@ def test_magnify_a_flat_geodesic_scales_the_straight_line():
     on_coarse = sl.path_length(twice.path, metric="fisher_rao", sigma2=0.5, grid_margin=3.0)
     on_fine = sl.path_length(twice.path, metric="fisher_rao", sigma2=0.5, grid_margin=9.0)
     assert twice.length == pytest.approx(on_coarse, rel=1e-12) and abs(on_coarse / on_fine - 1) > 1e-4
+    wide = sl.geodesic(A, B, metric="fisher_rao", sigma2=0.5, n_steps=4, grid_spacing=2.0, grid_margin=9.0)
+    twice = magnify(wide, 2.0)
+    on_wide = sl.path_length(twice.path, metric="fisher_rao", sigma2=0.5, grid_spacing=2.0, grid_margin=9.0)
+    on_fine = sl.path_length(twice.path, metric="fisher_rao", sigma2=0.5, grid_margin=9.0)
+    assert twice.length == pytest.approx(on_wide, rel=1e-12) and abs(on_wide / on_fine - 1) > 1e-4
+
+
+def test_magnify_passes_its_truncation_to_the_exponential():
+    """rcond close to 1 leaves the geodesic (test_exp_map_truncation): the magnified path does too."""
+    v = sl.procrustes_align(U, U + 0.5 * V0, scaling=False)
+    geo = sl.geodesic(U, v, sigma2=0.5, n_steps=4, tol=1e-12)
+    full, cut = magnify(geo, 2.0), magnify(geo, 2.0, rcond=0.999)
+    assert np.allclose(full.path[:5], geo.path, atol=1e-5)
+    assert np.abs(cut.path[-1] - full.path[-1]).max() > 1e-3
 
 
 def test_magnify_refuses_what_it_cannot_magnify():
     geo = sl.geodesic(A, B, metric="alpha", sigma2=0.5, n_steps=4)
-    with pytest.raises(ValueError, match="mag"):
+    with pytest.raises(ValueError, match="mag must be a positive finite number"):
         magnify(geo, -1.0)
     other = sl.GeodesicResult(path=geo.path, length=1.0, energy=1.0, lower_bound=0.0, converged=True, n_iter=0,
                               grad_norm=None, rel_energy_change=0.0, max_step_over_sigma=1.0,
@@ -394,3 +457,43 @@ def test_magnify_refuses_what_it_cannot_magnify():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert np.allclose(magnify(geo, 3.0, rcond=0.5).path[-1], A + 3 * (B - A), atol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------- backend="jax" glue
+
+
+def test_jax_log_maps_glue_gives_the_cpu_log_maps(monkeypatch):
+    """backend="jax" hands the population to shapelib.solver.batched.batched_geodesics as one batch. With
+    that batch solved pair by pair by the CPU solver instead (no JAX needed), the log maps must be the
+    CPU backend's: the same straight or warm starts, iteration budget ×JAX_ITER_FACTOR, zero lower bounds."""
+    calls = []
+
+    def batch_on_the_cpu(us, vs, *, metric, sigma2, n_steps, tol, max_iter, window, init, grid_spacing,
+                         grid_margin, lower_bounds, device, warn):
+        calls.append(dict(max_iter=max_iter, init=np.array(init), lower_bounds=np.array(lower_bounds), device=device,
+                          warn=warn, us=np.array(us), n_steps=n_steps, grid=(grid_spacing, grid_margin)))
+        return [sl.geodesic(u, v, metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol, max_iter=500, window=window,
+                            init=i, grid_spacing=grid_spacing, grid_margin=grid_margin, warn=False)
+                for u, v, i in zip(us, vs, init)]
+
+    monkeypatch.setattr(logexp, "batched_geodesics", batch_on_the_cpu)
+    rng = np.random.default_rng(5)
+    shapes = np.stack([sl.procrustes_align(U, U + 0.2 * rng.normal(size=U.shape), scaling=False) for _ in range(3)])
+    cpu = log_maps(U, shapes, options=GeodesicOptions("fisher_rao", 0.5, tol=1e-10, grid_margin=7.0))
+    warm = cpu[1].path
+    opts = GeodesicOptions("fisher_rao", 0.5, tol=1e-10, max_iter=30, grid_margin=7.0, backend="jax", device="cpu")
+    jx = log_maps(U, shapes, options=opts, inits=[None, warm, np.zeros((3, 4, 2))])
+    assert len(calls) == 1 and len(jx) == 3
+    call = calls[0]
+    assert call["max_iter"] == 30 * logexp.JAX_ITER_FACTOR and call["device"] == "cpu" and call["warn"] is False
+    assert np.array_equal(call["lower_bounds"], np.zeros(3)) and call["n_steps"] == 4 and call["grid"] == (0.35, 7.0)
+    assert np.array_equal(call["us"], np.stack([U] * 3))
+    t = np.linspace(0, 1, 5)[:, None, None]
+    assert np.allclose(call["init"][0], (1 - t) * U + t * shapes[0]) and np.array_equal(call["init"][1], warm)
+    assert np.allclose(call["init"][2], (1 - t) * U + t * shapes[2])  # a start of the wrong shape is not used
+    for a, b in zip(jx, cpu):
+        assert np.allclose(a.vector, b.vector, atol=1e-7) and a.energy == pytest.approx(b.energy, rel=1e-8)
+        assert np.allclose(a.vector, 4 * (a.path[1] - a.path[0]))
+        assert a.converged and isinstance(a.n_iter, int) and a.stop_reason == b.stop_reason and a.seconds > 0
+    per_base = log_maps(np.stack([U, shapes[1], U]), shapes, options=opts)
+    assert np.allclose(per_base[1].vector, 0.0, atol=1e-9) and np.array_equal(calls[-1]["us"][1], shapes[1])
