@@ -157,8 +157,10 @@ def test_check_entry_of_a_bound_inside_a_checked_set():
 
 def test_check_entries_names_the_pair_and_returns_each_ratio():
     us = np.stack([U, 2 * U])
-    vs = us + 0.01
-    out_u, out_v, ratios = _check_entries(us, vs, 1.0, metric="alpha", stacklevel=3)
+    vs = us + 0.01  # moved: a PoseWarning, not the subject here
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sl.PoseWarning)
+        out_u, out_v, ratios = _check_entries(us, vs, 1.0, metric="alpha", stacklevel=3)
     assert np.array_equal(out_u, us) and np.array_equal(out_v, vs)
     spacing = cKDTree(U).query(U, k=2)[0][:, 1].mean()  # (u and u + 0.01 have the same spacing)
     assert ratios == pytest.approx([1 / spacing, 1 / (2 * spacing)], rel=1e-12)
@@ -281,6 +283,10 @@ def test_geodesics_on_the_cpu_pass_every_option_to_geodesic():
     kw = dict(metric="fisher_rao", sigma2=0.5, n_steps=3, tol=1e-9, max_iter=6, window=2, grid_spacing=0.5,
               grid_margin=7.0, hessian="model", warn=False)
     out = geodesics(us, vs, backend="cpu", **kw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GeodesicWarning)  # warn=False reaches each geodesic
+        stopped = geodesics(us, vs, backend="cpu", **{**kw, "max_iter": 1})
+    assert not any(r.converged for r in stopped)
     for r, v in zip(out, vs):
         one = geodesic(U, v, **kw)
         assert np.array_equal(r.path, one.path) and r.n_iter == one.n_iter <= 6 and r.log["hessian"] == "model"
@@ -289,15 +295,75 @@ def test_geodesics_on_the_cpu_pass_every_option_to_geodesic():
         geodesics(us, vs, backend="cpu", **{**kw, "warn": True, "max_iter": 1})
 
 
-def _batched_on_the_cpu(calls):
-    """A stand-in for shapelib.solver.batched.batched_geodesics (JAX): each pair by the CPU solver."""
-    def run(us, vs, *, metric, sigma2, n_steps, tol, max_iter, window, grid_spacing, grid_margin, device, batch_size,
-            warn):
+def _no_device(monkeypatch):
+    """check_backend asks JAX for the device, which starts JAX's multithreaded backend (a process
+    forked after that, as mutmut's are, can hang): the device is taken as named instead."""
+    from shapelib.solver import batched
+
+    monkeypatch.setattr(batched, "jax_device", lambda device=None: device)
+
+
+def test_geodesic_on_a_device_hands_the_pair_over(monkeypatch):
+    """geodesic(backend="jax"): the pair, checked as on the CPU, goes to the batched solver as a batch
+    of one with every option; its non-convergence warns with the L-BFGS count; the underflow rule
+    applies. The batch is solved here by the CPU solver (no JAX needed)."""
+    calls = []
+    _no_device(monkeypatch)
+    monkeypatch.setattr(geodesic_module, "batched_geodesics", _batched_on_the_cpu(calls, init=True))
+    rng = np.random.default_rng(14)
+    v = sl.procrustes_align(U, U + 0.3 * rng.normal(size=U.shape), scaling=False)
+    r = geodesic(U, v, sigma2=1, backend="jax", device="cpu")
+    call = calls[-1]
+    assert (call["metric"], call["sigma2"], call["n_steps"], call["tol"], call["max_iter"], call["window"]) \
+        == ("alpha", 1.0, 16, 1e-6, 500, 5)
+    assert type(call["sigma2"]) is float and call["grid"] == (0.35, 6.0) and call["device"] == "cpu"
+    assert call["warn"] is False and call["init"] is None
+    assert np.array_equal(call["us"], U[None]) and np.array_equal(call["vs"], v[None])
+    assert r.converged and r.length == geodesic(U, v, sigma2=1.0).length
+    start = np.linspace(U, v, 4)
+    geodesic(U, v, metric="fisher_rao", sigma2=0.5, n_steps=3, tol=1e-4, max_iter=40, window=3, grid_spacing=0.5,
+             grid_margin=7.0, init=start.tolist(), backend="jax", device="cpu")
+    call = calls[-1]
+    assert (call["metric"], call["n_steps"], call["tol"], call["max_iter"], call["window"], call["grid"]) \
+        == ("fisher_rao", 3, 1e-4, 40, 3, (0.5, 7.0))
+    assert np.array_equal(call["init"], start[None])
+    with pytest.warns(GeodesicWarning, match=r"^alpha geodesic did not converge in 1 L-BFGS iterations \(") as seen:
+        stuck = geodesic(U, v, sigma2=0.5, max_iter=1, backend="jax", device="cpu")
+    assert stuck.summary() in str(seen[0].message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GeodesicWarning)
+        geodesic(U, v, sigma2=0.5, max_iter=1, backend="jax", device="cpu", warn=False)
+    for bad in ("bfgs", None):
+        with pytest.raises(ValueError, match="^hessian must be 'exact' or 'model'; got"):
+            geodesic(U, v, sigma2=0.5, hessian=bad, backend="jax", device="cpu")
+    assert geodesic(U, v, sigma2=0.5, hessian="model", backend="jax", device="cpu").converged
+    far = 10.0 * np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ScaleWarning)
+        warnings.simplefilter("ignore", sl.PoseWarning)
+        with pytest.warns(GeodesicWarning, match="alpha geodesic not converged: the solver stopped before its first"):
+            marked = geodesic(far, far + [[0.05, 0.0], [0.0, 0.0], [0.0, 0.0]], sigma2=1.6e-7, n_steps=2,
+                              backend="jax", device="cpu")
+    assert marked.log["stopped_by"] == "underflow"
+
+
+def _batched_on_the_cpu(calls, init=False):
+    """A stand-in for shapelib.solver.batched.batched_geodesics (JAX): each pair minimised by the CPU
+    path solver, unchecked and unmarked as the device's results are."""
+    from shapelib.solver.minimise import minimise_path
+    from shapelib.solver.path_metric import path_metric
+
+    def run(us, vs, *, metric, sigma2, n_steps, tol, max_iter, window, grid_spacing, grid_margin, device, warn,
+            batch_size=None, **more):
+        assert set(more) <= ({"init"} if init else set())
+        starts = more.get("init")
         calls.append(dict(us=np.array(us), vs=np.array(vs), metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol,
                           max_iter=max_iter, window=window, grid=(grid_spacing, grid_margin), device=device,
-                          batch_size=batch_size, warn=warn))
-        return [geodesic(u, v, metric=metric, sigma2=sigma2, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window,
-                         grid_spacing=grid_spacing, grid_margin=grid_margin, warn=False) for u, v in zip(us, vs)]
+                          batch_size=batch_size, warn=warn, init=starts))
+        model = path_metric(metric, sigma2, grid_spacing=grid_spacing, grid_margin=grid_margin)
+        return [minimise_path(model, u, v, n_steps=n_steps, tol=tol, max_iter=max_iter, window=window,
+                              init=None if starts is None else starts[i], warn=False, length_scale=np.sqrt(sigma2),
+                              sigma2=sigma2) for i, (u, v) in enumerate(zip(us, vs))]
     return run
 
 
@@ -306,6 +372,7 @@ def test_geodesics_on_a_device_hand_the_checked_batch_over(monkeypatch):
     solver in one call with every option, marked where they underflow, and one warning names the failures.
     The batch is solved here pair by pair by the CPU solver (no JAX needed)."""
     calls = []
+    _no_device(monkeypatch)
     monkeypatch.setattr(geodesic_module, "batched_geodesics", _batched_on_the_cpu(calls))
     rng = np.random.default_rng(13)
     vs = np.stack([sl.procrustes_align(U, U + 0.3 * rng.normal(size=U.shape), scaling=False) for _ in range(2)])
