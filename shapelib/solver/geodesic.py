@@ -80,7 +80,8 @@ import warnings
 
 import numpy as np
 
-from .._validate import as_pair_batch, as_shape_pair, check_dimension, check_positive, check_sigma2, set_was_checked
+from .._validate import as_pair_batch, as_shape_pair, check_dimension, check_positive, check_positive_int, check_sigma2, \
+    set_was_checked
 from ..geometry.gmm import l2_distance
 from ..geometry.procrustes import check_pose
 from ..geometry.quadrature import DEFAULT_MARGIN, DEFAULT_SPACING
@@ -613,7 +614,7 @@ def geodesic_acceleration(theta, velocity, *, metric: str = "alpha", sigma2, gri
     Raises
     ------
     ValueError
-        For an unknown ``metric`` or a non-positive ``sigma2``.
+        For an unknown ``metric`` or a non-positive ``sigma2`` or ``eps``.
 
     See Also
     --------
@@ -636,6 +637,7 @@ def geodesic_acceleration(theta, velocity, *, metric: str = "alpha", sigma2, gri
     True
     """
     model = path_metric(metric, check_sigma2(sigma2), grid_spacing=grid_spacing, grid_margin=grid_margin)
+    eps = check_positive(eps, name="eps")
     th = np.asarray(theta, dtype=np.float64)
     v = np.asarray(velocity, dtype=np.float64)
     ctx = model.prepare(th) if grid is None else grid
@@ -687,8 +689,8 @@ def shoot(u, velocity, *, metric: str = "alpha", sigma2, n_steps: int = 200,
     Raises
     ------
     ValueError
-        For ``u`` and ``velocity`` of different shapes or non-finite, an unknown ``metric`` or a
-        non-positive ``sigma2``.
+        For ``u`` and ``velocity`` of different shapes or non-finite, an unknown ``metric``, a
+        non-positive ``sigma2`` or an ``n_steps`` that is not a positive integer.
 
     See Also
     --------
@@ -711,6 +713,7 @@ def shoot(u, velocity, *, metric: str = "alpha", sigma2, n_steps: int = 200,
     """
     u = as_shape_pair(u, velocity, names=("u", "velocity"))[0]
     s2 = check_sigma2(sigma2)
+    n_steps = check_positive_int(n_steps, name="n_steps")
     acc = lambda th, v: geodesic_acceleration(th, v, metric=metric, sigma2=s2, grid_spacing=grid_spacing,
                                               grid_margin=grid_margin)
     th, v = u.copy(), np.asarray(velocity, dtype=np.float64).copy()

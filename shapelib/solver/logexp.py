@@ -366,8 +366,8 @@ def tangent_space(base, *, metric: str = "alpha", sigma2=None, rcond: float = DE
     Raises
     ------
     ValueError
-        For bad options, a non-finite ``base``, or a metric tensor that is zero (σ² far too small
-        for the landmarks).
+        For bad options, a non-finite ``base``, or a metric tensor that is not finite (σ² so small
+        that the metric overflows) or zero (σ² so large that it underflows).
 
     See Also
     --------
@@ -394,11 +394,13 @@ def tangent_space(base, *, metric: str = "alpha", sigma2=None, rcond: float = DE
     base = as_shape(base, name="base")
     model = opts.model()
     g = model.tensors(base[None], model.prepare(base[None]))[0]
+    if not np.all(np.isfinite(g)):
+        raise ValueError("the metric tensor at base is not finite (sigma2 far too small for these landmarks?)")
     g = 0.5 * (g + g.T)
     w, u = np.linalg.eigh(g)
     w, u = w[::-1], u[:, ::-1]
     if not w[0] > 0:
-        raise ValueError("the metric tensor at base is zero (sigma2 far too small for these landmarks?)")
+        raise ValueError("the metric tensor at base is zero (sigma2 far too large for these landmarks?)")
     rank = int(np.count_nonzero(w > opts.rcond * w[0]))
     return TangentSpace(base=base, metric_tensor=g, eigenvalues=w, eigenvectors=u, rank=rank, rcond=opts.rcond)
 
