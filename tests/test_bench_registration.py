@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, import_or_missing
 
 
 def _load(name):
@@ -105,7 +105,8 @@ def test_3d_cases_carry_their_ground_truth():
 
 
 def test_a_peer_that_raises_is_a_failure_scored_as_the_unmoved_source():
-    pytest.importorskip("probreg")
+    # probreg imports open3d, which needs the system's libusb-1.0 (.ci/run installs it)
+    import_or_missing("probreg", "probreg (the study extra) and open3d's libusb-1.0")
     peers = _load("_peers")
     rng = np.random.default_rng(0)
     x = rng.normal(size=(40, 2))
