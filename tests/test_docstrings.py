@@ -26,6 +26,7 @@ MATH_MODULES = (
     "shapelib.pointsets.registration", "shapelib.pointsets._batch", "shapelib.pointsets.invariant",
     "shapelib.pointsets.outline",
     "shapelib.retrieval", "shapelib.statistics.linear_model", "shapelib.statistics.allometry",
+    "shapelib.solver.transport", "shapelib.statistics.disparity", "shapelib.statistics.pls",
 )
 MODULES = MATH_MODULES + ("shapelib.datasets", "shapelib.plotting")
 

@@ -51,7 +51,7 @@ def parallel_transport(base, vector, end, *, metric: str = "alpha", sigma2, n_ru
                        n_steps: int = N_STEPS, tol: float = 1e-8, max_iter: int = 500) -> np.ndarray:
     r"""Carry the tangent vector ``vector`` at ``base`` to ``end`` along the geodesic between them.
 
-    The pole ladder (module docstring): along the discrete geodesic ``base = θ₀, …, θ_N = end``
+    The pole ladder of [1]_ (module docstring): along the discrete geodesic ``base = θ₀, …, θ_N = end``
     cut into ``n_rungs`` rungs ``a → b`` with midpoints ``m``, each rung maps ``v`` to
 
     .. math::

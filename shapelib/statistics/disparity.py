@@ -53,7 +53,7 @@ class DisparityResult:
     sizes : ndarray (G,)
         Specimens per group.
     value : ndarray (G,)
-        Procrustes variance of each group, ``PV_g`` (in squared Procrustes units).
+        Procrustes variance of each group, ``PV_g`` [1]_ (in squared Procrustes units).
     differences : ndarray (G, G)
         ``|PV_a − PV_b|``.
     p_values : ndarray (G, G)
@@ -64,6 +64,15 @@ class DisparityResult:
     n_permutations : int
     residuals2 : ndarray (N,)
         Each specimen's squared residual length ``d_i``, in the order given.
+
+    See Also
+    --------
+    morphological_disparity : What returns it.
+
+    References
+    ----------
+    .. [1] M. L. Zelditch, D. L. Swiderski and H. D. Sheets, *Geometric Morphometrics for Biologists*,
+       2nd ed., Academic Press, 2012 (the Procrustes variance).
 
     Examples
     --------
@@ -141,9 +150,9 @@ def morphological_disparity(shapes, groups, *, about: str = "group", aligned: bo
     """Procrustes variance of each group and permutation tests of their pairwise differences.
 
     ``PV_g = (1/n_g) Σ_{i∈g} |y_i − c_i|²`` of the Procrustes coordinates ``y_i`` about each
-    group's mean (or the grand mean), and ``p_ab = (1 + #{|PV*_a − PV*_b| ≥ |PV_a − PV_b|}) /
-    (1 + n_permutations)`` with the squared residual lengths permuted among the specimens (module
-    docstring), as geomorph's ``morphol.disparity(coords ~ group, groups = ~group)`` (or
+    group's mean (or the grand mean), the Procrustes variance of [1]_, and ``p_ab = (1 + #{|PV*_a − PV*_b| ≥ |PV_a − PV_b|}) /
+    (1 + n_permutations)`` with the squared residual lengths permuted among the specimens (the
+    residual randomisation of [2]_; module docstring), as geomorph's ``morphol.disparity(coords ~ group, groups = ~group)`` (or
     ``coords ~ 1`` for ``about="grand"``).
 
     Parameters

@@ -52,7 +52,7 @@ class PLSResult:
     Attributes
     ----------
     value : float
-        ``r_PLS``: the correlation of the first pair of scores.
+        ``r_PLS`` [1]_: the correlation of the first pair of scores.
     p_value : float
         Its permutation p-value.
     z : float
@@ -70,6 +70,16 @@ class PLSResult:
     n_permutations : int
     null : ndarray (n_permutations,)
         ``r*_PLS`` of the permutations.
+
+    See Also
+    --------
+    two_block_pls : What returns it.
+
+    References
+    ----------
+    .. [1] D. C. Adams and M. L. Collyer, "On the comparison of the strength of morphological
+       integration across morphometric datasets", *Evolution* 70(11), 2623–2631, 2016 (r_PLS and its
+       effect size).
 
     Examples
     --------
@@ -140,8 +150,9 @@ def _first_r(a1, a2):
 def two_block_pls(block1, block2, *, n_permutations: int = 999, seed: int | None = 0) -> PLSResult:
     """Two-block partial least squares between two sets of variables measured on the same specimens.
 
-    The SVD of the cross-covariance ``S₁₂ = X₁ᵀ X₂ / (N − 1) = U diag(σ) Vᵀ`` of the centred blocks;
-    ``r_PLS = corr(X₁ u₁, X₂ v₁)``, tested by permuting the rows of ``X₂`` (module docstring).
+    The SVD of the cross-covariance ``S₁₂ = X₁ᵀ X₂ / (N − 1) = U diag(σ) Vᵀ`` of the centred blocks
+    (the two-block PLS of [1]_); ``r_PLS = corr(X₁ u₁, X₂ v₁)``, tested by permuting the rows of ``X₂``
+    as in [2]_ (module docstring).
 
     Parameters
     ----------
