@@ -183,7 +183,8 @@ def test_an_em_stopped_early_warns_at_the_caller_unless_told_not_to():
         warnings.simplefilter("always")
         res = sl.register(x[:20], y[:20], max_iter=2)
     messages = [str(w.message) for w in caught if issubclass(w.category, sl.RegistrationWarning)]
-    assert any(m.startswith("register: EM stopped after 2 iterations without converging") for m in messages)
+    assert (f"register: EM stopped after 2 iterations without converging (sigma2 = {res.sigma2:.3g}); raise "
+            "max_iter or loosen tol") in messages
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert sl.register(x, y, transform="similarity", max_iter=2, warn=False).n_iter == 2
@@ -233,6 +234,29 @@ def test_a_change_of_units_of_both_sets_scales_sigma2_the_objective_and_the_poin
     assert b.sigma2 == pytest.approx(s ** 2 * a.sigma2, rel=1e-9) and a.sigma2 == 0.01
     assert b.sigma2_objective == pytest.approx(0.01 * s ** 2, rel=1e-9)
     assert np.allclose(b.points, s * a.points + cy, atol=1e-5 * s)
+
+
+def test_three_dimensional_objective_and_pose_value_scale_as_a_density_distance_in_three_dimensions():
+    rng = np.random.default_rng(6)
+    x = rng.normal(size=(20, 3)) * [2.0, 1.0, 0.5]
+    y = x @ Rotation.random(random_state=5).as_matrix().T + 0.05 * rng.normal(size=(20, 3))
+    s = 4.0
+    a = sl.register(x, y, transform="rigid")
+    b = sl.register(s * x, s * y, transform="rigid")
+    assert b.objective == pytest.approx(a.objective / s ** 1.5, rel=1e-4)  # ‖p − q‖ of 3-D densities
+    assert b.pose.value == pytest.approx(a.pose.value / s ** 1.5, rel=1e-4)
+    assert a.pose.value == pytest.approx(a.objective, rel=1e-6)
+
+
+def test_the_similarity_part_is_the_least_squares_similarity_onto_the_fitted_points():
+    rng = np.random.default_rng(8)
+    x = 0.1 * rng.normal(size=(12, 2)) + [2.0, -1.0]  # off the origin, and small: sum |x - mean|² < 1
+    a_true, t_true = 0.7 * rot2(2.2), np.array([-3.0, 0.5])
+    a, t = reg._similarity_part(x, x @ a_true.T + t_true, False)
+    assert np.allclose(a, a_true, atol=1e-12) and np.allclose(t, t_true, atol=1e-12)
+    mirror = a_true @ np.diag([1.0, -1.0])
+    a, t = reg._similarity_part(x, x @ mirror.T + t_true, True)
+    assert np.allclose(a, mirror, atol=1e-12) and np.allclose(t, t_true, atol=1e-12)
 
 
 def test_the_pose_the_path_and_the_warp_of_a_rigid_registration_are_its_matrix_and_translation_by_hand():
@@ -307,14 +331,21 @@ def test_an_unreliable_result_says_why_in_its_summary_and_its_warning():
 # ---------------------------------------------------------------------------------------------------------
 
 def test_a_nonrigid_fit_of_an_exact_similarity_reports_it_as_the_pose_and_warps_new_points_by_it():
-    x = fish(30)
+    x = fish(30) + [3.0, 1.0]  # off the origin: the frames' centres matter
     s, r, t = 1.8, rot2(1.2), np.array([2.0, -3.0])
     y = s * x @ r.T + t
     res = quietly(x, y[::-1])
     assert np.abs(res.points - y).max() < 1e-3 * s
     assert np.allclose(res.pose.matrix, s * r, atol=1e-3) and np.allclose(res.pose.translation, t, atol=1e-3)
     assert res.pose.transform == "similarity" and res.pose.n_starts > 1
-    new = np.array([[0.3, 0.1], [-0.5, 0.2], [0.0, 0.0]])
+    assert np.allclose(res.pose.points, s * x @ r.T + t, atol=2e-3 * s)
+    # the pose reports the fit kept: its EM, its σ² (in the target's units), its objective
+    assert res.pose.converged is True and res.pose.stop_reason == res.stop_reason == "tolerance"
+    assert res.pose.n_iter == res.n_iter > 0 and res.pose.metric == "alpha"
+    assert res.pose.sigma2 == pytest.approx(res.sigma2, rel=1e-12)
+    assert np.isfinite(res.pose.objective) and res.diagnostics["objective"] == res.pose.objective
+    assert res.diagnostics["candidates"][0][0] == res.pose.objective and len(res.diagnostics["candidates"]) > 1
+    new = np.array([[3.3, 1.1], [2.5, 1.2], [3.0, 1.0]])
     assert np.allclose(res.warp(new), s * new @ r.T + t, atol=2e-3 * s)
     assert np.allclose(res.rigid_points, s * x @ r.T + t, atol=2e-3 * s)
     # σ_g² in units of the target's squared RMS radius
