@@ -567,7 +567,10 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
                       f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning, stacklevel=4)
     a = pn.matrix * (sy / sx)  # the pose in the input units: x -> A (x − m_x)/s_x · s_y + t̃ s_y + m_y
     t = my + sy * pn.translation - a @ mx
-    pose = Pose(matrix=a, translation=t, points=x @ a.T + t, value=pn.value, objective=pn.objective,
+    # the bound at the pose in the input units, as Pose documents it (the search's is in the normalised frame:
+    # the α distance ‖p − q‖ of d-dimensional densities scales as size^(−d/2); Fisher–Rao's has no units)
+    value = pn.value / sy ** (x.shape[1] / 2) if metric == "alpha" else pn.value
+    pose = Pose(matrix=a, translation=t, points=x @ a.T + t, value=value, objective=pn.objective,
                 converged=pn.converged, stop_reason=pn.stop_reason, transform=pn.transform, metric=metric,
                 sigma2=s2_pose * sy ** 2, n_starts=pn.n_starts, n_iter=pn.n_iter)
     p, _ = _posteriors(st.theta, yn, st.s2, st.w)
