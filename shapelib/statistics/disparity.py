@@ -7,24 +7,20 @@ Procrustes variance
 
         PV_g = (1/n_g) Σ_{i∈g} |y_i − c_i|²,
 
-    the trace of the group's covariance matrix with divisor ``n_g`` [1]_, where ``c_i`` is the
+    the trace of the group's covariance matrix with divisor ``n_g`` (Zelditch et al. 2012), where ``c_i`` is the
     mean of specimen ``i``'s own group (``about="group"``: how varied each group is about its own
     mean shape) or the grand mean (``about="grand"``: geomorph's ``coords ~ 1``).
 
 Test
     The squared residual lengths ``d_i = |y_i − c_i|²`` are permuted among the specimens (the
-    residual randomisation of [2]_ for the model ``d ~ group``: under the null hypothesis of equal
-    disparity the residuals are exchangeable); each permutation gives the groups' means of ``d``,
+    residual randomisation of Collyer et al. (2015) for the model ``d ~ group``: under the null
+    hypothesis of equal disparity the residuals are exchangeable); each permutation gives the
+    groups' means of ``d``,
     ``PV*``, and the p-value of a pair of groups is
 
         p_ab = (1 + #{|PV*_a − PV*_b| ≥ |PV_a − PV_b|}) / (1 + n_permutations).
 
-References
-----------
-.. [1] M. L. Zelditch, D. L. Swiderski and H. D. Sheets, *Geometric Morphometrics for Biologists*,
-   2nd ed., Academic Press, 2012.
-.. [2] M. L. Collyer, D. J. Sekora and D. C. Adams, "A method for analysis of phenotypic change for
-   phenotypes described by high-dimensional data", *Heredity* 115, 357–365, 2015.
+The references are those of :func:`morphological_disparity`.
 """
 
 from __future__ import annotations
