@@ -14,8 +14,13 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.distance import cdist
 
 import shapelib as sl
+from shapelib.comparison import diffeomorphism as diffeomorphism_module
 from shapelib.comparison.diffeomorphism import (DiffeomorphismPathMetric, _path_metric, diffeomorphism_quadratic_form,
                                                 diffeomorphism_warp, landmark_diffeomorphism)
+
+#: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions go through a
+#: trampoline, more stack frames between the caller and the code: the warning's line is checked outside it
+UNDER_MUTMUT = any("__mutmut_" in name for name in vars(diffeomorphism_module))
 
 U = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 V_RAW = np.array([[0.0, 0.0], [1.3, 0.0], [1.3, 1.2], [0.0, 1.0]])
@@ -216,7 +221,8 @@ def test_the_solver_warning_points_at_the_callers_line():
     u, v = _pair()
     with pytest.warns(sl.GeodesicWarning) as caught:
         landmark_diffeomorphism(u, v, n_steps=3, max_iter=0)
-    assert [w.filename for w in caught if issubclass(w.category, sl.GeodesicWarning)] == [__file__]
+    if not UNDER_MUTMUT:
+        assert [w.filename for w in caught if issubclass(w.category, sl.GeodesicWarning)] == [__file__]
 
 
 def _field_brute(x, phi, vel, lam, width):

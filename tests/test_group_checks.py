@@ -20,6 +20,9 @@ from shapelib.statistics.group import (MIN_PERMUTATIONS, MeanDifferenceResult, m
 from tests.conftest import ellipse
 
 S2 = 1.0
+#: mutmut (benchmarks/mutation.py) runs these tests against a copy of the module whose functions go through a
+#: trampoline, more stack frames between the caller and the code: the warnings' lines are checked outside it
+UNDER_MUTMUT = any("__mutmut_" in name for name in vars(group_module))
 
 
 def _population(n_a=4, n_b=4, shift=0.6, seed=3, k=6):
@@ -347,7 +350,8 @@ def test_a_group_of_one_is_accepted_and_the_small_group_named_wherever_it_is():
         res = mean_difference_test(x, ["p"] * 5 + ["q"], sigma2=S2, pooled=_pooled(x), group_means=False,
                                    n_permutations=19, n_jobs=1)
     assert res.sizes == (5, 1)
-    assert [w.filename for w in caught if "relabellings" in str(w.message)] == [__file__]
+    if not UNDER_MUTMUT:  # the caller's line
+        assert [w.filename for w in caught if "relabellings" in str(w.message)] == [__file__]
 
 
 def test_bad_shapes_are_named_and_the_pose_warning_names_the_metric():
@@ -365,4 +369,5 @@ def test_bad_shapes_are_named_and_the_pose_warning_names_the_metric():
             with pytest.MonkeyPatch.context() as mp:
                 mp.setattr(group_module, "where_logs_run", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("stop")))
                 mean_difference_test(turned, [0] * 4 + [1] * 4, sigma2=S2, n_jobs=1)
-    assert [w.filename for w in caught if issubclass(w.category, shapelib.PoseWarning)] == [__file__]
+    if not UNDER_MUTMUT:  # the caller's line
+        assert [w.filename for w in caught if issubclass(w.category, shapelib.PoseWarning)] == [__file__]
