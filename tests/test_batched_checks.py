@@ -68,6 +68,7 @@ def test_the_solve_grid_is_the_cpu_grid_with_grid_pad_more_margin_and_covers_it(
     assert _node_set(cpu, h) <= _node_set(solve, h)
     flat = path.reshape(-1, 2)
     for i, ax in enumerate(solve.axes):
+        np.testing.assert_allclose(np.diff(ax), h, rtol=1e-12)  # the step asked for
         assert ax[0] <= flat[:, i].min() - (margin + GRID_PAD) * sigma + 1e-12
         assert ax[0] > flat[:, i].min() - (margin + GRID_PAD) * sigma - h
         assert ax[-1] >= flat[:, i].max() + (margin + GRID_PAD) * sigma - 1e-12
