@@ -137,6 +137,14 @@ class MeanDifferenceResult:
         return bool(all(parts))
 
 
+def _sorted_labels(values) -> list:
+    """``values`` in their natural order (9 before 10), or as text where they do not compare."""
+    try:
+        return sorted(values)
+    except TypeError:
+        return sorted(values, key=str)
+
+
 def permutation_statistics(gram, labels, n_permutations, rng):
     """``‖v̄_A − v̄_B‖`` for the observed labels (bool array, True = B) and ``n_permutations``
     random relabellings, from the Gram matrix of the log maps."""
@@ -174,7 +182,8 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
     metric, sigma2
         The metric (eq. 22 or eq. 6).
     order : sequence of the two labels, optional
-        ``(A, B)``: the difference and the geodesic go from ``A`` to ``B`` (default: sorted labels).
+        ``(A, B)``: the difference and the geodesic go from ``A`` to ``B`` (default: the labels sorted;
+        as text where they do not compare, e.g. a number and a string).
     n_permutations : int
         Random relabellings (≥ 999 for a reported p-value).
     seed : int or numpy Generator
@@ -216,9 +225,9 @@ def mean_difference_test(shapes, groups, *, metric: str = "alpha", sigma2, order
     g = np.asarray(groups)
     if g.shape != (len(x),):
         raise ValueError(f"groups must have one label per shape ({len(x)}); got shape {g.shape}")
-    labels = tuple(order) if order is not None else tuple(sorted(set(g.tolist()), key=str))
+    labels = tuple(order) if order is not None else tuple(_sorted_labels(set(g.tolist())))
     if len(labels) != 2 or set(labels) != set(g.tolist()):
-        found = sorted(set(g.tolist()), key=str)
+        found = _sorted_labels(set(g.tolist()))
         raise ValueError(f"groups must hold exactly two labels{' (those of order)' if order is not None else ''}; "
                          f"found {len(found)}: {found[:6]}")
     is_b = g == labels[1]
