@@ -3,7 +3,7 @@ differences between groups, as geomorph's ``morphol.disparity``.
 
 Procrustes variance
     Of a group ``g`` of ``n_g`` specimens with Procrustes coordinates ``y_i`` (rows of
-    :func:`~shapelib.statistics.linear_model.procrustes_coordinates`),
+    :func:`~shapelib.statistics.linear_model.procrustes_coordinates`)::
 
         PV_g = (1/n_g) Σ_{i∈g} |y_i − c_i|²,
 
@@ -15,7 +15,7 @@ Test
     The squared residual lengths ``d_i = |y_i − c_i|²`` are permuted among the specimens (the
     residual randomisation of Collyer et al. (2015) for the model ``d ~ group``: under the null
     hypothesis of equal disparity the residuals are exchangeable); each permutation gives the
-    groups' means of ``d``, ``PV*``, and the p-value of a pair of groups is
+    groups' means of ``d``, ``PV*``, and the p-value of a pair of groups is::
 
         p_ab = (1 + #{|PV*_a − PV*_b| ≥ |PV_a − PV_b|}) / (1 + n_permutations).
 
