@@ -5,8 +5,9 @@ The one place where the registration's equations live (:func:`shapelib.register`
 Both sets are in normalised units (zero mean, unit RMS radius). The source ``u`` (n, d) is the mean
 set of a mixture whose component ``i`` has weight ``(1 − w)/n``; the target ``y`` (m, d) is a sample
 of that mixture plus a uniform density ``1/V`` of weight ``w`` over the target's bounding box of
-volume ``V`` (each side at least the target's point spacing: :func:`box_volume`) (Coherent Point Drift's model [1]_, with the uniform density in place of CPD's
-``1/m``). E-step, the posterior that target point j came from source point i:
+volume ``V`` (Coherent Point Drift's model [1]_, with the uniform density in place of CPD's
+``1/m``; each side of the box at least the target's point spacing: :func:`box_volume`). E-step, the
+posterior that target point j came from source point i:
 
 .. math::
 
@@ -82,20 +83,25 @@ def sq_dist(x, y):
     return np.maximum(out, 0.0, out=out)
 
 
+def point_spacing(y):
+    """The median distance from each point of ``y`` to its nearest other point (0 for a single point)."""
+    if len(y) < 2:
+        return 0.0
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(y).query(y, k=2)
+    return float(np.median(dist[:, 1]))
+
+
 def box_volume(y):
-    """Volume of the target's bounding box, each side at least the target's point spacing (the median
-    distance to the nearest other point): the support of the uniform (outlier) component.
+    """Volume of the target's bounding box, each side at least the target's point spacing
+    (:func:`point_spacing`): the support of the uniform (outlier) component.
 
     The floor matters for a flat target — a straight line in 2-D, a plane in 3-D — whose box has a
     side of zero: without it the uniform density would swamp every Gaussian term and leave every
     point unmatched. With it the box is a slab one spacing thick, in which the outlier density stands
     to the Gaussian terms as it does for a target that fills its box."""
-    side = np.ptp(y, axis=0)
-    if len(y) > 1:
-        from scipy.spatial import cKDTree
-
-        dist, _ = cKDTree(y).query(y, k=2)
-        side = np.maximum(side, np.median(dist[:, 1]))
+    side = np.maximum(np.ptp(y, axis=0), point_spacing(y))
     return float(np.prod(np.maximum(side, 1e-12)))
 
 

@@ -41,7 +41,7 @@ import numpy as np
 from .._validate import check_nonnegative_int, check_positive, check_positive_int, check_sigma2
 from ..geometry.metrics import alpha_metric, fisher_rao_metric
 from ..solver.linalg import one_blas_thread
-from ._coherent_em import box_volume, posteriors, sq_dist
+from ._coherent_em import box_volume, point_spacing, posteriors, sq_dist
 from .checks import as_point_set, check_same_dimension
 from .density import DENSITY_METRICS
 from .em import fit_mixture
@@ -720,7 +720,4 @@ def _similarity_part(x, theta, reflection):
 
 def _spacing2(yn):
     """The squared median nearest-neighbour distance of the target: its point spacing."""
-    from scipy.spatial import cKDTree
-
-    dist, _ = cKDTree(yn).query(yn, k=2)
-    return float(max(np.median(dist[:, 1]), 1e-12) ** 2)
+    return float(max(point_spacing(yn), 1e-12) ** 2)
