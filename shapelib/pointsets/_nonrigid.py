@@ -68,16 +68,18 @@ def start_rotations(d, reflection):
     return rots
 
 
-def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s2_floor, progress=None):
+def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s2_floor, progress=None,
+            volume=None):
     """Steps 1–3: every final fit as ``(objective, start index, EMState)``, best first, and the starts.
 
     ``kernel_of(u)`` gives the :class:`~shapelib.pointsets._coherent_em.Kernel` at a posed source (a
     weight-coordinate kernel is the same for every rotation: ``kernel_of`` may return a cached one);
     ``w`` is a number, or None for the grid of step 3. ``progress(done, total)``, if given, is called
-    after each start's screening and each final fit.
+    after each start's screening and each final fit. ``volume`` is the target's :func:`box_volume`
+    if the caller has it.
     """
     d = xn.shape[1]
-    volume = box_volume(yn)
+    volume = box_volume(yn) if volume is None else volume
     rots = start_rotations(d, reflection)
     screen_w = W_SCREEN if w is None else w
     grid = W_GRID if w is None else (w,)
@@ -124,7 +126,7 @@ RESIDUAL_SPACINGS = 2.0
 UNMATCHED_SHARE = 1 / 3
 
 
-def assess(fits, yn, *, spacing2):
+def assess(fits, yn, *, spacing2, volume=None):
     """Step 4: why the best fit probably failed (an empty list when nothing says so).
 
     * another start's fit, distinct from the best (``DISTINCT``), reaches an objective within
@@ -132,6 +134,8 @@ def assess(fits, yn, *, spacing2):
     * σ of the fit above ``RESIDUAL_SPACINGS`` target point spacings: the deformation leaves most
       of the target unexplained;
     * more than ``UNMATCHED_SHARE`` of the source points with less than half a target point each.
+
+    ``volume`` is the target's :func:`box_volume` if the caller has it.
     """
     f0, k0, best = fits[0]
     m = len(yn)
@@ -148,7 +152,7 @@ def assess(fits, yn, *, spacing2):
     ratio = float(np.sqrt(best.s2 / spacing2))
     if ratio > RESIDUAL_SPACINGS:
         reasons.append(f"the fit leaves sigma = {ratio:.2f} target point spacings")
-    p1 = posteriors(theta, yn, best.s2, best.w, box_volume(yn)).sum(axis=1)
+    p1 = posteriors(theta, yn, best.s2, best.w, box_volume(yn) if volume is None else volume).sum(axis=1)
     share = float(np.mean(p1 < 0.5))
     if share > UNMATCHED_SHARE:
         reasons.append(f"{100 * share:.0f} % of the source points match no target point")

@@ -620,14 +620,16 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
     # rotation, a scale and a bend coherently); another metric or kernel deforms from the pose it finds
     search_kernel = _nonrigid.with_kernel(lambda u: _kernel(u, s2g, "alpha", "weights"), invariant=True)
     em_opts = dict(lam=lam, fixed_s2=fs2, max_iter=max_iter, tol=tol, s2_floor=SIGMA2_FLOOR * s2_eval)
+    volume = box_volume(yn)
     fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=search_kernel, w=None if auto_w else w,
-                                      reflection=reflection, progress=tick, **em_opts)
+                                      reflection=reflection, progress=tick, volume=volume, **em_opts)
     return _nonrigid_result(x, y, frame, s2_eval, fits, rots, metric=metric, reflection=reflection, s2g=s2g,
-                            kernel=kernel, em_opts=em_opts, n_steps=n_steps, warn=warn, stacklevel=5)
+                            kernel=kernel, em_opts=em_opts, n_steps=n_steps, warn=warn, stacklevel=5,
+                            volume=volume)
 
 
 def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2g, kernel, em_opts, n_steps, warn,
-                     stacklevel):
+                     stacklevel, volume=None):
     """The :class:`RegistrationResult` of the search's ``fits`` (best first, as
     :func:`shapelib.pointsets._nonrigid.fit_all` gives them): the reliability reasons, the pose (the
     fit's similarity part), the refit with another metric or kernel, the warnings. :func:`register` and
@@ -637,20 +639,21 @@ def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2
     xn, yn, mx, sx, my, sy = frame
     max_iter = em_opts["max_iter"]
     spacing2 = _spacing2(yn)
+    volume = box_volume(yn) if volume is None else volume
     f0, k, st = fits[0]
     start = (rots[k], np.zeros(x.shape[1]))  # x -> u = ((x − m_x)/s_x) A0ᵀ + t0, the fit's frame
-    reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2)
+    reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2, volume=volume)
     # the similarity part of the deformation, as the pose (the posed source: the geodesic's start)
     a, t = _similarity_part(xn, st.theta, reflection)
     if (metric, kernel) != ("alpha", "weights"):
         st = _nonrigid.refit(xn @ a.T + t, yn, st.w, _nonrigid.with_kernel(
-            lambda u: _kernel(u, s2g, metric, kernel), invariant=False), volume=box_volume(yn), **em_opts)
+            lambda u: _kernel(u, s2g, metric, kernel), invariant=False), volume=volume, **em_opts)
         f0, start = None, (a, t)
-        reasons = reasons + _nonrigid.assess([(0.0, 0, st)], yn, spacing2=spacing2)[0]
+        reasons = reasons + _nonrigid.assess([(0.0, 0, st)], yn, spacing2=spacing2, volume=volume)[0]
         a, t = _similarity_part(xn, st.theta, reflection)
     theta = st.theta
     diagnostics.update(objective=f0, candidates=[(f, int(kk), float(s.w)) for f, kk, s in fits])
-    p = posteriors(theta, yn, st.s2, st.w, box_volume(yn))
+    p = posteriors(theta, yn, st.s2, st.w, volume)
     a_in = a * (sy / sx)
     t_in = my + sy * t - a_in @ mx
     pose = Pose(matrix=a_in, translation=t_in, points=x @ a_in.T + t_in, value=float("nan"), objective=f0,
