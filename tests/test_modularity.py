@@ -4,6 +4,7 @@ labelling invariances, the permutation counts redone by brute force, and the tes
 modular and integrated data."""
 
 import itertools
+import warnings
 
 import numpy as np
 import pytest
@@ -280,6 +281,32 @@ def test_no_spread_in_the_null_means_no_effect():
     assert res.z == 0.0 and res.p_value == 1.0
 
 
+def test_an_assignment_without_covariance_within_a_module_is_never_modular():
+    """Columns of a Hadamard matrix are exactly orthogonal (h·h = 8): with v0 = h1, v1 = h1 + h2 + h3,
+    v2 = h2, v3 = h1 + 2 h2 + h4, the products are v0·v1 = 8, v0·v2 = 0, v0·v3 = 8, v1·v2 = 8,
+    v1·v3 = 24, v2·v3 = 16. By hand, the three splits into two pairs:
+    {v0, v1} | {v2, v3}: sqrt((0 + 8² + 8² + 24²) / sqrt(2 · 8² · 2 · 16²)) = sqrt(11/4);
+    {v0, v3} | {v1, v2}: sqrt((8² + 0 + 24² + 16²) / sqrt(2 · 8² · 2 · 8²)) = sqrt(7);
+    {v0, v2} | {v1, v3}: no covariance within the first, CR* = ∞ (and no warning)."""
+    h = np.array([[1.0]])
+    for _ in range(3):
+        h = np.block([[h, h], [h, -h]])
+    h1, h2, h3, h4 = h[:, 1:5].T
+    x = np.c_[h1, h1 + h2 + h3, h2, h1 + 2 * h2 + h4]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = sl.modularity_test(x, [0, 0, 1, 1], n_permutations=60)
+    assert res.value == pytest.approx(np.sqrt(11 / 4), rel=1e-12)
+    infinite = np.isinf(res.null)
+    low = np.isclose(res.null, np.sqrt(11 / 4), rtol=1e-12)
+    assert 5 < np.sum(infinite) < 40 and 5 < np.sum(low) < 40
+    np.testing.assert_allclose(res.null[~infinite & ~low], np.sqrt(7), rtol=1e-12)
+    assert res.p_value == pytest.approx((1 + np.sum(low)) / 61)
+    finite = res.null[~infinite]
+    assert res.z == pytest.approx((res.value - finite.mean()) / finite.std(ddof=1), rel=1e-9)
+    assert res.z < 0
+
+
 def test_summary():
     rng = np.random.default_rng(15)
     two = sl.modularity_test(_shapes(rng), HALVES, n_permutations=19)
@@ -296,14 +323,19 @@ def test_summary():
 
 @pytest.mark.parametrize("shapes, partition, kwargs, match", [
     (np.zeros((10, 4, 2)) + np.arange(8).reshape(4, 2), [0, 0, 1], {}, "partition: 3 labels for 4 landmarks"),
-    (np.ones((10, 5)), [0, 0, 1, 1], {}, "partition: 4 labels do not fit"),
+    (np.ones((10, 5)), [0, 0, 1, 1], {}, r"partition: 4 labels do not fit shapes of shape \(10, 5\): give "
+     r"\(N, K, d\) landmarks with K labels, or \(N, p\) variables with p labels \(or p / d for rows of "
+     r"landmark coordinates\)"),
     (np.ones((10, 5)), [], {}, "partition: 0 labels do not fit"),
     (np.ones((10, 4)), [[0, 0], [1, 1]], {}, "partition: expected one label"),
     (np.ones((10, 4)), [0, 0, 0, 0], {}, "at least 2 modules"),
     (np.ones((10, 4)), [0, 1, 1, 1], {}, "module 0 has one variable"),
+    (np.ones((10, 5)), ["a", "a", "b", "a", "c"], {}, r"partition: module 'b' has one variable; each module needs at "
+     r"least 2 \(CR compares covariances within the modules\)"),
     (np.ones((2, 4)), [0, 0, 1, 1], {}, "shapes: at least 3 specimens"),
     (np.r_[np.ones((3, 4)), [[1, np.nan, 1, 1]]], [0, 0, 1, 1], {}, "variable 1 of specimen 3 is not finite"),
-    (np.ones((10, 4)), [0, 0, 1, 1], {}, "module 0 do not covary"),
+    (np.ones((10, 4)), [0, 0, 1, 1], {}, "partition: the variables of module 0 do not covary among themselves; "
+     "CR is not defined"),
     (np.ones((10, 4)), [0, 0, 1, 1], {"n_permutations": 18}, "n_permutations must be at least 19"),
     (np.ones((10, 4)), [0, 0, 1, 1], {"n_permutations": 2.5}, "n_permutations must be a positive integer"),
 ])
@@ -313,13 +345,14 @@ def test_bad_input_names_the_parameter(shapes, partition, kwargs, match):
 
 
 def test_smallest_modules_accepted():
-    """A module of one landmark (its x and y covary) or of two variables is enough."""
+    """A module of one landmark (its x and y covary) or of two variables is enough, and 3 specimens."""
     rng = np.random.default_rng(16)
     shapes = rng.normal(size=(12, 3, 2)) + rng.normal(size=(12, 1, 1)) * np.array([1.0, 1.0])
     res = sl.modularity_test(shapes, [0, 1, 1], n_permutations=19)
     assert np.isfinite(res.value) and list(res.sizes) == [1, 2]
     x = rng.normal(size=(12, 4)) @ rng.normal(size=(4, 4))
     assert np.isfinite(sl.modularity_test(x, [0, 0, 1, 1], n_permutations=19).value)
+    assert np.isfinite(sl.modularity_test(x[:3], [0, 0, 1, 1], n_permutations=19).value)
     # 3-D landmarks read from rows of coordinates
     y = rng.normal(size=(12, 4, 3)) + rng.normal(size=(12, 1, 1))
     three = sl.modularity_test(y.reshape(12, 12), [0, 0, 1, 1], n_permutations=19)

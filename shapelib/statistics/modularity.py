@@ -76,7 +76,8 @@ class ModularityResult:
     n_specimens : int
     n_permutations : int
     null : ndarray (n_permutations,)
-        ``CR*`` of the random assignments.
+        ``CR*`` of the random assignments: ∞ for one with a module whose variables do not covary
+        among themselves at all (left out of ``z``).
 
     See Also
     --------
@@ -282,8 +283,10 @@ def modularity_test(shapes, partition, *, n_permutations: int = 999, seed: int |
     null = np.array([_ratios(_pair_table(q, codes[rng.permutation(len(codes))], g))[1]
                      for _ in range(n_permutations)])
     p = (1.0 + np.sum(null <= value * (1 + 1e-12))) / (1.0 + n_permutations)
-    # an assignment whose module has no covariance within it has no CR (NaN): it is not counted as modular
-    sd = np.nanstd(null, ddof=1)
-    z = float((value - np.nanmean(null)) / sd) if sd > 1e-12 * max(value, 1.0) else 0.0
+    # an assignment with a module whose variables do not covary among themselves has CR* = ∞ (NaN if the
+    # modules do not covary either): never as small as CR, and left out of the effect size
+    finite = np.where(np.isfinite(null), null, np.nan)
+    sd = np.nanstd(finite, ddof=1)
+    z = float((value - np.nanmean(finite)) / sd) if sd > 1e-12 * max(value, 1.0) else 0.0
     return ModularityResult(value=value, p_value=float(p), z=z, pairwise=pairwise, modules=modules, sizes=sizes,
                             landmarks=d > 1, n_specimens=len(x), n_permutations=n_permutations, null=null)
