@@ -6,6 +6,9 @@ import pytest
 from shapelib.pointsets._coherent_em import (PLAIN_ITER, EMState, Kernel, _em_map, _estep, _exp_neg, _extrapolate,
                                              initial_sigma2, objective, outlier_term, posteriors, run_em, sq_dist)
 
+#: no known correspondences (the compiled loops' empty label array)
+NO_LABELS = np.zeros(0, dtype=np.int64)
+
 
 @pytest.fixture
 def sets():
@@ -37,7 +40,7 @@ def test_the_estep_sums_equal_the_dense_posteriors(sets, s2, w):
     volume = 36.0
     p = posteriors(theta, y, s2, w, volume)  # the (n, m) matrix, exponentials of every pair
     c = outlier_term(len(theta), 2, s2, w, volume)
-    p1, pt1, py, sse, lse = _estep(theta, y, s2, c)
+    p1, pt1, py, sse, lse = _estep(theta, y, s2, c, True, NO_LABELS)
     # the log-normalisers: log(Σ_i exp(−|y_j − θ_i|²/2σ²) + c), summed over j, by scipy from the distances
     from scipy.special import logsumexp
     logs = -sq_dist(theta, y) / (2 * s2)
@@ -57,7 +60,7 @@ def test_the_estep_sums_equal_the_dense_posteriors_in_3d(s2):
     y = np.vstack([theta[:15] + 0.05 * rng.normal(size=(15, 3)), rng.uniform(-3, 3, size=(5, 3))])
     c = outlier_term(len(theta), 3, s2, 0.2, 216.0)
     p = posteriors(theta, y, s2, 0.2, 216.0)
-    p1, pt1, py, sse, _ = _estep(theta, y, s2, c)
+    p1, pt1, py, sse, _ = _estep(theta, y, s2, c, True, NO_LABELS)
     np.testing.assert_allclose(p1, p.sum(axis=1), rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(pt1, p.sum(axis=0), rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(py, p @ y, rtol=1e-12, atol=1e-14)
@@ -67,7 +70,7 @@ def test_the_estep_sums_equal_the_dense_posteriors_in_3d(s2):
 def test_a_point_far_from_every_mean_takes_no_posterior_without_an_outlier_term(sets):
     theta, _ = sets
     y = np.array([[1e3, 1e3], theta[0]])
-    p1, pt1, _, _, _ = _estep(theta, y, 1e-2, 0.0)
+    p1, pt1, _, _, _ = _estep(theta, y, 1e-2, 0.0, True, NO_LABELS)
     assert pt1[0] == 0.0 and pt1[1] == pytest.approx(1.0)
     assert p1.sum() == pytest.approx(1.0)
 
@@ -143,7 +146,7 @@ def test_the_em_map_gives_the_objective_at_its_input():
     n, d = u.shape
     out = _em_map(u, kernel.q, np.ascontiguousarray(kernel.q.T), kernel.ev, np.zeros((0, 0)), y, np.sum(y * y, axis=1),
                   st.coef, st.s2,
-                  outlier_term(n, d, 1.0, st.w, o["volume"]), o["lam"], False, o["s2_floor"], np.log(0.9 / n))
+                  outlier_term(n, d, 1.0, st.w, o["volume"]), o["lam"], False, o["s2_floor"], np.log(0.9 / n), NO_LABELS)
     assert out[2] == pytest.approx(objective(st, y, lam=o["lam"], volume=o["volume"]), rel=1e-12)
     # and the iteration it gives is one plain EM iteration
     one = run_em(EMState(u=u, kernel=kernel, coef=st.coef.copy(), s2=st.s2, w=0.1), y, max_iter=1, tol=0.0, **o)

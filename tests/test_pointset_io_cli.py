@@ -102,3 +102,32 @@ def test_distances_of_point_sets_modulo_similarity_equal_the_library(tmp_path, c
                  str(tmp_path / "x.csv")]) != 0
     err = capsys.readouterr().err
     assert "alpha_bound or fisher_rao_bound" in err and len(err.strip().splitlines()) == 1
+
+
+def test_shapelib_register_takes_known_correspondences_from_a_csv(tmp_path, capsys):
+    """`--landmarks`: the rows of --correspondence's format reach the registration and come back in its
+    correspondences; a bad file is a one-line error naming the line."""
+    t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    x = np.column_stack([np.cos(t), 0.5 * np.sin(t)])  # symmetric under a half turn: ambiguous alone
+    c, s = np.cos(2.0), np.sin(2.0)
+    truth = (x + np.column_stack([0.1 * x[:, 1] ** 2, 0.05 * np.sin(3 * t)])) @ np.array([[c, -s], [s, c]]).T
+    perm = np.random.default_rng(0).permutation(60)
+    src, tgt = write_point_set(tmp_path / "src.csv", x), write_point_set(tmp_path / "tgt.csv", truth[perm])
+    where = np.argsort(perm)
+    lm = tmp_path / "lm.csv"
+    lm.write_text(f"source,target\n# two points known\n0,{where[0]}\n15,{where[15]}\n")
+    out, corr = tmp_path / "moved.csv", tmp_path / "corr.csv"
+    assert main(["register", str(src), str(tgt), "-o", str(out), "--correspondence", str(corr), "--landmarks",
+                 str(lm), "--no-progress"]) == 0
+    assert np.abs(read_point_sets(out)[0][0] - truth).max() < 1e-3
+    assert np.array_equal(np.loadtxt(corr, delimiter=",", skiprows=1, dtype=int)[:, 1], where)
+    capsys.readouterr()
+    lm.write_text("source,target\n0,1\n2;3\n")
+    assert main(["register", str(src), str(tgt), "-o", str(out), "--landmarks", str(lm)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "lm.csv, line 3: expected two integers" in err
+    lm.write_text("0,70\n")
+    assert main(["register", str(src), str(tgt), "-o", str(out), "--landmarks", str(lm)]) == 1
+    assert "target point 70, outside 0..59" in capsys.readouterr().err
+    assert main(["register", str(src), str(tgt), "-o", str(out), "--landmarks", str(tmp_path / "no.csv")]) == 1
+    assert "--landmarks: no such file" in capsys.readouterr().err

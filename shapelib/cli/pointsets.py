@@ -1,4 +1,4 @@
-"""``shapelib register``: one point set registered onto another (any sizes, no landmarks)."""
+"""``shapelib register``: one point set registered onto another (any sizes, no correspondence needed)."""
 
 from __future__ import annotations
 
@@ -70,6 +70,30 @@ def _progress_bar(off):
     return bar
 
 
+def _landmarks(path):
+    """``--landmarks CSV``: rows ``source,target`` of known correspondences (0-based indices; a header line
+    and lines starting with # are skipped), as an int array (k, 2); None without the option."""
+    if path is None:
+        return None
+    import re
+
+    f = Path(path)
+    if not f.is_file():
+        raise CLIError(f"--landmarks: no such file: {path}")
+    rows = []
+    for k, line in enumerate(f.read_text().splitlines(), start=1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = [q.strip() for q in line.split(",")]
+        if not rows and not re.fullmatch(r"[+-]?\d+", parts[0]):
+            continue  # the header
+        if len(parts) != 2 or not all(re.fullmatch(r"[+-]?\d+", q) for q in parts):
+            raise CLIError(f"--landmarks {path}, line {k}: expected two integers, source,target; got {line!r}")
+        rows.append((int(parts[0]), int(parts[1])))
+    return np.array(rows, dtype=np.int64).reshape(-1, 2)
+
+
 def cmd_register(args) -> int:
     from ..io import write_point_set
     from ..pointsets.registration import register
@@ -81,6 +105,7 @@ def cmd_register(args) -> int:
         _output_path(args.correspondence, suffixes=(".csv",), option="--correspondence")
     source = _one_set(args.source, args.source_id, "--source-id")
     target = _one_set(args.target, args.target_id, "--target-id")
+    landmarks = _landmarks(args.landmarks)
     import warnings
 
     from ..pointsets.registration import RegistrationWarning
@@ -91,7 +116,7 @@ def cmd_register(args) -> int:
         try:
             res = register(source, target, transform=args.transform, metric=args.metric,
                            sigma2=_sigma2(args.sigma2), w=_w(args.w), reflection=args.reflection,
-                           max_iter=args.max_iter, tol=args.tol,
+                           max_iter=args.max_iter, tol=args.tol, landmarks=landmarks,
                            progress=None if bar is None else bar.update_to)
         finally:
             if bar is not None:
@@ -135,8 +160,8 @@ def cmd_register(args) -> int:
 
 def register(add) -> None:
     """Add ``register`` to the parser (``add(name, help, epilog)`` returns the subparser)."""
-    p = add("register", "register one point set onto another (any sizes, no landmarks): pose over every rotation, "
-                        "then a deformation by the information geometry", EXAMPLES["register"])
+    p = add("register", "register one point set onto another (any sizes, no correspondence needed): pose over "
+                        "every rotation, then a deformation by the information geometry", EXAMPLES["register"])
     p.add_argument("source", metavar="SOURCE", help="point set to move: .csv (x, y[, z]), .npy, .npz or .tps")
     p.add_argument("target", metavar="TARGET", help="point set to move it onto (same formats)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="the moved source points (.csv or .npy)")
@@ -158,5 +183,8 @@ def register(add) -> None:
                    help="EM iterations of each fit (default 150)")
     p.add_argument("--tol", type=float, default=1e-5, metavar="TOL",
                    help="EM stops when sigma2 changes by less than TOL, relative (default 1e-5)")
+    p.add_argument("--landmarks", metavar="CSV",
+                   help="known correspondences (nonrigid): rows source,target of 0-based point indices, as "
+                        "--correspondence writes them")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (drawn on a terminal only)")
     p.set_defaults(func=cmd_register)

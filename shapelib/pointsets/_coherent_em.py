@@ -105,14 +105,32 @@ def box_volume(y):
     return float(np.prod(np.maximum(side, 1e-12)))
 
 
-def posteriors(theta, y, s2, w, volume):
-    """``P`` (n, m) of the module docstring (the outlier component's share is ``1 − Σ_i P_ij``)."""
+def posteriors(theta, y, s2, w, volume, labels=None):
+    """``P`` (n, m) of the module docstring (the outlier component's share is ``1 − Σ_i P_ij``); the
+    column of a target point with a known source point (``labels[j] = i ≥ 0``, :func:`label_array`)
+    is 1 at that point and 0 elsewhere."""
     n, d = theta.shape
     e = np.exp(-sq_dist(theta, y) / (2 * s2))
     c = outlier_term(n, d, s2, w, volume)
     den = e.sum(axis=0) + c
     den[den == 0] = np.finfo(float).tiny
-    return e / den
+    p = e / den
+    if labels is not None and len(labels):
+        known = np.flatnonzero(labels >= 0)
+        p[:, known] = 0.0
+        p[labels[known], known] = 1.0
+    return p
+
+
+def label_array(pairs, m):
+    """The known correspondences ``pairs`` (k, 2) of (source index, target index) as the int64 array
+    (m,) of the compiled loops: the source index of each target point, −1 where it is not known (an
+    empty array when no pair is given)."""
+    if pairs is None or len(pairs) == 0:
+        return np.zeros(0, dtype=np.int64)
+    lab = np.full(m, -1, dtype=np.int64)
+    lab[pairs[:, 1]] = pairs[:, 0]
+    return lab
 
 
 #: a term of ``P``'s denominator below ``exp(−PRUNE)`` times its largest is skipped (``exp(−37)``
@@ -192,14 +210,16 @@ def _column(tx, y, j, dist):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def _estep(theta, y, s2, c, with_lse=True):
+def _estep(theta, y, s2, c, with_lse, lab):
     """The sums the M-step needs, without the (n, m) matrix: ``P1 = Σ_j P_ij`` (n,), ``Pᵀ1`` (m,),
     ``P y`` (n, d) and ``Σ_ij P_ij |y_j − θ_i|²``, with ``c`` the outlier term of ``P``'s
     denominator, and the sum of the denominators' logarithms ``Σ_j log(Σ_i exp(−|y_j − θ_i|²/2σ²) + c)``
     (the log-likelihood up to terms in σ², w and n: :func:`_em_map`; 0 unless ``with_lse``). Each
     column is scaled by its largest term, ``exp(−r_min/2σ²)``, and the terms ``PRUNE`` below it are
     dropped (the same sums to float64 precision); a column skipped for taking no posterior adds ``−r_min/2σ²``, its
-    logarithm to within ``log n``."""
+    logarithm to within ``log n``. A target point with a known source point (``lab[j] = i ≥ 0``; ``lab`` is
+    empty when none is known) has the posterior 1 at ``i`` and adds ``−|y_j − θ_i|²/2σ²`` (the log-likelihood
+    of its known component, to the same terms)."""
     n, d = theta.shape
     m = y.shape[0]
     tx = np.ascontiguousarray(theta.T)
@@ -213,8 +233,19 @@ def _estep(theta, y, s2, c, with_lse=True):
     sse = 0.0
     lse = 0.0
     half = 0.5 / s2
+    n_lab = lab.shape[0]
     for j in range(m):
         rmin = _column(tx, y, j, dist)
+        if n_lab > 0 and lab[j] >= 0:  # a known correspondence: all of the point's posterior at lab[j]
+            i = lab[j]
+            pt1[j] = 1.0
+            p1[i] += 1.0
+            for k in range(d):
+                pyt[k, i] += y[j, k]
+            sse += dist[i]
+            if with_lse:
+                lse -= dist[i] * half
+            continue
         if c == 0.0 and rmin * half > 708.0:
             if with_lse:
                 lse -= rmin * half
@@ -284,16 +315,16 @@ def _m_step(q, qt, ev, full, p1, b, lam_s2):
 
 
 @njit(cache=True, fastmath=False)
-def _em_map(u, q, qt, ev, full, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, with_f=True):
+def _em_map(u, q, qt, ev, full, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, lab, with_f=True):
     """One EM iteration from ``(W, σ²)``: E-step, the M-step of the module docstring (:func:`_m_step`;
     none without a kernel) and σ²'s update (σ² kept when ``fixed``). Returns ``W``, σ² and the
     objective ``F`` at the *input* ``(W, σ²)`` (its E-step's log-normalisers give it:
     ``F = −Σ_j L_j − m log((1 − w)/n) + (m d/2) log(2πσ²) + (λ/2) tr(Wᵀ G W)``, ``log_wn`` is
     ``log((1 − w)/n)``; NaN unless ``with_f``). ``c_unit`` is the outlier term at σ² = 1 (it scales
-    as ``σ^d``)."""
+    as ``σ^d``); ``lab`` the known correspondences (:func:`_estep`)."""
     n, d = u.shape
     gw = _apply(q, qt, ev, full, coef)
-    p1, pt1, py, sse, lse = _estep(u + gw, y, s2, c_unit * s2 ** (d / 2), with_f)
+    p1, pt1, py, sse, lse = _estep(u + gw, y, s2, c_unit * s2 ** (d / 2), with_f, lab)
     f = np.nan
     if with_f:
         f = 0.5 * lam * np.sum(coef * gw) - lse - y.shape[0] * (log_wn - 0.5 * d * math.log(2.0 * math.pi * s2))
@@ -325,7 +356,7 @@ def _extrapolate(c0, s0, c1, s1, c2, s2, s2_floor):
 
 
 @njit(cache=True, fastmath=False)
-def _em_loop(u, q, ev, full, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor, log_wn, plain):
+def _em_loop(u, q, ev, full, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor, log_wn, plain, lab):
     """:func:`run_em`'s iterations, compiled (the kernel as :func:`_apply` takes it): ``plain`` EM
     iterations, then the cycle of the module docstring (two EM iterations, SQUAREM's extrapolation,
     one EM iteration from it, kept only if ``F`` did not increase). Returns ``W``, σ², the EM
@@ -339,19 +370,19 @@ def _em_loop(u, q, ev, full, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_
     qt = np.ascontiguousarray(q.T)
     it = 0
     while it < max_iter:
-        c1, s1, _ = _em_map(u, q, qt, ev, full, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, False)
+        c1, s1, _ = _em_map(u, q, qt, ev, full, y, yy, coef, s2, c_unit, lam, fixed, s2_floor, log_wn, lab, False)
         it += 1
         if not fixed and abs(s1 - s2) <= tol * s2:
             return c1, s1, it, True
         if it <= plain or it + 2 > max_iter:
             coef, s2 = c1, s1
             continue
-        c2, s2b, f1 = _em_map(u, q, qt, ev, full, y, yy, c1, s1, c_unit, lam, fixed, s2_floor, log_wn)
+        c2, s2b, f1 = _em_map(u, q, qt, ev, full, y, yy, c1, s1, c_unit, lam, fixed, s2_floor, log_wn, lab)
         it += 1
         if not fixed and abs(s2b - s1) <= tol * s1:
             return c2, s2b, it, True
         cx, sx = _extrapolate(coef, s2, c1, s1, c2, s2b, s2_floor)
-        c3, s3, fx = _em_map(u, q, qt, ev, full, y, yy, cx, sx, c_unit, lam, fixed, s2_floor, log_wn)
+        c3, s3, fx = _em_map(u, q, qt, ev, full, y, yy, cx, sx, c_unit, lam, fixed, s2_floor, log_wn, lab)
         it += 1
         if not fx <= f1:  # the extrapolation did not decrease F (or is not a number): the EM iterate
             coef, s2 = c2, s2b
@@ -420,7 +451,7 @@ def initial_sigma2(u, y):
     return float(max(total, 0.0) / (d * n * m))
 
 
-def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12, accelerate=True):
+def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12, accelerate=True, labels=None):
     """Continue the EM of the module docstring for up to ``max_iter`` more iterations (w fixed),
     accelerated by SQUAREM once the fit has run ``PLAIN_ITER`` iterations (never with
     ``accelerate=False``).
@@ -443,7 +474,8 @@ def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12, 
     coef, s2, it, ok = _em_loop(np.ascontiguousarray(st.u, dtype=float), q, ev, full, y,
                                 np.ascontiguousarray(st.coef, dtype=float), float(st.s2),
                                 outlier_term(n, d, 1.0, st.w, volume), float(lam), int(max_iter), float(tol), fixed,
-                                float(s2_floor), log_wn, int(plain))
+                                float(s2_floor), log_wn, int(plain),
+                                np.zeros(0, np.int64) if labels is None else np.asarray(labels, dtype=np.int64))
     st.coef, st.s2, st.it = coef, s2, st.it + it
     if fixed or ok:
         st.ok, st.why = True, "tolerance"
@@ -451,9 +483,10 @@ def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12, 
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def _neg_loglik(theta, y, s2, log_wn, log_wv):
+def _neg_loglik(theta, y, s2, log_wn, log_wv, lab):
     """``−Σ_j log[(1 − w)/n Σ_i N(y_j; θ_i, σ²I) + w/V]`` with ``log_wn = log((1 − w)/n)`` and
-    ``log_wv = log(w/V)`` (−inf without outliers), each column's sum scaled by its largest term."""
+    ``log_wv = log(w/V)`` (−inf without outliers), each column's sum scaled by its largest term; a
+    target point with a known source point ``lab[j] = i ≥ 0`` adds ``−log[(1 − w)/n N(y_j; θ_i, σ²I)]``."""
     n, d = theta.shape
     m = y.shape[0]
     tx = np.ascontiguousarray(theta.T)
@@ -464,8 +497,12 @@ def _neg_loglik(theta, y, s2, log_wn, log_wv):
     e = np.empty(n)
     bits = np.empty(n, np.int64)
     total = 0.0
+    n_lab = lab.shape[0]
     for j in range(m):
         rmin = _column(tx, y, j, dist)
+        if n_lab > 0 and lab[j] >= 0:
+            total -= log_wn + lognorm - dist[lab[j]] * half
+            continue
         for i in range(n):
             a[i] = min((dist[i] - rmin) * half, 700.0)
         _exp_neg(a, e, bits)
@@ -480,11 +517,13 @@ def _neg_loglik(theta, y, s2, log_wn, log_wv):
     return total
 
 
-def objective(st, y, *, lam, volume):
-    """``F`` of the module docstring: the negative log-posterior, comparable between starts and w."""
+def objective(st, y, *, lam, volume, labels=None):
+    """``F`` of the module docstring: the negative log-posterior, comparable between starts and w
+    (``labels``: the known correspondences of :func:`label_array`)."""
     n, d = st.u.shape
     log_wv = np.log(st.w / volume) if st.w > 0 else -np.inf
     nll = _neg_loglik(np.ascontiguousarray(st.theta, dtype=float), np.ascontiguousarray(y, dtype=float),
-                      float(st.s2), float(np.log((1 - st.w) / n)), float(log_wv))
+                      float(st.s2), float(np.log((1 - st.w) / n)), float(log_wv),
+                      np.zeros(0, np.int64) if labels is None else np.asarray(labels, dtype=np.int64))
     prior = 0.0 if st.kernel is None else 0.5 * lam * st.kernel.energy(st.coef)
     return float(nll + prior)

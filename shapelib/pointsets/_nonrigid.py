@@ -92,21 +92,22 @@ def start_rotations(d, reflection):
 
 
 def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s2_floor, progress=None,
-            volume=None):
+            volume=None, labels=None):
     """Steps 1–3: every final fit as ``(objective, start index, EMState)``, best first, and the starts.
 
     ``kernel_of(u)`` gives the :class:`~shapelib.pointsets._coherent_em.Kernel` at a posed source (a
     weight-coordinate kernel is the same for every rotation: ``kernel_of`` may return a cached one);
     ``w`` is a number, or None for the grid of step 3. ``progress(done, total)``, if given, is called
     after each start's screening and each final fit. ``volume`` is the target's :func:`box_volume`
-    if the caller has it.
+    if the caller has it; ``labels`` the known correspondences
+    (:func:`~shapelib.pointsets._coherent_em.label_array`), in every E-step and objective.
     """
     d = xn.shape[1]
     volume = box_volume(yn) if volume is None else volume
     rots = start_rotations(d, reflection)
     screen_w = W_SCREEN if w is None else w
     grid = W_GRID if w is None else (w,)
-    opts = dict(lam=lam, volume=volume, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
+    opts = dict(lam=lam, volume=volume, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor, labels=labels)
     total = len(rots) + N_KEEP * len(grid)
     tick = progress if progress is not None else (lambda done, total: None)
     screened = []
@@ -115,7 +116,7 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
         s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(u, yn)
         st = EMState(u=u, kernel=kernel_of(u), coef=np.zeros_like(u), s2=s2, w=screen_w)
         run_em(st, yn, max_iter=min(SCREEN_ITER, max_iter), **opts)
-        screened.append((objective(st, yn, lam=lam, volume=volume), k, st))
+        screened.append((objective(st, yn, lam=lam, volume=volume, labels=labels), k, st))
         tick(k + 1, total)
     screened.sort(key=lambda c: c[0])
     fits = []
@@ -130,7 +131,7 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
                 s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(st0.u, yn)
                 st = EMState(u=st0.u, kernel=st0.kernel, coef=np.zeros_like(st0.u), s2=s2, w=wk)
                 run_em(st, yn, max_iter=max_iter, **opts)
-            fits.append((objective(st, yn, lam=lam, volume=volume), k, st))
+            fits.append((objective(st, yn, lam=lam, volume=volume, labels=labels), k, st))
             tick(len(rots) + len(fits), total)
     fits.sort(key=lambda c: c[0])
     return fits, rots, screened
@@ -149,7 +150,7 @@ RESIDUAL_SPACINGS = 2.0
 UNMATCHED_SHARE = 1 / 3
 
 
-def assess(fits, yn, *, spacing2, volume=None):
+def assess(fits, yn, *, spacing2, volume=None, labels=None):
     """Step 4: why the best fit probably failed (an empty list when nothing says so).
 
     * another start's fit, distinct from the best (``DISTINCT``), reaches an objective within
@@ -158,7 +159,8 @@ def assess(fits, yn, *, spacing2, volume=None):
       of the target unexplained;
     * more than ``UNMATCHED_SHARE`` of the source points with less than half a target point each.
 
-    ``volume`` is the target's :func:`box_volume` if the caller has it.
+    ``volume`` is the target's :func:`box_volume` if the caller has it; ``labels`` the known
+    correspondences.
     """
     f0, k0, best = fits[0]
     m = len(yn)
@@ -175,18 +177,19 @@ def assess(fits, yn, *, spacing2, volume=None):
     ratio = float(np.sqrt(best.s2 / spacing2))
     if ratio > RESIDUAL_SPACINGS:
         reasons.append(f"the fit leaves sigma = {ratio:.2f} target point spacings")
-    p1 = posteriors(theta, yn, best.s2, best.w, box_volume(yn) if volume is None else volume).sum(axis=1)
+    p1 = posteriors(theta, yn, best.s2, best.w, box_volume(yn) if volume is None else volume, labels).sum(axis=1)
     share = float(np.mean(p1 < 0.5))
     if share > UNMATCHED_SHARE:
         reasons.append(f"{100 * share:.0f} % of the source points match no target point")
     return reasons, {"sigma_over_spacing": ratio, "unmatched_source_share": share}
 
 
-def refit(u, yn, w, kernel_of, *, volume, lam, fixed_s2, max_iter, tol, s2_floor):
+def refit(u, yn, w, kernel_of, *, volume, lam, fixed_s2, max_iter, tol, s2_floor, labels=None):
     """EM from the posed source ``u`` with another kernel, at the outlier weight ``w`` of the search."""
     s2 = fixed_s2 if fixed_s2 is not None else initial_sigma2(u, yn)
     st = EMState(u=u, kernel=kernel_of(u), coef=np.zeros_like(u), s2=s2, w=w)
-    return run_em(st, yn, lam=lam, volume=volume, max_iter=max_iter, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
+    return run_em(st, yn, lam=lam, volume=volume, max_iter=max_iter, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor,
+                  labels=labels)
 
 
 def with_kernel(kernel_matrix_of, *, invariant):

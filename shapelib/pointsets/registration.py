@@ -41,7 +41,7 @@ import numpy as np
 from .._validate import check_nonnegative_int, check_positive, check_positive_int, check_sigma2
 from ..geometry.metrics import alpha_metric, fisher_rao_metric
 from ..solver.linalg import one_blas_thread
-from ._coherent_em import box_volume, point_spacing, posteriors, sq_dist
+from ._coherent_em import box_volume, label_array, point_spacing, posteriors, sq_dist
 from .checks import as_point_set, check_same_dimension
 from .density import DENSITY_METRICS
 from .em import fit_mixture
@@ -353,7 +353,7 @@ class RegistrationResult:
 def register(source, target, *, transform: str = "nonrigid", metric: str = "alpha", sigma2="auto", w="auto",
              reflection: bool = False, lam: float = 2.0, sigma2_metric: float = 2.0, kernel: str = "weights",
              n_angles: int = 36, max_iter: int = 150, tol: float = 1e-5, n_steps: int = 16,
-             warn: bool = True, progress=None) -> RegistrationResult:
+             warn: bool = True, progress=None, landmarks=None) -> RegistrationResult:
     """Register the point set ``source`` onto ``target`` by the information geometry.
 
     Rigid, similarity or affine: the pose minimises a density distance over every rotation, then
@@ -406,6 +406,13 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         Called as ``progress(done, total)`` as the search advances (non-rigid: after each start's
         screening and each final fit; the other transforms: after the pose search and after EM), for a
         progress bar on long fits (``shapelib register`` draws one on a terminal).
+    landmarks : array_like of int, shape (k, 2), optional
+        Known correspondences, non-rigid only: rows ``(i, j)``, source point ``i`` is target point
+        ``j``. Each such target point is explained by its source point alone, with posterior 1 (its
+        label observed, as in the extended CPD of [5]_), in every E-step and in the objective that
+        compares the search's fits; the other points are matched as usual. A few landmarks decide
+        a pose that a near-symmetric shape or a partial target leaves ambiguous. Each source and
+        target index at most once.
 
     Returns
     -------
@@ -437,6 +444,9 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
        algorithm", *Journal of the Royal Statistical Society, Series B* 39(1), 1–38, 1977.
     .. [4] H. Chui and A. Rangarajan, "A new point matching algorithm for non-rigid registration",
        *Computer Vision and Image Understanding* 89(2–3), 114–141, 2003.
+    .. [5] V. Golyanik, B. Taetz, G. Reis and D. Stricker, "Extended coherent point drift algorithm with
+       correspondence priors and optimal subsampling", *IEEE Winter Conference on Applications of Computer
+       Vision (WACV)*, 2016.
 
     Examples
     --------
@@ -479,18 +489,44 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     if progress is not None and not callable(progress):
         raise ValueError(f"progress must be a callable progress(done, total) or None; got {progress!r}")
     tick = progress if progress is not None else (lambda done, total: None)
+    pairs = _check_landmarks(landmarks, len(x), len(y), transform)
 
-    def fit(xs, ys):
+    def fit(xs, ys, pairs_s):
         if transform == "nonrigid":
             return _register_nonrigid(xs, ys, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, max_iter,
-                                      tol, n_steps, warn, tick)
+                                      tol, n_steps, warn, tick, pairs=pairs_s)
         return _register(xs, ys, transform, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, n_angles,
                          max_iter, tol, n_steps, warn, tick)
 
     with one_blas_thread():
         if max(len(x), len(y)) > MAX_POINTS:
-            return _register_large(x, y, fit)
-        return fit(x, y)
+            return _register_large(x, y, fit, pairs)
+        return fit(x, y, pairs)
+
+
+def _check_landmarks(landmarks, n, m, transform):
+    """``landmarks`` of :func:`register` as an int array (k, 2), or None."""
+    if landmarks is None:
+        return None
+    if transform != "nonrigid":
+        raise ValueError(f"landmarks: known correspondences are used by transform='nonrigid'; got "
+                         f"transform={transform!r}")
+    arr = np.asarray(landmarks)
+    if arr.size == 0:
+        return None
+    if arr.ndim != 2 or arr.shape[1] != 2 or not (np.issubdtype(arr.dtype, np.integer)
+                                                   or np.all(np.mod(arr, 1) == 0)):
+        raise ValueError(f"landmarks: expected rows (source index, target index) of integers, shape (k, 2); got "
+                         f"shape {arr.shape} of {arr.dtype}")
+    arr = arr.astype(np.int64)
+    for col, size, name in ((0, n, "source"), (1, m, "target")):
+        bad = np.flatnonzero((arr[:, col] < 0) | (arr[:, col] >= size))
+        if bad.size:
+            raise ValueError(f"landmarks: row {bad[0]} names {name} point {arr[bad[0], col]}, outside 0..{size - 1}")
+        vals, counts = np.unique(arr[:, col], return_counts=True)
+        if np.any(counts > 1):
+            raise ValueError(f"landmarks: {name} point {vals[np.argmax(counts > 1)]} is named in more than one row")
+    return arr
 
 
 @dataclass
@@ -610,7 +646,7 @@ def _nonrigid_frame(x, y, fixed_s2, target_s2=None):
 
 
 def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, max_iter, tol, n_steps,
-                       warn, tick):
+                       warn, tick, pairs=None):
     """Non-rigid: the search of :mod:`shapelib.pointsets._nonrigid` over starts and outlier weights."""
     from . import _nonrigid
 
@@ -621,15 +657,16 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
     search_kernel = _nonrigid.with_kernel(lambda u: _kernel(u, s2g, "alpha", "weights"), invariant=True)
     em_opts = dict(lam=lam, fixed_s2=fs2, max_iter=max_iter, tol=tol, s2_floor=SIGMA2_FLOOR * s2_eval)
     volume = box_volume(yn)
+    labels = label_array(pairs, len(yn))
     fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=search_kernel, w=None if auto_w else w,
-                                      reflection=reflection, progress=tick, volume=volume, **em_opts)
+                                      reflection=reflection, progress=tick, volume=volume, labels=labels, **em_opts)
     return _nonrigid_result(x, y, frame, s2_eval, fits, rots, metric=metric, reflection=reflection, s2g=s2g,
                             kernel=kernel, em_opts=em_opts, n_steps=n_steps, warn=warn, stacklevel=5,
-                            volume=volume)
+                            volume=volume, labels=labels)
 
 
 def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2g, kernel, em_opts, n_steps, warn,
-                     stacklevel, volume=None):
+                     stacklevel, volume=None, labels=None):
     """The :class:`RegistrationResult` of the search's ``fits`` (best first, as
     :func:`shapelib.pointsets._nonrigid.fit_all` gives them): the reliability reasons, the pose (the
     fit's similarity part), the refit with another metric or kernel, the warnings. :func:`register` and
@@ -642,18 +679,19 @@ def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2
     volume = box_volume(yn) if volume is None else volume
     f0, k, st = fits[0]
     start = (rots[k], np.zeros(x.shape[1]))  # x -> u = ((x − m_x)/s_x) A0ᵀ + t0, the fit's frame
-    reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2, volume=volume)
+    reasons, diagnostics = _nonrigid.assess(fits, yn, spacing2=spacing2, volume=volume, labels=labels)
     # the similarity part of the deformation, as the pose (the posed source: the geodesic's start)
     a, t = _similarity_part(xn, st.theta, reflection)
     if (metric, kernel) != ("alpha", "weights"):
         st = _nonrigid.refit(xn @ a.T + t, yn, st.w, _nonrigid.with_kernel(
-            lambda u: _kernel(u, s2g, metric, kernel), invariant=False), volume=volume, **em_opts)
+            lambda u: _kernel(u, s2g, metric, kernel), invariant=False), volume=volume, labels=labels, **em_opts)
         f0, start = None, (a, t)
-        reasons = reasons + _nonrigid.assess([(0.0, 0, st)], yn, spacing2=spacing2, volume=volume)[0]
+        reasons = reasons + _nonrigid.assess([(0.0, 0, st)], yn, spacing2=spacing2, volume=volume,
+                                             labels=labels)[0]
         a, t = _similarity_part(xn, st.theta, reflection)
     theta = st.theta
     diagnostics.update(objective=f0, candidates=[(f, int(kk), float(s.w)) for f, kk, s in fits])
-    p = posteriors(theta, yn, st.s2, st.w, volume)
+    p = posteriors(theta, yn, st.s2, st.w, volume, labels)
     a_in = a * (sy / sx)
     t_in = my + sy * t - a_in @ mx
     pose = Pose(matrix=a_in, translation=t_in, points=x @ a_in.T + t_in, value=float("nan"), objective=f0,
@@ -686,7 +724,7 @@ def farthest_points(a, k):
     return np.sort(idx)
 
 
-def _register_large(x, y, fit):
+def _register_large(x, y, fit, pairs=None):
     """Sets over ``MAX_POINTS``: ``fit`` (the registration of two sets) on farthest-point subsets of
     ``MAX_POINTS``, its warp (the kernel's, or the pose of a rigid transform) applied to every source
     point in blocks, correspondences by nearest neighbours within 3σ plus a point spacing. Memory is
@@ -695,15 +733,25 @@ def _register_large(x, y, fit):
 
     from scipy.spatial import cKDTree
 
-    ix = farthest_points(x, min(len(x), MAX_POINTS))
-    iy = farthest_points(y, min(len(y), MAX_POINTS))
-    sub = fit(x[ix], y[iy])
+    k = 0 if pairs is None else len(pairs)
+    if k > MAX_POINTS // 2:
+        raise ValueError(f"landmarks: at most {MAX_POINTS // 2} known correspondences for sets over {MAX_POINTS} "
+                         f"points; got {k}")
+    ix = farthest_points(x, min(len(x), MAX_POINTS - k))
+    iy = farthest_points(y, min(len(y), MAX_POINTS - k))
+    sub_pairs = None
+    if k:  # the landmarks join the subsets, their rows renumbered into them
+        ix, iy = np.union1d(ix, pairs[:, 0]), np.union1d(iy, pairs[:, 1])
+        sub_pairs = np.column_stack([np.searchsorted(ix, pairs[:, 0]), np.searchsorted(iy, pairs[:, 1])])
+    sub = fit(x[ix], y[iy], sub_pairs)
     points = np.concatenate([sub.warp(x[i:i + WARP_BLOCK]) for i in range(0, len(x), WARP_BLOCK)])
     reach = 3.0 * np.sqrt(sub.sigma2) + np.sqrt(_spacing2(y))
     dist, near = cKDTree(y).query(points)
     corr = np.where(dist <= reach, near, -1)
     dist_t, near_t = cKDTree(points).query(y)
     tcorr = np.where(dist_t <= reach, near_t, -1)
+    if k:  # the known correspondences as given
+        corr[pairs[:, 0]], tcorr[pairs[:, 1]] = pairs[:, 1], pairs[:, 0]
     diagnostics = dict(sub.diagnostics, subsets=(len(ix), len(iy)))
     return replace(sub, points=points, correspondence=corr, target_correspondence=tcorr, diagnostics=diagnostics,
                    _source=x, _target=y, _p=None, _geodesic=None)
