@@ -76,7 +76,8 @@ _LAZY_FUNCTIONS = {"read_point_sets": "io", "write_point_set": "io", "read_slide
                    "procrustes_coordinates": "statistics.linear_model", "allometry": "statistics.allometry",
                    "AllometryResult": "statistics.allometry", "morphological_disparity": "statistics.disparity",
                    "DisparityResult": "statistics.disparity", "two_block_pls": "statistics.pls",
-                   "PLSResult": "statistics.pls"}
+                   "PLSResult": "statistics.pls", "bilateral_symmetry": "statistics.symmetry",
+                   "SymmetryResult": "statistics.symmetry"}
 
 
 def __getattr__(name):
@@ -113,6 +114,8 @@ __all__ = [
     "DisparityResult",
     "two_block_pls",
     "PLSResult",
+    "bilateral_symmetry",
+    "SymmetryResult",
     "as_point_set",  # shapelib.pointsets
     "as_point_sets",
     "density_inner",

@@ -27,6 +27,7 @@ MATH_MODULES = (
     "shapelib.pointsets.outline",
     "shapelib.retrieval", "shapelib.statistics.linear_model", "shapelib.statistics.allometry",
     "shapelib.solver.transport", "shapelib.statistics.disparity", "shapelib.statistics.pls",
+    "shapelib.statistics.symmetry",
 )
 MODULES = MATH_MODULES + ("shapelib.datasets", "shapelib.plotting")
 
