@@ -180,6 +180,7 @@ def test_without_replicates_the_interaction_is_the_residual():
     assert res.df.tolist() == [6, 1, 6, 13]
     np.testing.assert_allclose(res.value[:2], res.ms[:2] / res.ms[2], rtol=1e-12)
     assert res.individuals.tolist() == list(range(7)) and res.sides == ("original", "mirror")
+    assert res.rows == ("ind", "side", "ind:side", "Total")
 
 
 def test_unbalanced_replicates_give_numpys_sequential_sums_of_squares():
@@ -329,6 +330,8 @@ def test_the_summary_lists_the_table():
     shapes, ind, rep = _replicated(rng, n_ind=4, n_rep=2)
     res = bilateral_symmetry(shapes, land_pairs=PAIRS, ind=ind, replicate=rep, n_permutations=19)
     text = res.summary().splitlines()
+    assert text[1].split() == ["Df", "SS", "MS", "F", "p"]
+    assert text[2].split()[3:] == [f"{res.ms[0]:.5g}", f"{res.value[0]:.4g}", f"{res.p_value[0]:.4g}"]
     assert "object symmetry, 4 individuals" in text[0] and "19 permutations" in text[0]
     assert [line.split()[0] for line in text[2:]] == list(res.rows)
     assert text[2].split()[1:3] == ["3", f"{res.ss[0]:.5g}"]
@@ -338,44 +341,143 @@ def test_the_summary_lists_the_table():
 
 # --- input errors -----------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(), "land_pairs .* or side"),
-    (dict(land_pairs=PAIRS, side=[0, 1] * 3), "land_pairs .* or side"),
-    (dict(land_pairs=[[0, 1, 2]]), "land_pairs must be a \\(P, 2\\)"),
-    (dict(land_pairs=[[0.0, 1.0]]), "integer"),
-    (dict(land_pairs=[[0, 6]]), "land_pairs: indices must lie in \\[0, 6\\)"),
-    (dict(land_pairs=[[0, -1]]), "land_pairs: indices"),
-    (dict(land_pairs=[[0, 1], [1, 3]]), "land_pairs: a landmark appears twice"),
-    (dict(land_pairs=[[2, 2]]), "land_pairs: a landmark appears twice"),
-    (dict(land_pairs=PAIRS, mirror_side="R"), "mirror_side is for matching"),
-    (dict(land_pairs=PAIRS, replicate=[0] * 6), "ind: give each replicate"),
-    (dict(land_pairs=PAIRS, ind=[0, 0, 1, 1, 2]), "ind: expected one label per specimen \\(6\\)"),
-    (dict(land_pairs=PAIRS, ind=[0, 0, 1, 1, 2, 2]), "replicate: individual 0 has several"),
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(), "give land_pairs (object symmetry) or side (matching symmetry), one of the two"),
+    (dict(land_pairs=PAIRS, side=[0, 1] * 3), "give land_pairs (object symmetry) or side (matching symmetry), "
+                                              "one of the two"),
+    (dict(land_pairs=[[0, 1, 2]]), "land_pairs must be a (P, 2) array of landmark indices; got shape (1, 3)"),
+    (dict(land_pairs=[[0, 1], [2]]), "land_pairs must be a (P, 2) array of landmark indices: *"),
+    (dict(land_pairs=[[0.0, 1.0]]), "land_pairs must hold integer landmark indices; got dtype float64"),
+    (dict(land_pairs=[[0, 6]]), "land_pairs: indices must lie in [0, 6); got 0..6"),
+    (dict(land_pairs=[[0, -1]]), "land_pairs: indices must lie in [0, 6); got -1..0"),
+    (dict(land_pairs=[[0, 1], [1, 3]]), "land_pairs: a landmark appears twice (each is in at most one pair, "
+                                        "never paired with itself)"),
+    (dict(land_pairs=[[2, 2]]), "land_pairs: a landmark appears twice *"),
+    (dict(land_pairs=PAIRS, mirror_side="R"), "mirror_side is for matching symmetry (side=...); object symmetry "
+                                              "mirrors every specimen"),
+    (dict(land_pairs=PAIRS, replicate=[0] * 6), "ind: give each replicate's individual"),
+    (dict(land_pairs=PAIRS, ind=[0, 0, 1, 1, 2]), "ind: expected one label per specimen (6), got shape (5,)"),
+    (dict(land_pairs=PAIRS, ind=[0, 1, 2, 2, 3, 4]), "replicate: individual 2 has several configurations on one "
+                                                     "side; label them with replicate=..."),
     (dict(land_pairs=PAIRS, ind=[0] * 6, replicate=range(6)), "ind: need at least two individuals"),
-    (dict(land_pairs=PAIRS, ind=range(6), replicate=range(6)), "replicate: no side of any individual"),
-    (dict(land_pairs=PAIRS, ind=[0, 0, 1, 1, 2, 2], replicate=[0, 1]), "replicate: expected one label"),
-    (dict(side=["L", "R"] * 3), "ind: matching symmetry needs"),
-    (dict(side=["L", "R", "M"] * 2, ind=range(6)), "side: expected two sides; got 3"),
+    (dict(land_pairs=PAIRS, ind=range(6), replicate=range(6)), "replicate: no side of any individual has two "
+                                                              "replicates (no measurement error to estimate)"),
+    (dict(land_pairs=PAIRS, ind=[0, 0, 1, 1, 2, 2], replicate=[0, 1]), "replicate: expected one label per "
+                                                                       "specimen (6), got shape (2,)"),
+    (dict(side=["L", "R"] * 3), "ind: matching symmetry needs the individual of each configuration"),
+    (dict(side=["L", "R"] * 3, ind=[0, 0, 1]), "ind: expected one label per specimen (6), got shape (3,)"),
+    (dict(side=["L", "R"], ind=range(6)), "side: expected one label per specimen (6), got shape (2,)"),
+    (dict(side=["L", "R", "M"] * 2, ind=range(6)), "side: expected two sides; got 3: ['L', 'M', 'R']"),
     (dict(side=["L", "R"] * 3, ind=[0, 0, 1, 1, 2, 3]), "ind: individual 2 is not on both sides"),
-    (dict(side=["L", "R"] * 3, ind=[0, 0, 1, 1, 2, 2], mirror_side="X"), "mirror_side: 'X' is not a side"),
-    (dict(side=["L", "R"] * 3, ind=[0, 0, 0, 0, 0, 0], replicate=range(6)), "ind: need at least two"),
-    (dict(land_pairs=PAIRS, n_permutations=10), "n_permutations must be at least 19"),
-    (dict(land_pairs=PAIRS, n_permutations=0), "n_permutations"),
+    (dict(side=["L", "R"] * 3, ind=[0, 0, 1, 1, 2, 2], mirror_side="X"), "mirror_side: 'X' is not a side; the "
+                                                                         "sides are ['L', 'R']"),
+    (dict(side=["L", "R"] * 3, ind=[0, 0, 0, 0, 0, 0], replicate=range(6)), "ind: need at least two individuals"),
+    (dict(land_pairs=PAIRS, n_permutations=10), "n_permutations must be at least 19; got 10"),
+    (dict(land_pairs=PAIRS, n_permutations=0), "n_permutations*"),
 ])
-def test_bad_input_is_named(kwargs, match):
+def test_bad_input_is_named(kwargs, message):
     shapes = _symmetric_faces(np.random.default_rng(13), 6)
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError) as err:
         bilateral_symmetry(shapes, **{"n_permutations": 19, **kwargs})
+    if message.endswith("*"):
+        assert str(err.value).startswith(message[:-1])
+    else:
+        assert str(err.value) == message
+
+
+def test_the_individual_with_several_configurations_is_named():
+    shapes = _symmetric_faces(np.random.default_rng(15), 10)
+    side = ["L", "R", "L", "R", "L", "R", "R", "L", "L", "R"]
+    ind = [0, 0, 1, 1, 2, 2, 2, 3, 3, 3]  # 2 twice on the right, 3 twice on the left
+    with pytest.raises(ValueError, match="^replicate: individual 2 has several"):
+        bilateral_symmetry(shapes, side=side, ind=ind, n_permutations=19)
 
 
 def test_one_individual_without_replicates_is_refused():
     shapes = _symmetric_faces(np.random.default_rng(14), 2)
-    with pytest.raises(ValueError, match="ind: need at least two individuals"):
+    with pytest.raises(ValueError, match="^ind: need at least two individuals$"):
         bilateral_symmetry(shapes, side=["L", "R"], ind=[0, 0], n_permutations=19)
-    with pytest.raises(ValueError, match="shapes"):
+    with pytest.raises(ValueError, match="^shapes must contain at least 2"):
         bilateral_symmetry(shapes[:1], land_pairs=PAIRS, n_permutations=19)
 
 
 def test_the_top_level_names():
     assert sl.bilateral_symmetry is bilateral_symmetry
     assert sl.SymmetryResult.__name__ == "SymmetryResult" and "bilateral_symmetry" in sl.__all__
+
+
+def test_the_defaults_are_999_permutations_from_seed_0():
+    rng = np.random.default_rng(16)
+    shapes = _symmetric_faces(rng, 5) + rng.normal(scale=0.02, size=(5, 6, 2))
+    res = bilateral_symmetry(shapes, land_pairs=PAIRS)
+    again = bilateral_symmetry(shapes, land_pairs=PAIRS, n_permutations=999, seed=0)
+    assert res.n_permutations == 999 and res.null.shape == (999, 2)
+    np.testing.assert_array_equal(res.null, again.null)
+
+
+# --- more limits ------------------------------------------------------------------------------------
+
+def test_planar_skulls_without_pairs_have_no_asymmetry():
+    """3-D configurations on one plane, no landmark pairs: each is its own mirror image (a rotation)."""
+    rng = np.random.default_rng(18)
+    flat = np.zeros((6, 5, 3))
+    flat[:, :, 1:] = rng.normal(size=(6, 5, 2))
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    shapes = flat @ q.T  # the plane is not x = 0
+    res = bilateral_symmetry(shapes, land_pairs=[], n_permutations=19)
+    assert np.max(np.abs(res.asymmetric)) < 1e-9
+    assert res.ss[1] < 1e-18 * res.ss[-1] and res.ss[0] == pytest.approx(res.ss[-1], rel=1e-9)
+
+
+def test_identical_symmetric_specimens_have_nothing_to_test():
+    res = bilateral_symmetry(np.repeat(FACE[None], 4, axis=0), land_pairs=PAIRS, n_permutations=19)
+    assert np.all(res.ss < 1e-24) and np.all(np.isnan(res.value)) and np.all(np.isnan(res.p_value))
+    assert np.all(np.isnan(res.null))
+
+
+def test_tiny_variation_keeps_its_f_ratios():
+    """F does not depend on how small the variation is (the Procrustes coordinates are then linear in it)."""
+    rng = np.random.default_rng(19)
+    noise = rng.normal(size=(8, 6, 2))
+    big = bilateral_symmetry(FACE + 1e-4 * noise, land_pairs=PAIRS, n_permutations=19)
+    tiny = bilateral_symmetry(FACE + 1e-7 * noise, land_pairs=PAIRS, n_permutations=19)
+    assert np.all(np.isfinite(tiny.value[:2]))
+    np.testing.assert_allclose(tiny.value[:2], big.value[:2], rtol=1e-3)
+    assert tiny.ss[-1] == pytest.approx(big.ss[-1] * 1e-6, rel=1e-3)
+
+
+def test_permutations_that_relabel_the_individuals_are_ties():
+    """Two individuals: a permutation that exchanges them (and or the sides) as wholes gives the observed
+    F of ``ind`` again, to rounding, and must count as at least as large."""
+    rng = np.random.default_rng(20)
+    shapes = _symmetric_faces(rng, 2) + rng.normal(scale=0.03, size=(2, 6, 2))
+    res = bilateral_symmetry(shapes, land_pairs=PAIRS, n_permutations=199, seed=1)
+    assert res.rows == ("ind", "side", "ind:side", "Total") and res.df.tolist() == [1, 1, 1, 3]
+    # rows: specimen 0, specimen 1, mirror 0, mirror 1; the same permutations as the function's
+    draw = np.random.default_rng(1)
+    perms = [draw.permutation(4) for _ in range(199)]
+    wholes = {(0, 1, 2, 3), (1, 0, 3, 2), (2, 3, 0, 1), (3, 2, 1, 0)}
+    ties = sum(tuple(p) in wholes for p in perms)
+    assert ties > 20
+    assert res.p_value[0] >= (1 + ties) / 200
+    np.testing.assert_allclose(res.null[[tuple(p) in wholes for p in perms], 0], res.value[0], rtol=1e-9)
+
+
+def test_two_individuals_with_replicates_are_enough():
+    rng = np.random.default_rng(21)
+    shapes, ind, rep = _replicated(rng, n_ind=2, n_rep=2)
+    res = bilateral_symmetry(shapes, land_pairs=PAIRS, ind=ind, replicate=rep, n_permutations=19)
+    assert res.df.tolist() == [1, 1, 1, 4, 7] and np.all(np.isfinite(res.value[:3]))
+
+
+def test_the_components_average_the_replicates():
+    rng = np.random.default_rng(22)
+    shapes, ind, rep = _replicated(rng, n_ind=3, n_rep=3)
+    res = bilateral_symmetry(shapes, land_pairs=PAIRS, ind=ind, replicate=rep, n_permutations=19)
+    n = len(shapes)
+    for i in range(3):
+        original = res.aligned[:n][ind == i].mean(axis=0)
+        mirrored = res.aligned[n:][ind == i].mean(axis=0)
+        np.testing.assert_allclose(res.symmetric[i], (original + mirrored) / 2, atol=1e-14)
+        np.testing.assert_allclose(res.asymmetric[i], (original - mirrored) / 2, atol=1e-14)
+    np.testing.assert_allclose(res.directional, res.asymmetric.mean(axis=0), atol=1e-15)

@@ -62,6 +62,9 @@ ROWS_REPLICATES = ("ind", "side", "ind:side", "ind:side:replicate", "Total")
 ROWS_SINGLE = ("ind", "side", "ind:side", "Total")
 #: the two copies of an object-symmetric specimen
 OBJECT_SIDES = ("original", "mirror")
+#: mean squares below this are rounding noise of the unit-size Procrustes coordinates (identical
+#: configurations give ~1e-31): an F with such a denominator is NaN
+MS_FLOOR = 1e-24
 
 
 @dataclass
@@ -81,7 +84,7 @@ class SymmetryResult:
     value : ndarray
         ``F`` of each term tested: ``ind`` and ``side`` over ``ind:side``, ``ind:side`` over the
         measurement error [1]_; NaN on the rows not tested (the residual, the total) and where the
-        denominator is zero.
+        denominator is zero (below 1e-24, rounding noise).
     p_value : ndarray
         The permutation p-value of each ``F`` (RRPP [2]_), NaN where ``value`` is.
     individuals : ndarray (n,)
@@ -205,13 +208,9 @@ def _basis(design):
     return u[:, s > s[0] * max(design.shape) * 1e-12]
 
 
-def _ratio(num, den, floor):
-    """num / den, NaN where the denominator is (numerically) zero."""
-    num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
-    out = np.full(np.broadcast(num, den).shape, np.nan)
-    ok = np.broadcast_to(den > floor, out.shape)
-    out[ok] = (np.broadcast_to(num, out.shape) / np.where(den > floor, den, 1.0))[ok]
-    return out
+def _ratio(num, den):
+    """num / den, NaN where the denominator is rounding noise (below ``MS_FLOOR``)."""
+    return np.where(den > MS_FLOOR, num / np.maximum(den, MS_FLOOR), np.nan)
 
 
 def _design(rows, ind_index, side_index, n_ind, replicates):
@@ -235,15 +234,13 @@ def _anova(y, bases, replicates, n_permutations, rng):
     ss_terms = np.array([np.sum((fitted[k + 1] - fitted[k]) ** 2) for k in range(n_terms)])
     ss_res = np.sum((y - fitted[-1]) ** 2)
     ss_total = np.sum((y - fitted[0]) ** 2)
-    floor = 1e-24 * max(ss_total, np.finfo(float).tiny)
 
     def f_values(ss, rss):
         ms = ss / df_terms
         ms_res = rss / df_res
         if replicates:  # ind and side over ind:side, ind:side over the measurement error
-            return np.array([_ratio(ms[0], ms[2], floor / df_terms[2]), _ratio(ms[1], ms[2], floor / df_terms[2]),
-                             _ratio(ms[2], ms_res[2], floor / df_res)])
-        return _ratio(ms, ms_res, floor / df_res)
+            return _ratio(ms, np.array([ms[2], ms[2], ms_res[2]]))
+        return _ratio(ms, ms_res)
 
     f_obs = f_values(ss_terms, np.full(n_terms, ss_res))
     null = np.empty((n_permutations, n_terms))
