@@ -231,6 +231,23 @@ def test_matching_symmetry_of_specimens_and_their_mirrors_is_object_symmetry():
 
 # --- invariances ------------------------------------------------------------------------------------
 
+def test_matching_symmetry_does_not_depend_on_which_side_comes_first():
+    rng = np.random.default_rng(23)
+    left = _symmetric_faces(rng, 6) + rng.normal(scale=0.02, size=(6, 6, 2))
+    right = left + rng.normal(scale=0.02, size=(6, 6, 2)) + [0.0, 0.03]  # reflected already, shifted a little
+    shapes = np.concatenate([left, right])
+    ind = np.tile(np.arange(6), 2)
+    res = bilateral_symmetry(shapes, side=np.repeat(["a", "b"], 6), ind=ind, n_permutations=19)
+    swapped = bilateral_symmetry(shapes, side=np.repeat(["b", "a"], 6), ind=ind, n_permutations=19)
+    assert swapped.sides == res.sides == ("a", "b")
+    np.testing.assert_allclose(swapped.ss, res.ss, rtol=1e-9)
+    np.testing.assert_allclose(swapped.value, res.value, rtol=1e-7)
+    # the components are the same up to the sides' order: the asymmetric one changes sign
+    np.testing.assert_allclose(swapped.symmetric, res.symmetric, atol=1e-12)
+    np.testing.assert_allclose(swapped.asymmetric, -res.asymmetric, atol=1e-12)
+    np.testing.assert_allclose(swapped.directional, -res.directional, atol=1e-12)
+
+
 def test_invariant_to_each_specimen_s_pose_and_to_their_order():
     rng = np.random.default_rng(7)
     shapes, ind, rep = _replicated(rng, n_ind=5, n_rep=2)

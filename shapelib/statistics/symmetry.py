@@ -315,7 +315,10 @@ def bilateral_symmetry(shapes, *, land_pairs=None, side=None, ind=None, replicat
     ``ind:side`` mean square of the same permutation, as geomorph does with replicates. The degrees
     of freedom count configurations, not coordinates, as geomorph's: they scale the mean squares but
     not the p-values. Sums of squares are sequential (``ind`` first), equal to the classical ones of
-    a balanced design.
+    a balanced design. They are those of the doubled data set (each specimen and its mirror image),
+    as geomorph's; Klingenberg et al. [2]_ and MorphoJ halve them for object symmetry and count
+    degrees of freedom in shape coordinates (Goodall's F): each F then changes by a constant factor,
+    the same in every permutation, and no p-value changes.
 
     References
     ----------
