@@ -10,7 +10,8 @@ Object symmetry
 
 Matching symmetry
     Paired structures (left and right wings): one configuration per side of each individual, the
-    configurations of one side reflected before (or by) the superimposition.
+    configurations of one side reflected before the superimposition (by the user, or here with
+    ``mirror_side``).
 
 Components
     With ``y_is`` the mean aligned configuration of individual ``i`` on side ``s ∈ {1, 2}``::
