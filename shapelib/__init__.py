@@ -77,7 +77,8 @@ _LAZY_FUNCTIONS = {"read_point_sets": "io", "write_point_set": "io", "read_slide
                    "AllometryResult": "statistics.allometry", "morphological_disparity": "statistics.disparity",
                    "DisparityResult": "statistics.disparity", "two_block_pls": "statistics.pls",
                    "PLSResult": "statistics.pls", "modularity_test": "statistics.modularity",
-                   "ModularityResult": "statistics.modularity"}
+                   "ModularityResult": "statistics.modularity", "bilateral_symmetry": "statistics.symmetry",
+                   "SymmetryResult": "statistics.symmetry"}
 
 
 def __getattr__(name):
@@ -116,6 +117,8 @@ __all__ = [
     "PLSResult",
     "modularity_test",
     "ModularityResult",
+    "bilateral_symmetry",
+    "SymmetryResult",
     "as_point_set",  # shapelib.pointsets
     "as_point_sets",
     "density_inner",
