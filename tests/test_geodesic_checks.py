@@ -66,7 +66,7 @@ def test_path_length_checks_its_path():
     assert path_length(np.zeros((2, 3, 2)), sigma2=0.5) == 0.0  # the smallest path accepted
     bad = np.zeros((3, 3, 2))
     bad[1, 0, 0] = np.inf
-    with pytest.raises(ValueError, match="path contains non-finite values"):
+    with pytest.raises(ValueError, match="^path contains non-finite values$"):
         path_length(bad, sigma2=0.5)
     with pytest.raises(ValueError, match="sigma2"):
         path_length(np.zeros((2, 3, 2)), sigma2=0.0)
@@ -129,12 +129,15 @@ def test_check_entry_returns_sigma_over_the_mean_nearest_spacing():
 def test_check_entry_refuses_what_it_should():
     with pytest.raises(ValueError, match=r"metric must be one of \('alpha', 'fisher_rao'\); got 'l2'"):
         check_entry(U, U, 0.5, metric="l2", stacklevel=3)
-    with pytest.raises(ValueError, match="d = 2 or 3"):
+    with pytest.raises(ValueError, match=r"^u: landmarks must have d = 2 or 3 coordinates; got 4 dimensions"):
         check_entry(np.zeros((3, 4)), np.zeros((3, 4)), 0.5, metric="alpha", stacklevel=3)
     square = 10.0 * np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     # σ = 0.3 is 0.03 spacings: too small for the Fisher–Rao quadrature (an error before any work) ...
     with pytest.warns(ScaleWarning), pytest.raises(ValueError, match="fisher_rao.*too small"):
         check_entry(square, square, 0.09, metric="fisher_rao", stacklevel=3)
+    # ... named by the bound that asks
+    with pytest.warns(ScaleWarning), pytest.raises(ValueError, match=r"^fisher_rao_bound: sigma2 = 0.09 is too small"):
+        check_entry(square, square, 0.09, metric="fisher_rao", stacklevel=3, what="fisher_rao_bound")
     # ... but only a warning for α, whose metric is closed form
     with pytest.warns(ScaleWarning):
         assert check_entry(square, square, 0.09, metric="alpha", stacklevel=3) == pytest.approx(0.03)
@@ -196,6 +199,8 @@ def test_underflow_rule_as_documented():
     assert _underflow(_result(length=2.0), low) is None  # twice the bound exactly: fine
     assert _underflow(_result(length=2.001), low) is not None
     assert _underflow(_result(path=np.zeros((5, 1, 2))), low) is None  # one landmark: nothing to bend
+    assert _underflow(_result(path=np.zeros((5, 2, 2))), low) is not None  # two landmarks: their overlap bends
+    assert "2.5 times the lower bound 2," in _underflow(_result(length=5.0, lower_bound=2.0), low)
     assert _underflow(_result(n_iter=1), low) is None
     assert _underflow(_result(converged=False), low) is None
     assert _underflow(_result(log={"stopped_by": "trivial"}), low) is None
@@ -207,7 +212,7 @@ def test_underflow_rule_as_documented():
 def test_mark_underflow_marks_only_what_the_rule_names():
     r = _result()
     reason = _mark_underflow(r, SIGMA_RATIO_MIN / 2)
-    assert reason is not None and not r.converged
+    assert reason is not None and r.converged is False
     assert r.log["stopped_by"] == "underflow" and r.log["reason"] == reason
     assert r.stop_reason is sl.StopReason.UNDERFLOW
     ok = _result(n_iter=2)
@@ -330,6 +335,7 @@ def test_geodesic_on_a_device_hands_the_pair_over(monkeypatch):
     with pytest.warns(GeodesicWarning, match=r"^alpha geodesic did not converge in 1 L-BFGS iterations \(") as seen:
         stuck = geodesic(U, v, sigma2=0.5, max_iter=1, backend="jax", device="cpu")
     assert stuck.summary() in str(seen[0].message)
+    assert UNDER_MUTMUT or seen[0].filename == __file__  # the caller's line (mutmut's trampoline adds a frame)
     with warnings.catch_warnings():
         warnings.simplefilter("error", GeodesicWarning)
         geodesic(U, v, sigma2=0.5, max_iter=1, backend="jax", device="cpu", warn=False)

@@ -29,3 +29,13 @@ def test_holm_refuses_what_is_not_a_list_of_probabilities():
     with pytest.raises(ValueError, match=r"^p_values must lie in \[0, 1\]; got \[-0.1\]$"):
         holm_adjust([-0.1])
     assert holm_adjust([0.0, 1.0]).tolist() == [0.0, 1.0]  # the ends are probabilities
+
+
+def test_holm_reads_the_p_values_as_floats_whatever_their_type():
+    """Exact fractions are adjusted as the floats they round to: sorted 0.05, 0.1, 0.2 times 3, 2, 1 in
+    floating point, where 3 × 0.05 is 0.15000000000000002, not the exact 3/20's float 0.15."""
+    from fractions import Fraction
+
+    exact = [Fraction(1, 10), Fraction(1, 5), Fraction(1, 20)]
+    assert holm_adjust(exact).tolist() == holm_adjust([0.1, 0.2, 0.05]).tolist() == [0.2, 0.2, 3 * 0.05]
+    assert 3 * 0.05 != float(Fraction(3, 20))  # the two readings differ here

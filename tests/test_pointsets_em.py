@@ -273,3 +273,59 @@ def test_em_likelihood_and_standard_error_of_far_apart_clusters():
     dens = np.stack([multivariate_normal(m, fit.sigma2 * np.eye(2)).logpdf(x) for m in fit.means], axis=1)
     assert fit.log_likelihood == pytest.approx(float(np.sum(logsumexp(dens, axis=1) - np.log(3))), rel=1e-10)
     assert fit.standard_error == pytest.approx(fit.sigma2 * np.sqrt(2 / (300 * 2)), rel=1e-4)
+
+
+def test_em_standard_error_of_overlapping_clusters_is_the_inverse_hessian_of_the_likelihood():
+    """Clusters that overlap (centres 1.5 apart, σ ≈ 0.7) couple the means with σ² in the information:
+    the standard error is √((−∇²ℓ)⁻¹) in (μ, log σ²) for log σ², times σ², here with the Hessian from
+    second differences of ℓ itself (not of the analytic score the fit differentiates)."""
+    rng = np.random.default_rng(0)
+    centres = np.array([[0.0, 0.0], [1.5, 0.0], [0.0, 1.5]])
+    x = centres[np.arange(90) % 3] + rng.normal(scale=0.7, size=(90, 2))
+    fit = fit_mixture(x, n_components=3, n_init=1)
+    k, d = fit.means.shape
+    theta = np.concatenate([fit.means.ravel(), [np.log(fit.sigma2)]])
+    ell = lambda t: _loglik(x, t[:-1].reshape(k, d), np.exp(t[-1]))[0]  # noqa: E731
+    m, h = len(theta), 1e-4
+    hess = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            ei, ej = h * np.eye(m)[i], h * np.eye(m)[j]
+            hess[i, j] = (ell(theta + ei + ej) - ell(theta + ei - ej) - ell(theta - ei + ej)
+                          + ell(theta - ei - ej)) / (4 * h * h)
+    assert fit.standard_error == pytest.approx(fit.sigma2 * np.sqrt(np.linalg.inv(-hess)[-1, -1]), rel=1e-5)
+
+
+def test_em_standard_error_is_nan_when_a_component_holds_no_point():
+    """A fourth mean 10⁶ away takes no responsibility: the likelihood does not depend on it, the
+    information is singular and σ² has no error bar (NaN, not an exception)."""
+    x = _three_clusters()
+    fit = fit_mixture(x, n_components=3)
+    assert np.isfinite(fit.standard_error)
+    assert np.isnan(em_module._em_standard_error(x, np.vstack([fit.means, [[1e6, 1e6]]]), fit.sigma2))
+
+
+def test_em_max_iter_is_the_iteration_budget():
+    """With one restart, as many iterations as the converged fit took suffice and one fewer does not;
+    the short fit reports exactly its budget."""
+    x = _three_clusters()
+    n_iter = fit_mixture(x, n_components=3, n_init=1).n_iter
+    assert n_iter >= 3
+    done = fit_mixture(x, n_components=3, n_init=1, max_iter=n_iter)
+    assert done.converged and done.n_iter == n_iter and done.stop_reason == "tolerance"
+    short = fit_mixture(x, n_components=3, n_init=1, max_iter=n_iter - 1, warn=False)
+    assert not short.converged and short.n_iter == n_iter - 1 and short.stop_reason == "max_iter"
+
+
+def test_leave_one_out_degenerate_pairs_report_their_closed_form_likelihood_and_error():
+    """Six pairs a hair (δ = (1e-9, 1e-9)) apart: at the degenerate σ² = |δ|²/2 each point's leave-one-out
+    density is its partner's Gaussian alone, ℓ_i = −|δ|²/(2σ²) − log(2πσ²) − log(n − 1) = −1 − log(2πσ²)
+    − log 11, and each score s_i = |δ|²/(2σ²) − 1 vanishes, so the sandwich error is 0 (to the fit's tolerance)."""
+    x = np.repeat(np.random.default_rng(0).normal(size=(6, 2)), 2, axis=0)
+    x[1::2] += 1e-9
+    fit = fit_mixture(x, warn=False)
+    assert fit.stop_reason == "degenerate"
+    s2 = fit.sigma2
+    assert fit.log_likelihood == pytest.approx(12 * (-np.sum((x[1] - x[0]) ** 2) / (2 * s2) - np.log(2 * np.pi * s2)
+                                                     - np.log(11)), rel=1e-6)
+    assert fit.standard_error <= 1e-4 * s2

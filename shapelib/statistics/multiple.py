@@ -19,7 +19,8 @@ def holm_adjust(p_values) -> np.ndarray:
     Parameters
     ----------
     p_values : array_like, shape (m,)
-        Values in [0, 1].
+        Values in [0, 1], converted to float64 first: exact rationals or decimals give the adjustment
+        of their nearest floats, computed in floating point.
 
     Returns
     -------
