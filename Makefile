@@ -57,6 +57,7 @@ bench: setup
 	$(PY) benchmarks/bench_bracket.py --record
 	$(PY) benchmarks/bench_pairwise.py --record
 	$(PY) benchmarks/bench_registration.py --samples 10 --record
+	$(PY) benchmarks/bench_registration_landmarks.py --samples 10 --record
 	$(PY) benchmarks/bench_registration_3d.py --record
 	$(PY) benchmarks/bench_registration_batch.py --record
 	$(PY) benchmarks/bench_registration_large.py --record

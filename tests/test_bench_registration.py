@@ -116,3 +116,32 @@ def test_a_peer_that_raises_is_a_failure_scored_as_the_unmoved_source():
     # probreg's non-rigid CPD runs in 2-D and recovers a small similarity of the same points
     moved, _, info = peers.run("probreg_cpd", x, 1.1 * x + 0.2)
     assert info["exception"] is None and np.mean(np.linalg.norm(moved - (1.1 * x + 0.2), axis=1)) < 0.05
+
+
+def test_the_landmarks_benchmark_pairs_only_exact_true_points_and_counts_by_range():
+    """bench_registration_landmarks: a landmark is a spread template point whose true position is a target
+    point (none where the target is noisy); the summary counts failures, flags and families per range."""
+    bench = _load("bench_registration_landmarks")
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(30, 2))
+    truth = x @ [[0, -1], [1, 0]]
+    perm = rng.permutation(30)
+    y = truth[perm]
+    lm = bench.landmarks_of(x, y, truth, 3)
+    assert lm.shape == (3, 2) and len(set(lm[:, 0])) == 3
+    np.testing.assert_array_equal(y[lm[:, 1]], truth[lm[:, 0]])  # each pair: the true position, found exactly
+    d = np.linalg.norm(x[lm[:, 0]][:, None] - x[lm[:, 0]][None], axis=2)
+    assert d[np.triu_indices(3, 1)].min() > 0.5  # spread over the template (farthest points)
+    assert bench.landmarks_of(x, y + 1e-9, truth, 3) is None  # no exact true point: no landmark
+    assert bench.landmarks_of(x, y, truth, 0) is None
+    y_part = y[np.isin(perm, lm[1:, 0])]  # the first landmark's true point occluded
+    assert len(bench.landmarks_of(x, y_part, truth, 3)) == 2
+    cell = {"samples": list(range(1, 11)), "errors": [0.01] * 4 + [0.2] + [0.01] * 3 + [0.3, 0.04],
+            "given": [3] * 9 + [0], "reliable": [True] * 4 + [False] + [True] * 3 + [True, True], "times": [0.1] * 10}
+    s = bench.summarise({"3": {"fish_noise_2": cell}}, list(range(1, 11)))
+    assert list(s) == ["1-5", "6-10", "1-10"]
+    assert s["1-5"]["3"] == {"registrations": 5, "with_all_landmarks": 5, "with_some_landmarks": 5, "failures": 1,
+                             "mean_error": pytest.approx(0.048), "failures_flagged": 1,
+                             "failures_by_family": {"noise": 1}}
+    assert s["6-10"]["3"]["failures"] == 1 and s["6-10"]["3"]["failures_flagged"] == 0
+    assert s["6-10"]["3"]["with_all_landmarks"] == 4 and s["1-10"]["3"]["failures"] == 2

@@ -58,7 +58,7 @@ PAGE_RECORDS = {
     "docs/guide/retrieval.md": ["bench_retrieval_full", "bench_retrieval_registration", "bench_retrieval_device",
                                 "bench_articulation"],
     "docs/guide/pointsets.md": ["bench_registration", "bench_registration_3d", "bench_registration_large",
-                                "bench_registration_batch"],
+                                "bench_registration_batch", "bench_registration_landmarks"],
     "docs/guide/solver.md": ["bench_geodesic", "bench_solvers"],
 }
 
