@@ -20,7 +20,10 @@ process's peak resident memory (``ru_maxrss``, the interpreter and libraries inc
 surface), the ``reliable`` flag and ``converged``. The peers (pycpd, probreg) are not run at these
 sizes: their non-rigid CPD forms dense (n, m) matrices (0.8 GB each at 10⁴ + 10⁴ points).
 
-    python benchmarks/bench_registration_large.py [--sizes 10000,100000] [--dims 2,3] [--json out.json] [--record]
+The 3-D cases run once more with ``--landmarks`` (default 3) known correspondences: source points spread
+over the surface (farthest-point sampling), each with the target point that is its noisy true position.
+
+    python benchmarks/bench_registration_large.py [--sizes 10000,100000] [--dims 2,3] [--landmarks 3] [--json out.json] [--record]
 
 ``--record`` writes ``docs/_data/benchmarks/bench_registration_large.json`` (machine, date, command).
 """
@@ -73,11 +76,22 @@ def make_case(n: int, d: int, seed: int = 0) -> dict:
         bump += np.exp(-np.sum((x - c0) ** 2, axis=1) / (2 * WIDTH**2))[:, None] * a
     truth = SCALE * (x + bump) @ rot.T + 0.2
     y = truth + rng.normal(scale=NOISE, size=truth.shape)
-    return {"x": x, "y": y[rng.permutation(n)], "truth": truth}
+    perm = rng.permutation(n)
+    return {"x": x, "y": y[perm], "truth": truth, "perm": perm}
 
 
-def run_case(n: int, d: int) -> dict:
-    """One case in this process: time, peak memory, errors, flags."""
+def case_landmarks(case: dict, k: int) -> np.ndarray:
+    """``k`` known correspondences of a case: source points spread over it (farthest-point sampling),
+    each with the target point that is its (noisy) true position."""
+    from shapelib.pointsets.registration import farthest_points
+
+    src = farthest_points(case["x"], k)
+    where = np.argsort(case["perm"])  # where[i]: the target index of source point i
+    return np.column_stack([src, where[src]])
+
+
+def run_case(n: int, d: int, k: int = 0) -> dict:
+    """One case in this process, with ``k`` known correspondences: time, peak memory, errors, flags."""
     import resource
     import time
     import warnings
@@ -95,12 +109,12 @@ def run_case(n: int, d: int) -> dict:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         t0 = time.perf_counter()
-        res = sl.register(case["x"], case["y"])
+        res = sl.register(case["x"], case["y"], landmarks=case_landmarks(case, k) if k else None)
         seconds = time.perf_counter() - t0
     truth = case["truth"]
     size = float(np.sqrt(np.mean(np.sum((truth - truth.mean(axis=0)) ** 2, axis=1))))
     to_target, _ = cKDTree(case["y"]).query(res.points)
-    return {"points": n, "dim": d, "seconds": seconds,
+    return {"points": n, "dim": d, "landmarks": k, "seconds": seconds,
             "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
             "error": float(np.mean(np.linalg.norm(res.points - truth, axis=1))) / size,
             "distance_to_target": float(np.mean(to_target)) / size,
@@ -112,26 +126,29 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="10000,100000", help="comma-separated set sizes (default 10000,100000)")
     ap.add_argument("--dims", default="2,3", help="comma-separated dimensions (default 2,3)")
+    ap.add_argument("--landmarks", type=int, default=3,
+                    help="3-D cases run once more with this many known correspondences (0: not; default 3)")
     ap.add_argument("--json", type=Path, help="write the report here")
     ap.add_argument("--record", action="store_true",
                     help="write docs/_data/benchmarks/bench_registration_large.json")
     ap.add_argument("--one", metavar="N,D", help=argparse.SUPPRESS)  # the child process of one case
     args = ap.parse_args(argv)
     if args.one:
-        n, d = (int(v) for v in args.one.split(","))
-        print(json.dumps(run_case(n, d)))
+        n, d, k = (int(v) for v in args.one.split(","))
+        print(json.dumps(run_case(n, d, k)))
         return {}
     report = {"loadavg_start": loadavg(), "cases": []}
-    for d in (int(v) for v in args.dims.split(",")):
-        for n in (int(v) for v in args.sizes.split(",")):
-            out = subprocess.run([sys.executable, __file__, "--one", f"{n},{d}"], capture_output=True, text=True,
-                                 check=True, env={**__import__("os").environ, "OMP_NUM_THREADS": "1",
-                                                  "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"})
-            case = json.loads(out.stdout.strip().splitlines()[-1])
-            report["cases"].append(case)
-            print(f"{d}-D, {n} + {n} points: {case['seconds']:.1f} s, peak {case['peak_rss_mb']:.0f} MB, "
-                  f"error {case['error']:.4f}, to target {case['distance_to_target']:.4f}, "
-                  f"reliable {case['reliable']}, converged {case['converged']}", flush=True)
+    runs = [(d, n, 0) for d in (int(v) for v in args.dims.split(",")) for n in (int(v) for v in args.sizes.split(","))]
+    runs += [(d, n, args.landmarks) for d, n, _ in runs if d == 3 and args.landmarks]
+    env = {**__import__("os").environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    for d, n, k in runs:
+        out = subprocess.run([sys.executable, __file__, "--one", f"{n},{d},{k}"], capture_output=True, text=True,
+                             check=True, env=env)
+        case = json.loads(out.stdout.strip().splitlines()[-1])
+        report["cases"].append(case)
+        print(f"{d}-D, {n} + {n} points, {k} landmarks: {case['seconds']:.1f} s, peak {case['peak_rss_mb']:.0f} MB, "
+              f"error {case['error']:.4f}, to target {case['distance_to_target']:.4f}, "
+              f"reliable {case['reliable']}, converged {case['converged']}", flush=True)
     report["loadavg_end"] = loadavg()
     if args.json:
         args.json.write_text(json.dumps(report, indent=1))

@@ -656,7 +656,8 @@ def _registration_batch(r: dict) -> list[Table]:
 
 def _registration_large(r: dict) -> list[Table]:
     """``bench_registration_large.py``: ``register``'s defaults on 10⁴–10⁵ points, time and peak memory."""
-    rows = [[f"{c['dim']}-D", f"{c['points']:,} + {c['points']:,}", _seconds(c["seconds"]),
+    rows = [[f"{c['dim']}-D", f"{c['points']:,} + {c['points']:,}", str(c.get("landmarks", 0)),
+             _seconds(c["seconds"]),
              f"{c['peak_rss_mb']:,.0f} MB", f"{c['error']:.3f}", f"{c['distance_to_target']:.4f}",
              "yes" if c["reliable"] else "no: " + "; ".join(c["reasons"]), "yes" if c["converged"] else "no"]
             for c in r["cases"]]
@@ -664,9 +665,10 @@ def _registration_large(r: dict) -> list[Table]:
             "(interpreter and libraries included). Error: mean distance of each moved point to its true position; "
             "to target: mean distance to the nearest target point (sliding along the curve or surface not counted); "
             "both in target RMS radii. Converged: the EM of the subsets' fit reached its tolerance within "
-            "``max_iter``.")
+            "``max_iter``. Landmarks: known correspondences given (``landmarks=``), source points spread over the "
+            "set, each with the target point at its true position.")
     return [Table("Large point sets (farthest-point subsets, the warp carrying every point)",
-                  ["set", "points", "time", "peak memory", "error", "to target", "reliable", "converged"],
+                  ["set", "points", "landmarks", "time", "peak memory", "error", "to target", "reliable", "converged"],
                   rows, note, key="large")]
 
 
