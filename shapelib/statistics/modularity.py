@@ -6,7 +6,7 @@ Covariance ratio
     The specimens' variables (centred) have the covariance matrix ``S``; with the variables split
     into modules, ``S_ab`` is the block of the variables of module ``a`` against those of module
     ``b``, and ``S*_aa`` is module ``a``'s own block with its diagonal (the variances) set to zero.
-    The covariance ratio of two modules is [1]_::
+    The covariance ratio of two modules is (Adams 2016)::
 
         CR_ab = sqrt( tr(S_ab S_ba) / sqrt( tr(S*_aa S*_aa) tr(S*_bb S*_bb) ) ),
 
@@ -24,7 +24,7 @@ Test
         p = (1 + #{CR* ≤ CR}) / (1 + n_permutations).
 
     The effect size ``z`` is CR's standard deviate in that permutation distribution,
-    ``(CR − mean CR*) / sd CR*`` [2]_ (here without geomorph's Box–Cox step): negative for a
+    ``(CR − mean CR*) / sd CR*`` (Adams and Collyer 2019) (here without geomorph's Box–Cox step): negative for a
     modular signal, more negative for a stronger one.
 
 Orientation
@@ -34,6 +34,8 @@ Orientation
     orients its output), which makes CR a function of the shapes alone. geomorph's
     ``modularity.test`` by default (``opt.rot``) searches instead for the rotation whose CR equals
     CR's average over a quarter turn; that search is not done here.
+
+The references are those of :func:`modularity_test`.
 """
 
 from __future__ import annotations
