@@ -78,6 +78,19 @@ def test_a_reversed_trajectory_is_180_degrees_along_its_path_and_0_as_an_axis():
     assert _run(y, g, t).angles[0, 1] == pytest.approx(0, abs=1e-10)
 
 
+def test_the_path_direction_does_not_depend_on_the_svd_s_signs():
+    """Random walks whose first axis, as NumPy's SVD returns it, points forwards for some and backwards
+    for others: the angles along their paths are the brute force's, whose axes follow the paths."""
+    walks = np.cumsum(np.random.default_rng(0).normal(size=(4, 4, 3)), axis=1)
+    centred = walks - walks.mean(axis=1, keepdims=True)
+    raw = np.linalg.svd(centred, full_matrices=False)[2][:, 0]
+    forward = np.einsum("gp,gp->g", raw, walks[:, -1] - walks[:, 0]) > 0
+    assert forward.any() and not forward.all()  # the precondition: the SVD's signs disagree
+    y, g, t = _specimens(walks)
+    res = _run(y, g, t, direction="path")
+    assert res.angles == pytest.approx(_brute_force(y, g, t, [0, 1, 2, 3], "path")[2], abs=1e-8)
+
+
 def test_a_known_shape_distance():
     """A straight line against a right angle, both three points: their Procrustes distance by hand."""
     line = np.array([[0, 0.0], [1, 0], [2, 0]])
@@ -144,31 +157,41 @@ def test_against_a_brute_force_recomputation(direction, p):
     assert res.angles == pytest.approx(angles, abs=1e-6)
     assert res.shape_distances == pytest.approx(shapes, abs=1e-7)
     counts = [[np.sum((groups == g) & (points == t)) for t in levels] for g in "xyz"]
-    assert res.sizes.tolist() == counts
+    assert res.sizes.tolist() == counts and res.sizes.dtype.kind == "i"
+    for m in (res.magnitude_differences, res.angles, res.shape_distances):
+        assert np.diag(m).tolist() == [0.0, 0.0, 0.0]
 
 
-def test_the_p_values_redone_by_least_squares_and_loops():
+@pytest.mark.parametrize("direction", ["axis", "path"])
+def test_the_p_values_and_effect_sizes_redone_by_least_squares_and_loops(direction):
     """RRPP redone: the reduced model fitted with other contrasts (a column per level of each factor,
-    through NumPy's least squares), each permutation's cell means and attributes by brute force."""
-    rng = np.random.default_rng(4)
-    y, g, t = _specimens(np.stack([BENT, 1.3 * BENT @ _rotation(0.3).T]), n=3, scale=0.3)
+    through NumPy's least squares), each permutation's cell means and attributes by brute force; z with
+    the standard deviation of divisor n − 1, as R's ``sd``."""
+    # random walks whose SVD axes point forwards (0, 2) and backwards (1), obtuse to each other
+    means = np.cumsum(np.random.default_rng(0).normal(size=(3, 4, 3)), axis=1)
+    y, g, t = _specimens(means, n=3, scale=0.5)
     t = t.astype(str)
     n, levels = len(y), ["0", "1", "2", "3"]
-    res = _run(y, g, t, levels=levels, n_permutations=29, seed=11)
-    design = np.column_stack([(g == "g1"), *[(t == level) for level in levels]]).astype(float)
+    res = _run(y, g, t, levels=levels, n_permutations=29, seed=11, direction=direction)
+    design = np.column_stack([(g == "g1"), (g == "g2"), *[(t == level) for level in levels]]).astype(float)
     fitted = design @ np.linalg.lstsq(design, y, rcond=None)[0]
     resid = y - fitted
-    _, l0, a0, s0 = _brute_force(y, g, t, levels, "axis")
-    observed = [abs(l0[0] - l0[1]), a0[0, 1], s0[0, 1]]
+    upper = np.triu_indices(3, k=1)
+
+    def stats(values):
+        _, lengths, angles, shapes = _brute_force(values, g, t, levels, direction)
+        return np.stack([np.abs(lengths[:, None] - lengths[None, :])[upper], angles[upper], shapes[upper]])
+
+    observed = stats(y)
     rng = np.random.default_rng(11)
-    counts = np.zeros(3)
-    for _ in range(29):
-        ys = fitted + resid[rng.permutation(n)]
-        _, ls, a, s = _brute_force(ys, g, t, levels, "axis")
-        counts += np.array([abs(ls[0] - ls[1]), a[0, 1], s[0, 1]]) >= np.array(observed) - 1e-9
-    expect = (1 + counts) / 30
-    got = [res.magnitude_p_values[0, 1], res.angle_p_values[0, 1], res.shape_p_values[0, 1]]
-    assert got == pytest.approx(expect.tolist(), abs=1e-12)
+    null = np.stack([stats(fitted + resid[rng.permutation(n)]) for _ in range(29)])
+    p = (1 + np.sum(null >= observed - 1e-9, axis=0)) / 30
+    z = (observed - null.mean(axis=0)) / null.std(axis=0, ddof=1)
+    got_p = np.stack([res.magnitude_p_values[upper], res.angle_p_values[upper], res.shape_p_values[upper]])
+    got_z = np.stack([res.magnitude_z[upper], res.angle_z[upper], res.shape_z[upper]])
+    assert got_p == pytest.approx(p, abs=1e-12)
+    assert got_z == pytest.approx(z, rel=1e-6, abs=1e-8)
+    assert len(set(p.ravel())) > 3  # the p-values are not all alike
 
 
 def test_invariant_to_rotating_every_specimen_and_to_reordering_them():
@@ -255,6 +278,32 @@ def test_no_interaction_gives_large_p_values_and_a_strong_one_small_p_values():
     assert strong.angle_z[0, 1] > 2 and strong.magnitude_z[0, 1] > 2
 
 
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("unit", [1.0, 1e6])
+def test_exactly_additive_data_are_left_as_they_are_by_every_permutation(unit):
+    """Every specimen on its cell's mean and every trajectory a translated copy of one: the reduced
+    model fits the data, every permutation of its (zero) residuals keeps the trajectories to rounding,
+    so all p-values are 1 and all effect sizes 0, without a warning."""
+    y, g, t = _specimens(np.stack([BENT, BENT + [0.1, 0.7, np.pi], BENT - [np.e, 2 / 3, 0.3]]), scale=0.0)
+    res = _run(unit * y, g, t)  # in any unit (micrometres: the magnitudes' rounding grows with them)
+    for m in (res.magnitude_p_values, res.angle_p_values, res.shape_p_values):
+        assert m.tolist() == np.ones((3, 3)).tolist()
+    for m in (res.magnitude_z, res.angle_z, res.shape_z):
+        assert m.tolist() == np.zeros((3, 3)).tolist()
+
+
+def test_parallel_trajectories_with_noise_have_p_1_and_negative_effect_sizes():
+    """Observed trajectories exactly parallel (statistics 0, the least possible), residuals that move
+    them apart in the permutations: p = 1 and z < 0 for every pair."""
+    y, g, t = _specimens(np.stack([BENT, BENT + 1, BENT - [0, 2, 0]]), scale=0.3)
+    res = _run(y, g, t)
+    off = ~np.eye(3, dtype=bool)
+    for m in (res.magnitude_p_values, res.angle_p_values, res.shape_p_values):
+        assert m.tolist() == np.ones((3, 3)).tolist()
+    for m in (res.magnitude_z, res.angle_z, res.shape_z):
+        assert np.all(m[off] < 0)
+
+
 def test_the_seed_fixes_the_p_values_and_the_diagonals():
     y, g, t = _additive(1, interaction=0.3)
     a, b = _run(y, g, t, seed=3), _run(y, g, t, seed=3)
@@ -277,15 +326,18 @@ def test_the_summary_lists_the_trajectories_and_the_pairs():
     y, g, t = _specimens(np.stack([BENT, 2 * BENT, BENT + 1]))
     text = _run(y, g, t).summary()
     lines = text.splitlines()
-    assert "3 trajectories of 4 points in 3 variables" in lines[0] and "0-90" in lines[0]
+    assert lines[0].startswith("trajectory analysis: 3 trajectories of 4 points in 3 variables, 19 RRPP")
+    assert lines[0].endswith("angles in degrees, 0-90")
     assert len(lines) == 1 + 3 + 3
-    assert "g0 vs g1" in lines[4] and f"{BENT_LENGTH:.4g}" in lines[1]
-    assert "0-180" in _run(y, g, t, direction="path").summary().splitlines()[0]
+    assert lines[1] == f"  {'g0':>12}  path length = {BENT_LENGTH:.4g}"
+    assert lines[4].startswith("  g0 vs g1: |ΔL| = ") and lines[-1].startswith("  g1 vs g2: ")
+    assert _run(y, g, t, direction="path").summary().splitlines()[0].endswith("angles in degrees, 0-180")
 
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"direction": "sign"}, "direction must be one of"),
     ({"n_permutations": 10}, "n_permutations must be at least 19"),
+    ({"n_permutations": 0}, "n_permutations must be a positive integer"),
     ({"levels": [0, 1, 2]}, "levels: [0, 1, 2] are not the levels of points"),
     ({"levels": [0, 1, 1, 3]}, "levels: expected distinct labels"),
 ])
@@ -301,15 +353,29 @@ def test_bad_factors_are_named():
         sl.trajectory_analysis(y, g[:-1], t)
     with pytest.raises(ValueError, match=r"points: expected one label per specimen \(24\)"):
         sl.trajectory_analysis(y, g, t[:, None])
-    with pytest.raises(ValueError, match="groups: need at least two trajectories"):
+    with pytest.raises(ValueError, match="^groups: need at least two trajectories to compare$"):
         sl.trajectory_analysis(y, np.full(24, "a"), t)
-    with pytest.raises(ValueError, match="points: need at least two levels"):
+    with pytest.raises(ValueError, match=r"^points: need at least two levels \(points of a trajectory\)$"):
         sl.trajectory_analysis(y, g, np.zeros(24))
     keep = ~((g == "g1") & (t == 2))
-    with pytest.raises(ValueError, match="points: group 'g1' has no specimen at level 2"):
+    with pytest.raises(ValueError, match="^points: group 'g1' has no specimen at level 2; every group needs "
+                                         "a specimen at every level$"):
         sl.trajectory_analysis(y[keep], g[keep], t[keep])
     with pytest.raises(ValueError, match="shapes"):
         sl.trajectory_analysis(np.where(np.arange(3) == 1, np.nan, y), g, t)
+
+
+def test_aligned_landmarks_are_only_flattened():
+    """``aligned=True``: the landmarks' own coordinates are the variables, as the flattened table."""
+    rng = np.random.default_rng(8)
+    shapes = rng.normal(size=(24, 4, 2)) + np.arange(24)[:, None, None]  # not aligned: each one moved
+    g, t = np.repeat(["a", "b"], 12), np.tile(np.repeat([0, 1, 2], 4), 2)
+    res = _run(shapes, g, t, aligned=True)
+    table = _run(shapes.reshape(24, 8), g, t)
+    assert res.trajectories == pytest.approx(table.trajectories, abs=1e-12)
+    assert res.angle_p_values.tolist() == table.angle_p_values.tolist()
+    assert _run(shapes, g, t).trajectories.shape == (2, 3, 8)
+    assert not np.allclose(_run(shapes, g, t).trajectories, table.trajectories, atol=1e-3)
 
 
 def test_the_top_level_names():

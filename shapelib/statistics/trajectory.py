@@ -37,7 +37,8 @@ Test
 
         p = (1 + #{s* ≥ s}) / (1 + n_permutations),
 
-    the observed statistic counted among the permuted ones; ``z = (s − mean(s*)) / sd(s*)``.
+    the observed statistic counted among the permuted ones (to within rounding);
+    ``z = (s − mean(s*)) / sd(s*)``, with the standard deviation of divisor ``n_permutations − 1``.
 
 The references are those of :func:`trajectory_analysis`.
 """
@@ -56,8 +57,9 @@ __all__ = ["TrajectoryResult", "trajectory_analysis"]
 
 #: how the sign of a trajectory's first principal axis is fixed
 DIRECTIONS = ("axis", "path")
-#: the attributes, as they are named in the result and the summary
-ATTRIBUTES = ("magnitude", "angle", "shape")
+#: differences of the statistics below this (times the longest path for the magnitudes; in degrees for the
+#: angles; at unit size for the shapes) are rounding: ties in the p-values, no spread for the effect sizes
+ROUNDING = 1e-9
 
 
 @dataclass
@@ -270,7 +272,8 @@ def trajectory_analysis(shapes, groups, points, *, levels=None, direction: str =
     RRPP takes the angle as the arc cosine of the dot product of the first principal axes as the
     singular value decomposition returns them, whose signs are arbitrary: its angle is ``θ`` or
     ``180° − θ``. ``direction="axis"`` gives ``min(θ, 180° − θ)``; ``direction="path"`` fixes the
-    signs by the trajectories' own sense. RRPP compares the shapes of more than two trajectories
+    signs by the trajectories' own sense (where the axis is perpendicular to the line from the first
+    point to the last, as for a closed loop, that sense is undefined and the sign is the SVD's). RRPP compares the shapes of more than two trajectories
     after superimposing every one on their mean, and here each pair is superimposed on each other:
     for two trajectories and for identical shapes the two agree up to a constant factor. With two
     levels every trajectory is a segment and every shape distance is 0. The orthogonal matrix may
@@ -328,17 +331,20 @@ def trajectory_analysis(shapes, groups, points, *, levels=None, direction: str =
         means_i = (fitted_means + averaging @ residuals[rng.permutation(n)]).reshape(shape)
         null[i] = _attributes(means_i, direction)[1:]
     stats = np.stack(observed)
-    # a relative tolerance: a permutation that only reorders equal sums is "as large"
-    exceed = np.sum(null >= stats * (1 - 1e-12), axis=0)
+    lengths = _attributes(means, direction)[0]
+    # rounding: a permutation that leaves the trajectories as they are (residuals of exactly additive data,
+    # or moved within their cells) gives the observed statistic to within these, and counts as "as large"
+    tol = np.array([ROUNDING * lengths.max(), ROUNDING, ROUNDING])[:, None, None]
+    exceed = np.sum(null >= stats - tol, axis=0)
     p = (1.0 + exceed) / (1.0 + n_permutations)
     spread = null.std(axis=0, ddof=1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(spread > 0, (stats - null.mean(axis=0)) / spread, 0.0)
+        z = np.where(spread > tol, (stats - null.mean(axis=0)) / spread, 0.0)
     for k in range(3):
         np.fill_diagonal(p[k], 1.0)
         np.fill_diagonal(z[k], 0.0)
     return TrajectoryResult(groups=names, levels=levels, trajectories=means, sizes=sizes,
-                            magnitudes=_attributes(means, direction)[0], magnitude_differences=observed[0],
+                            magnitudes=lengths, magnitude_differences=observed[0],
                             angles=observed[1], shape_distances=observed[2], magnitude_p_values=p[0],
                             angle_p_values=p[1], shape_p_values=p[2], magnitude_z=z[0], angle_z=z[1], shape_z=z[2],
                             direction=direction, n_permutations=n_permutations)
