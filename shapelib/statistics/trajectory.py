@@ -273,10 +273,11 @@ def trajectory_analysis(shapes, groups, points, *, levels=None, direction: str =
     singular value decomposition returns them, whose signs are arbitrary: its angle is ``θ`` or
     ``180° − θ``. ``direction="axis"`` gives ``min(θ, 180° − θ)``; ``direction="path"`` fixes the
     signs by the trajectories' own sense (where the axis is perpendicular to the line from the first
-    point to the last, as for a closed loop, that sense is undefined and the sign is the SVD's). RRPP compares the shapes of more than two trajectories
-    after superimposing every one on their mean, and here each pair is superimposed on each other:
-    for two trajectories and for identical shapes the two agree up to a constant factor. With two
-    levels every trajectory is a segment and every shape distance is 0. The orthogonal matrix may
+    point to the last, as for a closed loop, that sense is undefined and the sign is the SVD's).
+    RRPP superimposes every trajectory at unit size on their mean and measures the distances between
+    the superimposed ones; here each pair is superimposed on each other (a distance that does not
+    depend on the other trajectories). The two can differ a little; both are 0 for trajectories of
+    the same shape. With two levels every trajectory is a segment and every shape distance is 0. The orthogonal matrix may
     include a reflection, which changes nothing when ``p`` exceeds ``T − 1`` (a reflection of the
     points is then also a rotation).
 
