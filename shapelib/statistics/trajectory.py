@@ -277,9 +277,9 @@ def trajectory_analysis(shapes, groups, points, *, levels=None, direction: str =
     RRPP superimposes every trajectory at unit size on their mean and measures the distances between
     the superimposed ones; here each pair is superimposed on each other (a distance that does not
     depend on the other trajectories). The two can differ a little; both are 0 for trajectories of
-    the same shape. With two levels every trajectory is a segment and every shape distance is 0. The orthogonal matrix may
-    include a reflection, which changes nothing when ``p`` exceeds ``T − 1`` (a reflection of the
-    points is then also a rotation).
+    the same shape. With two levels every trajectory is a segment and every shape distance is 0. The
+    orthogonal matrix may include a reflection, which changes nothing when ``p`` exceeds ``T − 1``
+    (a reflection of the points is then also a rotation).
 
     References
     ----------
