@@ -78,7 +78,8 @@ _LAZY_FUNCTIONS = {"read_point_sets": "io", "write_point_set": "io", "read_slide
                    "DisparityResult": "statistics.disparity", "two_block_pls": "statistics.pls",
                    "PLSResult": "statistics.pls", "modularity_test": "statistics.modularity",
                    "ModularityResult": "statistics.modularity", "bilateral_symmetry": "statistics.symmetry",
-                   "SymmetryResult": "statistics.symmetry"}
+                   "SymmetryResult": "statistics.symmetry", "trajectory_analysis": "statistics.trajectory",
+                   "TrajectoryResult": "statistics.trajectory"}
 
 
 def __getattr__(name):
@@ -119,6 +120,8 @@ __all__ = [
     "ModularityResult",
     "bilateral_symmetry",
     "SymmetryResult",
+    "trajectory_analysis",
+    "TrajectoryResult",
     "as_point_set",  # shapelib.pointsets
     "as_point_sets",
     "density_inner",

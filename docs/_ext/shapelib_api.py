@@ -128,8 +128,8 @@ AREAS = (
          "Intrinsic statistics on the information manifolds — log and exp maps of the discrete "
          "geodesic, parallel transport, the Fréchet mean, tangent PCA, geodesic regression, a permutation test of a "
          "difference in mean shape — tests and ordinations on distance matrices, and geomorph's "
-         "analyses of Procrustes coordinates: linear models, allometry, disparity, two-block PLS, modularity "
-         "and bilateral symmetry. "
+         "analyses of Procrustes coordinates: linear models, allometry, disparity, two-block PLS, modularity, "
+         "bilateral symmetry and phenotypic trajectories. "
          "``frechet_mean``, ``tangent_pca``, ``geodesic_regression`` and ``mean_difference_test`` "
          "are the same functions as ``shapelib.statistics.frechet_mean`` and so on, documented "
          "once, under their top-level names; their log maps run on the engine's workers "
@@ -138,7 +138,8 @@ AREAS = (
           "shapelib.statistics.tangent_pca", "shapelib.statistics.regression", "shapelib.statistics.group",
           "shapelib.statistics.distance_based", "shapelib.statistics.sweep", "shapelib.statistics.linear_model",
           "shapelib.statistics.allometry", "shapelib.statistics.disparity", "shapelib.statistics.pls",
-          "shapelib.statistics.modularity", "shapelib.statistics.symmetry"),
+          "shapelib.statistics.modularity", "shapelib.statistics.symmetry",
+          "shapelib.statistics.trajectory"),
          """
          shapelib.log_map
          shapelib.exp_map
@@ -179,6 +180,8 @@ AREAS = (
          shapelib.ModularityResult
          shapelib.bilateral_symmetry
          shapelib.SymmetryResult
+         shapelib.trajectory_analysis
+         shapelib.TrajectoryResult
          shapelib.holm_adjust
          """),
     Area("engine", "Engine",
