@@ -265,6 +265,21 @@ def test_a_landmark_pulls_its_source_point_onto_the_target_point_it_names_in_the
     assert pulled.probabilities[0, where[3]] == 1.0 and pulled.correspondence[0] == where[3]
 
 
+def test_the_unmatched_share_of_a_partial_target_counts_the_landmarks_as_matched():
+    """The target lacks source points 38..51; two landmarks tie source points 44 and 45 to the gap's ends. The
+    reported share of unmatched source points is that of the result's posteriors, where those two have their
+    known target points: 10 of the 14 missing, not 12."""
+    x, y, truth, perm = _ellipse_case()
+    where = np.argsort(perm)
+    keep = np.setdiff1d(np.arange(60), where[38:52])
+    pos = {j: k for k, j in enumerate(keep)}
+    lm = np.array([[15, pos[where[15]]], [44, pos[where[37]]], [45, pos[where[52]]]])
+    res = sl.register(x, y[keep], landmarks=lm, warn=False)
+    sums = res.probabilities.sum(axis=1)
+    assert np.all(sums[lm[:, 0]] >= 1.0)
+    assert res.diagnostics["unmatched_source_share"] == np.mean(sums < 0.5) == 10 / 60
+
+
 def test_without_landmarks_the_same_shape_is_flagged_as_ambiguous():
     """The case of the test above is ambiguous without the landmarks: the result says so."""
     x, y, _, _ = _ellipse_case()
@@ -302,8 +317,33 @@ def test_landmarks_reach_the_subsets_of_a_large_registration(monkeypatch):
         sl.register(x, y, landmarks=np.column_stack([np.arange(21), where[:21]]))
 
 
+def test_the_landmarks_join_the_subsets_renumbered_onto_the_same_points(monkeypatch):
+    """Landmarks outside the farthest-point subsets: each subset is those points plus its landmarks, and the
+    renumbered pairs handed to the subsets' fit name the same source and target points."""
+    monkeypatch.setattr(registration, "MAX_POINTS", 40)
+    x, y, truth, perm = _ellipse_case()
+    where = np.argsort(perm)
+    lm = np.array([[i, where[i]] for i in (5, 28, 54)])
+    spread_x, spread_y = registration.farthest_points(x, 37), registration.farthest_points(y, 37)
+    assert not set(lm[:, 0]) & set(spread_x) and not set(lm[:, 1]) & set(spread_y)
+    seen = []
+
+    def fit(xs, ys, pairs):
+        seen.append((xs, ys, pairs))
+        return sl.register(xs, ys, landmarks=pairs, warn=False)
+
+    res = registration._register_large(x, y, fit, lm)
+    (xs, ys, sub), = seen
+    np.testing.assert_array_equal(xs, x[np.sort(np.concatenate([spread_x, lm[:, 0]]))])
+    np.testing.assert_array_equal(ys, y[np.sort(np.concatenate([spread_y, lm[:, 1]]))])
+    np.testing.assert_array_equal(xs[sub[:, 0]], x[lm[:, 0]])
+    np.testing.assert_array_equal(ys[sub[:, 1]], y[lm[:, 1]])
+    np.testing.assert_array_equal(res.correspondence[lm[:, 0]], lm[:, 1])
+
+
 @pytest.mark.parametrize("landmarks, match", [
     (np.array([0, 1]), r"shape \(k, 2\)"),
+    (np.array([7]), r"shape \(k, 2\)"),
     (np.array([[0.5, 1]]), "integers"),
     (np.array([[60, 1]]), "source point 60, outside 0..59"),
     (np.array([[0, -1]]), "target point -1"),
