@@ -9,9 +9,9 @@ from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
 import shapelib as sl
-from shapelib.pointsets import registration
-from shapelib.pointsets._coherent_em import (EMState, Kernel, _estep, _neg_loglik, label_array, objective,
-                                             outlier_term, posteriors, run_em)
+from shapelib.pointsets import _nonrigid, registration
+from shapelib.pointsets._coherent_em import (EMState, Kernel, _estep, _neg_loglik, box_volume, label_array,
+                                             objective, outlier_term, posteriors, run_em)
 
 
 def _sets(n=7, m=9, d=2, seed=0):
@@ -118,16 +118,14 @@ def test_em_with_known_points_stops_at_a_fixed_point_of_the_labelled_em():
     assert s2_res > 0.1 and m_res > 0.1
 
 
-def _gauss_kernel(u):
-    return Kernel.of(np.exp(-np.sum((u[:, None] - u[None]) ** 2, axis=2) / 2))
+def _gauss_kernel(u, width=2.0):
+    return Kernel.of(np.exp(-np.sum((u[:, None] - u[None]) ** 2, axis=2) / width))
 
 
 def test_the_search_fits_and_scores_every_start_with_the_known_points_and_the_given_volume():
     """fit_all with labels and a volume other than the target's box: every screened and final fit is scored by
     F with the known points at that volume (scipy's densities), and every final fit is a fixed point of the
     labelled EM at that volume."""
-    from shapelib.pointsets import _nonrigid
-
     t = np.linspace(0, 2 * np.pi, 14, endpoint=False)
     xn = np.column_stack([np.cos(t), 0.6 * np.sin(t) + 0.1 * np.cos(2 * t)])
     perm = np.random.default_rng(2).permutation(14)
@@ -136,7 +134,6 @@ def test_the_search_fits_and_scores_every_start_with_the_known_points_and_the_gi
     where = np.argsort(perm)
     lab = label_array(np.array([[0, where[3]], [7, where[7]]]), 14)  # source 0 pulled onto target point 3's place
     volume, lam = 7.0, 2.0
-    from shapelib.pointsets._coherent_em import box_volume
     assert abs(box_volume(yn) - volume) > 1.0
     fits, rots, screened = _nonrigid.fit_all(xn, yn, kernel_of=_gauss_kernel, lam=lam, w=0.1, fixed_s2=None,
                                              reflection=False, max_iter=500, tol=1e-10, s2_floor=1e-8,
@@ -148,9 +145,8 @@ def test_the_search_fits_and_scores_every_start_with_the_known_points_and_the_gi
         s2_res, m_res = _labelled_em_residuals(st, yn, lam, volume, lab)
         assert s2_res < 1e-7 and m_res < 1e-7
     # the refit with another kernel (metric or kernel other than the search's) from the best fit's pose: the same
-    st = _nonrigid.refit(fits[0][2].u, yn, 0.1, lambda u: Kernel.of(np.exp(-np.sum((u[:, None] - u[None]) ** 2,
-                                                                                    axis=2) / 8.0)),
-                         volume=volume, lam=lam, fixed_s2=None, max_iter=500, tol=1e-10, s2_floor=1e-8, labels=lab)
+    st = _nonrigid.refit(fits[0][2].u, yn, 0.1, lambda u: _gauss_kernel(u, 8.0), volume=volume, lam=lam,
+                         fixed_s2=None, max_iter=500, tol=1e-10, s2_floor=1e-8, labels=lab)
     assert st.ok
     s2_res, m_res = _labelled_em_residuals(st, yn, lam, volume, lab)
     assert s2_res < 1e-7 and m_res < 1e-7
@@ -187,8 +183,6 @@ def test_the_objective_with_known_points_is_the_complete_data_negative_log_likel
 def test_a_source_point_with_a_known_target_point_is_matched_in_the_assessment():
     """assess counts a source point as matched by its known target point even far from it (the share of source
     points with less than half a target point, from the brute-force posteriors with the indicator columns)."""
-    from shapelib.pointsets import _nonrigid
-
     rng = np.random.default_rng(4)
     theta = rng.normal(size=(8, 2))
     y = np.vstack([theta[:5] + 0.02 * rng.normal(size=(5, 2)), theta[5:] + 4.0])  # 5..7 far from their sources
