@@ -10,7 +10,8 @@ from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
 from shapelib.pointsets._coherent_em import (EIG_RTOL, PLAIN_ITER, EMState, Kernel, box_volume, initial_sigma2,
-                                             objective, outlier_term, posteriors, run_em, sq_dist)
+                                             objective, outlier_term, point_spacing, posteriors, run_em,
+                                             sq_dist)
 
 
 def _sets(n=14, m=17, d=2, seed=0):
@@ -221,6 +222,8 @@ def test_the_outlier_term_and_the_box_are_their_definitions():
     # a flat target (all on one line) is a slab one spacing thick
     line = np.column_stack([np.linspace(0, 2, 5), np.zeros(5)])
     assert box_volume(line) == pytest.approx(2.0 * 0.5, rel=1e-15)
+    # a single point has no other point: spacing 0
+    assert point_spacing(np.array([[0.3, -1.0]])) == 0.0
 
 
 def test_the_posteriors_are_the_models_and_a_point_no_component_reaches_takes_none():

@@ -9,9 +9,9 @@ from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
 import shapelib as sl
-from shapelib.pointsets import registration
-from shapelib.pointsets._coherent_em import (EMState, Kernel, _estep, _neg_loglik, label_array, objective,
-                                             outlier_term, posteriors)
+from shapelib.pointsets import _nonrigid, registration
+from shapelib.pointsets._coherent_em import (EMState, Kernel, _estep, _neg_loglik, box_volume, label_array,
+                                             objective, outlier_term, posteriors, run_em)
 
 
 def _sets(n=7, m=9, d=2, seed=0):
@@ -32,6 +32,36 @@ def _brute_posteriors(theta, y, s2, c, lab):
         p[:, j] = e / (e.sum() + c)
     return p
 
+
+
+def _brute_objective(st, y, lam, volume, lab):
+    """F with known points by scipy's densities: −log[(1 − w)/n N(y_j; θ_{l_j})] for a known point,
+    −log[(1 − w)/n Σ_i N(y_j; θ_i) + w/V] for the others, plus (λ/2) tr(Wᵀ G W) (G rebuilt from its factors)."""
+    theta = st.theta
+    n, d = theta.shape
+    logs = np.array([multivariate_normal(theta[i], st.s2 * np.eye(d)).logpdf(y) for i in range(n)])  # (n, m)
+    out = 0.0
+    for j in range(len(y)):
+        if lab[j] >= 0:
+            out -= np.log((1 - st.w) / n) + logs[lab[j], j]
+        else:
+            out -= logsumexp(np.append(np.log((1 - st.w) / n) + logs[:, j], np.log(st.w / volume)))
+    g = st.kernel.q @ np.diag(st.kernel.ev) @ st.kernel.q.T
+    return out + 0.5 * lam * np.sum(st.coef * (g @ st.coef))
+
+
+def _labelled_em_residuals(st, y, lam, volume, lab):
+    """How far ``st`` is from a fixed point of EM with the brute-force posteriors of the known points: the relative
+    change of σ² = Σ P_ij |y_j − θ_i|² / (d Σ P_ij) and the residual of the M-step
+    (diag(P1) G + λσ² I) W = P y − diag(P1) u of _coherent_em's module docstring."""
+    theta, u = st.theta, st.u
+    n, d = u.shape
+    g = st.kernel.q @ np.diag(st.kernel.ev) @ st.kernel.q.T
+    p = _brute_posteriors(theta, y, st.s2, outlier_term(n, d, st.s2, st.w, volume), lab)
+    p1 = p.sum(axis=1)
+    r = np.sum((y[None] - theta[:, None]) ** 2, axis=2)
+    m_step = (np.diag(p1) @ g + lam * st.s2 * np.eye(n)) @ st.coef - (p @ y - p1[:, None] * u)
+    return abs(np.sum(p * r) / (d * p.sum()) / st.s2 - 1), np.abs(m_step).max()
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_the_estep_with_known_points_equals_the_posteriors_with_indicator_columns(d):
@@ -61,6 +91,67 @@ def test_the_estep_with_known_points_equals_the_posteriors_with_indicator_column
                                   posteriors(theta, y, s2, w, volume)[:, free])
 
 
+def test_the_label_array_of_one_pair_and_of_none():
+    """One pair is a correspondence too; no pair (None or an empty array) is the empty array of the plain EM."""
+    assert label_array(np.array([[3, 1]]), 4).tolist() == [-1, 3, -1, -1]
+    for none in (None, np.zeros((0, 2), dtype=np.int64)):
+        lab = label_array(none, 4)
+        assert lab.shape == (0,) and lab.dtype == np.int64
+
+
+def test_em_with_known_points_stops_at_a_fixed_point_of_the_labelled_em():
+    """run_em with labels ends where the module docstring's M-step, (diag(P1) G + λσ² I) W = P y − diag(P1) u,
+    and σ² = Σ P_ij |y_j − θ_i|² / (d Σ P_ij) hold with the brute-force posteriors of the known points; the
+    unlabelled posteriors do not satisfy them there (a known point far from its source)."""
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(8, 2))
+    y = np.vstack([u[rng.permutation(8)] * 1.1 + 0.05 * rng.normal(size=(8, 2)), [[2.5, -2.0]]])
+    g = np.exp(-np.sum((u[:, None] - u[None]) ** 2, axis=2) / 4)
+    lab = label_array(np.array([[1, 8], [5, 0]]), len(y))
+    lam, w, volume = 2.0, 0.1, 20.0
+    st = run_em(EMState(u=u, kernel=Kernel.of(g), coef=np.zeros_like(u), s2=1.0, w=w), y, lam=lam, volume=volume,
+                max_iter=500, tol=1e-10, labels=lab)
+    assert st.ok
+    s2_res, m_res = _labelled_em_residuals(st, y, lam, volume, lab)
+    assert s2_res < 1e-8 and m_res < 1e-8
+    s2_res, m_res = _labelled_em_residuals(st, y, lam, volume, np.full(len(y), -1))
+    assert s2_res > 0.1 and m_res > 0.1
+
+
+def _gauss_kernel(u, width=2.0):
+    return Kernel.of(np.exp(-np.sum((u[:, None] - u[None]) ** 2, axis=2) / width))
+
+
+def test_the_search_fits_and_scores_every_start_with_the_known_points_and_the_given_volume():
+    """fit_all with labels and a volume other than the target's box: every screened and final fit is scored by
+    F with the known points at that volume (scipy's densities), and every final fit is a fixed point of the
+    labelled EM at that volume."""
+    t = np.linspace(0, 2 * np.pi, 14, endpoint=False)
+    xn = np.column_stack([np.cos(t), 0.6 * np.sin(t) + 0.1 * np.cos(2 * t)])
+    perm = np.random.default_rng(2).permutation(14)
+    c, s_ = np.cos(0.7), np.sin(0.7)
+    yn = (xn @ np.array([[c, -s_], [s_, c]]).T * 1.05)[perm]
+    where = np.argsort(perm)
+    lab = label_array(np.array([[0, where[3]], [7, where[7]]]), 14)  # source 0 pulled onto target point 3's place
+    volume, lam = 7.0, 2.0
+    assert abs(box_volume(yn) - volume) > 1.0
+    fits, rots, screened = _nonrigid.fit_all(xn, yn, kernel_of=_gauss_kernel, lam=lam, w=0.1, fixed_s2=None,
+                                             reflection=False, max_iter=500, tol=1e-10, s2_floor=1e-8,
+                                             volume=volume, labels=lab)
+    for f, k, st in screened + fits:
+        assert f == pytest.approx(_brute_objective(st, yn, lam, volume, lab), rel=1e-9)
+    for f, k, st in fits:
+        assert st.ok
+        s2_res, m_res = _labelled_em_residuals(st, yn, lam, volume, lab)
+        assert s2_res < 1e-7 and m_res < 1e-7
+    # the refit with another kernel (metric or kernel other than the search's) from the best fit's pose: the same
+    st = _nonrigid.refit(fits[0][2].u, yn, 0.1, lambda u: _gauss_kernel(u, 8.0), volume=volume, lam=lam,
+                         fixed_s2=None, max_iter=500, tol=1e-10, s2_floor=1e-8, labels=lab)
+    assert st.ok
+    s2_res, m_res = _labelled_em_residuals(st, yn, lam, volume, lab)
+    assert s2_res < 1e-7 and m_res < 1e-7
+
+
 def test_the_objective_with_known_points_is_the_complete_data_negative_log_likelihood():
     """F: −Σ_j log[(1 − w)/n Σ_i N(y_j; θ_i) + w/V] over the unknown points, −log[(1 − w)/n N(y_j; θ_{l_j})]
     over the known ones (scipy's normal densities), plus the deformation prior."""
@@ -87,6 +178,30 @@ def test_the_objective_with_known_points_is_the_complete_data_negative_log_likel
     assert plain + 0.5 * lam * np.sum(st.coef * (g @ st.coef)) == pytest.approx(
         objective(st, y, lam=lam, volume=volume), rel=1e-12)
     assert abs(plain - (expect - 0.5 * lam * np.sum(st.coef * (g @ st.coef)))) > 1e-3
+
+
+def test_a_source_point_with_a_known_target_point_is_matched_in_the_assessment():
+    """assess counts a source point as matched by its known target point even far from it (the share of source
+    points with less than half a target point, from the brute-force posteriors with the indicator columns)."""
+    rng = np.random.default_rng(4)
+    theta = rng.normal(size=(8, 2))
+    y = np.vstack([theta[:5] + 0.02 * rng.normal(size=(5, 2)), theta[5:] + 4.0])  # 5..7 far from their sources
+    st = EMState(u=theta, kernel=None, coef=np.zeros_like(theta), s2=0.01, w=0.1)
+    volume = 30.0
+    c = outlier_term(8, 2, 0.01, 0.1, volume)
+    for lab in (label_array(np.array([[5, 5], [6, 6], [7, 7]]), len(y)), np.full(len(y), -1)):
+        reasons, diag = _nonrigid.assess([(0.0, 0, st)], y, spacing2=0.01, volume=volume,
+                                         labels=lab if lab.max() >= 0 else None)
+        expect = np.mean(_brute_posteriors(theta, y, 0.01, c, lab).sum(axis=1) < 0.5)
+        assert diag["unmatched_source_share"] == expect
+        assert any("match no target point" in r for r in reasons) == (expect > 1 / 3)
+    assert expect == 3 / 8  # without the labels the three far source points match nothing
+    # the given volume, not the target's box: a tiny one (a dense outlier component) leaves only the known matched
+    lab = label_array(np.array([[5, 5], [6, 6], [7, 7]]), len(y))
+    tiny = 1e-4
+    _, diag = _nonrigid.assess([(0.0, 0, st)], y, spacing2=0.01, volume=tiny, labels=lab)
+    expect = np.mean(_brute_posteriors(theta, y, 0.01, outlier_term(8, 2, 0.01, 0.1, tiny), lab).sum(axis=1) < 0.5)
+    assert diag["unmatched_source_share"] == expect == 5 / 8
 
 
 def _ellipse_case():
@@ -121,6 +236,44 @@ def test_two_landmarks_decide_the_pose_of_a_near_symmetric_shape_and_are_kept():
     assert flipped.reliable and np.abs(flipped.points - truth).max() < 1e-3
 
 
+def test_one_landmark_given_as_whole_floats_decides_the_pose():
+    """A single pair is a landmark too, and integer-valued floats (a CSV's) are indices: either half turn of the
+    source goes to the pose the landmark names."""
+    x, y, truth, perm = _ellipse_case()
+    where = np.argsort(perm)
+    for source in (x, -x):
+        res = sl.register(source, y, landmarks=np.array([[15.0, float(where[15])]]), warn=False)
+        assert res.reliable and np.abs(res.points - truth).max() < 1e-3
+
+
+def test_a_landmark_pulls_its_source_point_onto_the_target_point_it_names_in_the_refit_too():
+    """kernel='means' refits the search's pose with another kernel: a landmark naming the target point three
+    places along (of spacing about 0.07) still pulls the source point most of the way there."""
+    x, y, truth, perm = _ellipse_case()
+    where = np.argsort(perm)
+    named = y[where[3]]
+    pulled = sl.register(x, y, landmarks=np.array([[0, where[3]], [15, where[15]]]), kernel="means", warn=False)
+    free = sl.register(x, y, landmarks=np.array([[15, where[15]]]), kernel="means", warn=False)
+    assert np.linalg.norm(free.points[0] - named) > 0.15
+    assert np.linalg.norm(pulled.points[0] - named) < 0.5 * np.linalg.norm(free.points[0] - named)
+    assert pulled.probabilities[0, where[3]] == 1.0 and pulled.correspondence[0] == where[3]
+
+
+def test_the_unmatched_share_of_a_partial_target_counts_the_landmarks_as_matched():
+    """The target lacks source points 38..51; two landmarks tie source points 44 and 45 to the gap's ends. The
+    reported share of unmatched source points is that of the result's posteriors, where those two have their
+    known target points: 10 of the 14 missing, not 12."""
+    x, y, truth, perm = _ellipse_case()
+    where = np.argsort(perm)
+    keep = np.setdiff1d(np.arange(60), where[38:52])
+    pos = {j: k for k, j in enumerate(keep)}
+    lm = np.array([[15, pos[where[15]]], [44, pos[where[37]]], [45, pos[where[52]]]])
+    res = sl.register(x, y[keep], landmarks=lm, warn=False)
+    sums = res.probabilities.sum(axis=1)
+    assert np.all(sums[lm[:, 0]] >= 1.0)
+    assert res.diagnostics["unmatched_source_share"] == np.mean(sums < 0.5) == 10 / 60
+
+
 def test_without_landmarks_the_same_shape_is_flagged_as_ambiguous():
     """The case of the test above is ambiguous without the landmarks: the result says so."""
     x, y, _, _ = _ellipse_case()
@@ -141,17 +294,58 @@ def test_landmarks_reach_the_subsets_of_a_large_registration(monkeypatch):
     np.testing.assert_array_equal(res.target_correspondence[lm[:, 1]], lm[:, 0])
     # the right pose (the half turn would leave a mean error near 1); the warp of 40-point subsets is coarse
     assert np.mean(np.linalg.norm(res.points - truth, axis=1)) < 0.1
+    # the other points: the nearest point of the other set within the reach 3σ + the target's spacing
+    d2 = np.sum((res.points[:, None] - y[None]) ** 2, axis=2)
+    spacing = np.median(np.sort(np.sqrt(np.sum((y[:, None] - y[None]) ** 2, axis=2)), axis=1)[:, 1])
+    reach = 3 * np.sqrt(res.sigma2) + spacing
+    near = np.where(np.sqrt(d2.min(axis=1)) <= reach, d2.argmin(axis=1), -1)
+    near_t = np.where(np.sqrt(d2.min(axis=0)) <= reach, d2.argmin(axis=0), -1)
+    others, others_t = np.setdiff1d(np.arange(60), lm[:, 0]), np.setdiff1d(np.arange(60), lm[:, 1])
+    np.testing.assert_array_equal(res.correspondence[others], near[others])
+    np.testing.assert_array_equal(res.target_correspondence[others_t], near_t[others_t])
+    # half of MAX_POINTS is the most: 20 landmarks and 20 spread points
+    every3 = np.arange(0, 60, 3)
+    res = sl.register(x, y, landmarks=np.column_stack([every3, where[every3]]), warn=False)
+    np.testing.assert_array_equal(res.correspondence[every3], where[every3])
     with pytest.raises(ValueError, match="at most 20 known correspondences"):
         sl.register(x, y, landmarks=np.column_stack([np.arange(21), where[:21]]))
 
 
+def test_the_landmarks_join_the_subsets_renumbered_onto_the_same_points(monkeypatch):
+    """Landmarks outside the farthest-point subsets: each subset is those points plus its landmarks, and the
+    renumbered pairs handed to the subsets' fit name the same source and target points."""
+    monkeypatch.setattr(registration, "MAX_POINTS", 40)
+    x, y, truth, perm = _ellipse_case()
+    where = np.argsort(perm)
+    lm = np.array([[i, where[i]] for i in (5, 28, 54)])
+    spread_x, spread_y = registration.farthest_points(x, 37), registration.farthest_points(y, 37)
+    assert not set(lm[:, 0]) & set(spread_x) and not set(lm[:, 1]) & set(spread_y)
+    seen = []
+
+    def fit(xs, ys, pairs):
+        seen.append((xs, ys, pairs))
+        return sl.register(xs, ys, landmarks=pairs, warn=False)
+
+    res = registration._register_large(x, y, fit, lm)
+    (xs, ys, sub), = seen
+    np.testing.assert_array_equal(xs, x[np.sort(np.concatenate([spread_x, lm[:, 0]]))])
+    np.testing.assert_array_equal(ys, y[np.sort(np.concatenate([spread_y, lm[:, 1]]))])
+    np.testing.assert_array_equal(xs[sub[:, 0]], x[lm[:, 0]])
+    np.testing.assert_array_equal(ys[sub[:, 1]], y[lm[:, 1]])
+    np.testing.assert_array_equal(res.correspondence[lm[:, 0]], lm[:, 1])
+
+
 @pytest.mark.parametrize("landmarks, match", [
     (np.array([0, 1]), r"shape \(k, 2\)"),
+    (np.array([7]), r"shape \(k, 2\)"),
     (np.array([[0.5, 1]]), "integers"),
     (np.array([[60, 1]]), "source point 60, outside 0..59"),
     (np.array([[0, -1]]), "target point -1"),
     (np.array([[0, 1], [0, 2]]), "source point 0 is named in more than one row"),
     (np.array([[0, 1], [2, 1]]), "target point 1 is named in more than one row"),
+    (np.array([[0, 1], [3, 2], [5, 0], [3, 4]]), "source point 3 is named in more than one row"),
+    (np.array([[0, 4], [1, 2], [2, 4]]), "target point 4 is named in more than one row"),
+    (np.array([[0, 60]]), "target point 60, outside 0..59"),
 ])
 def test_bad_landmarks_are_refused_naming_the_row_or_point(landmarks, match):
     x, y, _, _ = _ellipse_case()
