@@ -8,7 +8,9 @@ the same paths on larger problems (slower)."""
 
 import os
 import sys
+import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -172,8 +174,10 @@ def _check_trace(r, i, start, stop):
                                                          rel=1e-12)
     g = path_energy(model, r["path"][i])[1]
     assert r["grad_norm"][i] == pytest.approx(np.linalg.norm(g), rel=1e-8)
-    if it:
-        assert r["rel_change"][i] == pytest.approx((trace[it - 1] - trace[it]) / trace[it - 1], rel=1e-12)
+    if stop == StopReason.NO_DECREASE or not it:  # the last step was refused, or none was taken
+        assert r["rel_change"][i] == 0.0
+    else:
+        assert r["rel_change"][i] == pytest.approx((trace[it - 1] - trace[it]) / trace[it - 1], rel=1e-12, abs=0)
     assert r["stopped_by"][i] == stop
     np.testing.assert_array_equal(r["path"][i][[0, -1]], start[[0, -1]])
 
@@ -195,6 +199,14 @@ def test_the_stop_words_are_those_of_the_energy_traces(starts):
         assert t["n_iter"][i] == min(2 + i % 3, r["n_iter"][i])
         np.testing.assert_allclose(t["energies"][i][:t["n_iter"][i] + 1], r["energies"][i][:t["n_iter"][i] + 1],
                                    rtol=1e-12)
+    # a target met by the start itself (the device's own start energy): no step
+    at0 = batched.lbfgs_solve(starts, metric="alpha", sigma2=S2, tol=tol, max_iter=200, window=window,
+                              target_energy=r["energies"][:, 0], device="cpu")
+    assert list(at0["n_iter"]) == [0] * 9 and at0["stopped_by"] == [StopReason.TARGET_ENERGY] * 9
+    # a tolerance no decrease can meet: every pair stops as soon as the window is full
+    wide = batched.lbfgs_solve(starts, metric="alpha", sigma2=S2, tol=1e3, max_iter=200, window=window,
+                               device="cpu")
+    assert list(wide["n_iter"]) == [window] * 9 and wide["stopped_by"] == [StopReason.ENERGY_WINDOW] * 9
     # no iteration: the start itself; without the window: until no step lowers the energy
     z = batched.lbfgs_solve(starts, metric="alpha", sigma2=S2, max_iter=0, device="cpu")
     assert list(z["n_iter"]) == [0] * 9 and z["stopped_by"] == [StopReason.MAX_ITER] * 9
@@ -236,10 +248,12 @@ def test_batched_alpha_geodesics_are_the_cpu_geodesics_pair_by_pair(alpha_pairs)
         assert r.grad_norm == pytest.approx(np.linalg.norm(path_energy(model, r.path)[1]), rel=1e-6)
         straight = path_energy(model, np.linspace(a, b, N + 1), gradient=False)[0]
         log = r.log
-        assert log["energy"][0] == pytest.approx(straight, rel=1e-12) and log["energy"][-1] == pytest.approx(r.energy, rel=1e-12)
+        assert log["energy"][0] == pytest.approx(straight, rel=1e-12)
+        assert log["energy"][-1] == pytest.approx(r.energy, rel=1e-12)
         assert len(log["energy"]) == r.n_iter + 1 and r.n_iter > 0
         assert np.all(np.diff(log["energy"]) < 0)
         assert log["stopped_by"] == r.stop_reason.value and log["regrids"] == 0 and log["n_steps"] == N
+        assert log["tol"] == kw["tol"] and log["seconds"] > 0
         assert (log["solver"], log["backend"], log["device"], log["hessian"]) == (
             "lbfgs", "jax", str(jax.devices("cpu")[0]), None)
         steps = np.linalg.norm(np.diff(r.path, axis=0), axis=2)
@@ -272,6 +286,7 @@ def test_identical_and_one_step_pairs_are_trivial_beside_solved_ones(alpha_pairs
     one = batched.batched_geodesics(us, vs, device="cpu", **{**kw, "n_steps": 1})
     for a, b, r in zip(us, vs, one):
         assert r.stop_reason == StopReason.TRIVIAL and r.path.shape == (2,) + a.shape
+        assert r.log["energy"] == [r.energy]
         ell = shapelib.path_length(np.stack([a, b]), metric="alpha", sigma2=S2)
         assert r.length == pytest.approx(ell, rel=1e-11) and r.energy == pytest.approx(ell ** 2, rel=1e-11)
 
@@ -292,10 +307,17 @@ def test_init_targets_lower_bounds_and_the_warning(alpha_pairs):
     assert [r.n_iter for r in tgt] == [0, res[1].n_iter, 0]
     assert tgt[0].length == pytest.approx(shapelib.path_length(np.linspace(us[0], vs[0], N + 1), metric="alpha",
                                                                sigma2=S2), rel=1e-11)
-    with pytest.warns(GeodesicWarning, match=r"did not converge for 3 of 3 pairs in 1 L-BFGS iterations") as w:
-        short = batched.batched_geodesics(us, vs, device="cpu", **{**kw, "max_iter": 1})
-    assert len(w) == 1 and (UNDER_MUTMUT or w[0].filename == __file__)  # at the caller's line
-    assert all(r.stop_reason == StopReason.MAX_ITER and not r.converged for r in short)
+    # one iteration: the pair with a target met at the start converged, the two others did not
+    with pytest.warns(GeodesicWarning) as w:
+        t0 = time.perf_counter()
+        short = batched.batched_geodesics(us, vs, device="cpu", target_energy=[1e9, 0.0, 0.0], **{**kw, "max_iter": 1})
+        wall = time.perf_counter() - t0
+    assert [r.stop_reason for r in short] == [StopReason.TARGET_ENERGY] + [StopReason.MAX_ITER] * 2
+    assert len(w) == 1 and str(w[0].message) == ("alpha geodesic did not converge for 2 of 3 pairs in 1 L-BFGS "
+                                                 f"iterations (first: {short[1].summary()})")
+    # at the caller's line (under mutmut, at its trampoline's: one frame more between the caller and the code)
+    assert Path(w[0].filename).name == ("trampoline.py" if UNDER_MUTMUT else Path(__file__).name)
+    assert 0 < sum(r.log["seconds"] for r in short) <= wall  # the call's time shared among its pairs
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         batched.batched_geodesics(us, vs, device="cpu", warn=False, **{**kw, "max_iter": 1})
