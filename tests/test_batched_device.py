@@ -307,6 +307,9 @@ def test_init_targets_lower_bounds_and_the_warning(alpha_pairs):
     assert [r.n_iter for r in tgt] == [0, res[1].n_iter, 0]
     assert tgt[0].length == pytest.approx(shapelib.path_length(np.linspace(us[0], vs[0], N + 1), metric="alpha",
                                                                sigma2=S2), rel=1e-11)
+    # tol and window reach the device loop: a tolerance no decrease can meet stops each pair once its window is full
+    wide = batched.batched_geodesics(us, vs, device="cpu", **{**kw, "tol": 1e3, "window": 2})
+    assert [r.n_iter for r in wide] == [2, 2, 2] and all(r.stop_reason == StopReason.ENERGY_WINDOW for r in wide)
     # one iteration: the pair with a target met at the start converged, the two others did not
     with pytest.warns(GeodesicWarning) as w:
         t0 = time.perf_counter()
@@ -350,6 +353,11 @@ def test_batched_fisher_rao_geodesics_are_the_cpu_geodesics(fr_pairs):
                                          rel=1e-11)
         assert r.lower_bound == pytest.approx(c.lower_bound, rel=1e-13)
     np.testing.assert_allclose(res[1].path, res[0].path[::-1], atol=1e-4)
+    # one step: nothing to solve, the straight segment's length on the grid asked for
+    one = batched.batched_geodesics(us[:1], vs[:1], device="cpu", **{**kw, "n_steps": 1})[0]
+    assert one.stop_reason == StopReason.TRIVIAL
+    assert one.length == pytest.approx(shapelib.path_length(np.stack([us[0], vs[0]]), metric="fisher_rao", sigma2=S2,
+                                                            **GRID), rel=1e-11)
 
 
 def test_a_path_that_leaves_its_grid_is_solved_again_on_a_new_grid(fr_pairs, monkeypatch):
@@ -364,3 +372,8 @@ def test_a_path_that_leaves_its_grid_is_solved_again_on_a_new_grid(fr_pairs, mon
         assert r.length == pytest.approx(shapelib.path_length(r.path, metric="fisher_rao", sigma2=S2, **GRID),
                                          rel=1e-11)
         assert r.length == pytest.approx(c.length, rel=1e-3)
+    # two iterations a round (fewer than a solve takes): each round adds two to the count and to the log
+    short = batched.batched_geodesics(us, vs, device="cpu", warn=False, **{**kw, "max_iter": 2})
+    for r in short:
+        assert r.log["regrids"] == batched.MAX_REGRIDS and r.stop_reason == StopReason.MAX_ITER
+        assert r.n_iter == 2 * (batched.MAX_REGRIDS + 1) and len(r.log["energy"]) == r.n_iter + 1
