@@ -68,15 +68,23 @@ def test_batched_lengths_are_the_cpu_quadrature_of_each_path_in_any_order(paths,
     assert len(set(np.round(length, 6))) == 3
     rev = batched.batched_lengths(paths[::-1], metric=metric, sigma2=S2, device="cpu", **GRID)
     np.testing.assert_allclose(np.stack(rev)[:, ::-1], np.stack([length, energy]), rtol=1e-13)
+    # nine paths: a device batch of ten lanes, the last a copy of the first, cut off
+    nine = np.concatenate([paths, paths + 0.5, paths[:, ::-1]])
+    length9, energy9 = batched.batched_lengths(nine, metric=metric, sigma2=S2, device="cpu", **GRID)
+    assert length9.shape == energy9.shape == (9,)
+    np.testing.assert_allclose(length9[:3], length, rtol=1e-13)
+    np.testing.assert_allclose(length9[6:], length, rtol=1e-12)  # a path backwards has the same length
+    for p, ell in zip(nine[3:6], length9[3:6]):
+        assert ell == pytest.approx(shapelib.path_length(p, metric=metric, sigma2=S2, **GRID), rel=1e-11)
 
 
 def test_the_fisher_rao_length_of_one_landmark_is_its_displacement_over_sigma():
-    """K = 1: the Fisher information of a Gaussian's mean is I/σ², so a straight path has length ‖Δ‖/σ."""
-    u = np.array([[0.3, -0.2]])
-    steps = np.array([[1.0, 0.5], [-0.7, 2.0]])
-    paths = np.stack([np.linspace(u, u + s, N + 1) for s in steps])
+    """K = 1: the Fisher information of a Gaussian's mean is I/σ², so a straight path has length ‖Δ‖/σ
+    (here ``N‖step‖/σ``)."""
+    steps = np.array([[1, 2], [-3, 1]])
+    paths = np.arange(N + 1)[None, :, None, None] * steps[:, None, None, :]  # integers, read as floats
     length, energy = batched.batched_lengths(paths, metric="fisher_rao", sigma2=S2, device="cpu")
-    exact = np.linalg.norm(steps, axis=1) / np.sqrt(S2)
+    exact = N * np.linalg.norm(steps, axis=1) / np.sqrt(S2)
     np.testing.assert_allclose(length, exact, rtol=1e-6)
     np.testing.assert_allclose(energy, exact ** 2, rtol=1e-6)  # constant speed: E = L²
 
