@@ -228,3 +228,14 @@ def test_the_defaults_are_the_cpu_solvers():
     for name in ("metric", "n_steps", "tol", "max_iter", "window", "init", "grid_spacing", "grid_margin", "device",
                  "warn"):
         assert ours[name].default == cpu[name].default, name
+
+
+def test_the_device_solvers_defaults_are_the_cpu_solvers():
+    """lbfgs_solve stops as shapelib.geodesic does by default (tolerance, iterations, window)."""
+    import inspect
+
+    import shapelib
+
+    ours, cpu = (inspect.signature(f).parameters for f in (batched.lbfgs_solve, shapelib.geodesic))
+    for name in ("tol", "max_iter", "window"):
+        assert ours[name].default == cpu[name].default, name
