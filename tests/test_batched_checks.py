@@ -180,15 +180,15 @@ def test_identical_pairs_are_trivial_constant_paths_of_length_zero():
 
 def test_given_lower_bounds_and_init_ends_are_used():
     us = np.stack([U, U])
-    init = np.stack([np.broadcast_to(U, (3, 3, 2)) + 5.0] * 2)  # the ends are replaced by the pairs'
+    init = np.full((2, 3, 3, 2), 5)  # integers, read as floats: the ends are replaced by the pairs' (1.5 kept)
     res = batched_geodesics(us, us, metric="fisher_rao", sigma2=0.5, n_steps=2, init=init, lower_bounds=[0.25, 0.5],
                             device="cpu")
     assert [r.lower_bound for r in res] == [0.25, 0.5]
     for r in res:
         np.testing.assert_array_equal(r.path[0], U)
         np.testing.assert_array_equal(r.path[-1], U)
-        np.testing.assert_array_equal(r.path[1], U + 5.0)
-        assert r.max_step_over_sigma == pytest.approx(np.linalg.norm([5.0, 5.0]) / np.sqrt(0.5))
+        np.testing.assert_array_equal(r.path[1], np.full((3, 2), 5.0))
+        assert r.max_step_over_sigma == pytest.approx(np.linalg.norm(U - 5.0, axis=1).max() / np.sqrt(0.5))
     model = path_metric("fisher_rao", 0.5)
     res = batched_geodesics(us, us, metric="fisher_rao", sigma2=0.5, n_steps=2, device="cpu")
     assert res[0].lower_bound == model.lower_bound(U, U)
@@ -196,8 +196,8 @@ def test_given_lower_bounds_and_init_ends_are_used():
 
 @pytest.mark.parametrize("kwargs, match", [
     (dict(metric="euclid"), r"^metric must be one of"),
-    (dict(n_steps=0), "n_steps"), (dict(tol=0.0), "tol"), (dict(max_iter=-1), "max_iter"), (dict(window=0), "window"),
-    (dict(batch_size=0), "batch_size"),
+    (dict(n_steps=0), "^n_steps must be"), (dict(tol=0.0), "^tol must be"), (dict(max_iter=-1), "^max_iter must be"),
+    (dict(window=0), "^window must be"), (dict(batch_size=0), "^batch_size must be"),
     (dict(init=np.zeros((2, 3, 3, 2))), r"^init must have shape \(2, 5, 3, 2\); got \(2, 3, 3, 2\)$"),
     (dict(init=np.full((2, 5, 3, 2), np.nan)), "^init contains non-finite values$"),
 ])
@@ -216,3 +216,26 @@ def test_pairs_of_different_shapes_are_refused():
 def test_the_constants_are_the_documented_ones():
     assert batched.BACKENDS == ("cpu", "jax") and batched.DEVICES == (None, "cpu", "gpu")
     assert batched.GRID_PAD == 2.0 and batched.MAX_REGRIDS == 3 and batched.LBFGS_HISTORY == 10
+
+
+def test_the_defaults_are_the_cpu_solvers():
+    """batched_geodesics solves what shapelib.geodesic does for one pair: the same settings by default."""
+    import inspect
+
+    import shapelib
+
+    ours, cpu = (inspect.signature(f).parameters for f in (batched_geodesics, shapelib.geodesic))
+    for name in ("metric", "n_steps", "tol", "max_iter", "window", "init", "grid_spacing", "grid_margin", "device",
+                 "warn"):
+        assert ours[name].default == cpu[name].default, name
+
+
+def test_the_device_solvers_defaults_are_the_cpu_solvers():
+    """lbfgs_solve stops as shapelib.geodesic does by default (tolerance, iterations, window)."""
+    import inspect
+
+    import shapelib
+
+    ours, cpu = (inspect.signature(f).parameters for f in (batched.lbfgs_solve, shapelib.geodesic))
+    for name in ("tol", "max_iter", "window"):
+        assert ours[name].default == cpu[name].default, name
