@@ -26,7 +26,8 @@ and which of its fits is the answer. Both sets come in normalised units (zero me
 (two sets of ~100 points: ~45 µs an iteration, of which the E-step is 29 µs and the M-step the
 rest), the six final fits about 30 %. Cheaper searches, measured on samples 1–5 of the
 Chui–Rangarajan benchmark (280 registrations; failures are errors above 0.05; the defaults: 27
-failures, mean error 0.0257), each lost accuracy for less than half the time:
+failures, mean error 0.0257); none kept the accuracy and halved the time — those that saved a
+quarter or more lost accuracy, those that kept it saved a few per cent:
 
 * successive halving (16 starts for 10 iterations, the best 8 to 20, the best 4 to 40; or 16 to
   15, the best 6 to 40): 31 or 29 failures, mean error 0.0327 or 0.0275, 30 % less time;
