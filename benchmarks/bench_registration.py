@@ -178,7 +178,7 @@ def parse_methods(ap, text: str) -> list[str]:
 
 
 def run_levels(levels, samples, methods, case_of, *, time_limit=None, dim=2, width=20) -> dict:
-    """Every level × sample × method, BLAS on one thread: ``{level: {method: cell}}``.
+    """Every level × method × sample, BLAS on one thread: ``{level: {method: cell}}``.
 
     ``case_of(level, sample)`` gives ``(source, target, truth)``; a method's error is
     ``mean_i |moved_i − truth_i|`` over the first ``len(truth)`` points of the moved source. A cell
@@ -194,9 +194,11 @@ def run_levels(levels, samples, methods, case_of, *, time_limit=None, dim=2, wid
             row = {m: {"samples": [], "errors": [], "times": [], "exceptions": []} for m in methods}
             if "shapelib" in row:
                 row["shapelib"].update(reliable=[], converged=[])
-            for sample in samples:
-                source, target, truth = case_of(name, sample)
-                for m in methods:
+            cases = [case_of(name, sample) for sample in samples]
+            # method by method over the level's samples: a method runs after itself, so that one
+            # whose threads linger after a call (probreg's) slows only its own timings
+            for m in methods:
+                for sample, (source, target, truth) in zip(samples, cases):
                     moved, seconds, info = run(m, source, target, time_limit)
                     cell = row[m]
                     cell["samples"].append(sample)

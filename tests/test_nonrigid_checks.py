@@ -5,6 +5,7 @@ reasons at and around their thresholds on configurations whose answer is known b
 count of far points, a posterior of exactly one half), and the kernel's factor against its matrix."""
 
 import itertools
+import threading
 import re
 
 import numpy as np
@@ -137,9 +138,9 @@ def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative
     volume = float(np.prod(yn.max(axis=0) - yn.min(axis=0)))
     fits, rots, screened = nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=lam, w=None,
                                       fixed_s2=None, reflection=False, max_iter=max_iter, tol=0.0, s2_floor=1e-6)
-    assert len(rots) == 16 and len(screened) == 16 and len(fits) == nr.N_KEEP * len(nr.W_GRID)
+    assert len(rots) == len(screened) == nr.N_ROT_2D and len(fits) == nr.N_KEEP * len(nr.W_GRID)
     # the screening: every start once, SCREEN_ITER iterations each, ordered by objective
-    assert sorted(k for _, k, _ in screened) == list(range(16))
+    assert sorted(k for _, k, _ in screened) == list(range(nr.N_ROT_2D))
     assert [f for f, _, _ in screened] == sorted(f for f, _, _ in screened)
     for f, k, st in screened:
         assert st.it == nr.SCREEN_ITER and st.w == nr.W_SCREEN
@@ -158,6 +159,36 @@ def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative
         assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume), rel=1e-9)
     # the right pose wins: the best fit lies on the target
     assert np.mean(np.linalg.norm(fits[0][2].theta - yn, axis=1)) < 0.05
+
+
+@pytest.mark.parametrize("n_threads", [2, 3])
+def test_the_search_on_threads_is_the_search_in_one_thread_and_reports_every_step(n_threads):
+    """The starts and the final fits run side by side on threads: the same fits bit for bit, in the
+    same order, and ``progress`` told of every start and every fit in order."""
+    xn, yn = _pair()
+    opts = dict(kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=None, fixed_s2=None, reflection=True,
+                max_iter=80, tol=1e-6, s2_floor=1e-8)
+    one = nr.fit_all(xn, yn, **opts)
+    ticks = []
+    many = nr.fit_all(xn, yn, n_threads=n_threads, progress=lambda done, total: ticks.append((done, total)), **opts)
+    for a, b in zip(one[0] + one[2], many[0] + many[2]):  # the fits, then the screening
+        assert (a[0], a[1]) == (b[0], b[1])
+        np.testing.assert_array_equal(a[2].coef, b[2].coef)
+        assert (a[2].s2, a[2].w, a[2].it, a[2].ok) == (b[2].s2, b[2].w, b[2].it, b[2].ok)
+    total = 2 * nr.N_ROT_2D + nr.N_KEEP * len(nr.W_GRID)
+    assert ticks == [(k, total) for k in range(1, total + 1)]
+
+
+def test_an_error_during_the_threaded_search_reaches_the_caller_and_leaves_no_thread():
+    xn, yn = _pair()
+
+    def stop(done, total):
+        raise KeyboardInterrupt  # as Ctrl-C lands in the main thread while it waits for the starts
+
+    with pytest.raises(KeyboardInterrupt):
+        nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=None, fixed_s2=None,
+                   reflection=False, max_iter=80, tol=1e-6, s2_floor=1e-8, n_threads=2, progress=stop)
+    assert not [t for t in threading.enumerate() if t.name.startswith("shapelib-register")]
 
 
 def test_a_fit_that_converges_in_the_screening_is_kept_as_it_stopped():
@@ -181,7 +212,7 @@ def test_a_given_weight_a_fixed_sigma2_and_the_floor_reach_every_fit():
     xn, yn = _pair()
     common = dict(kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, reflection=True, tol=1e-6)
     fits, rots, screened = nr.fit_all(xn, yn, w=0.3, fixed_s2=0.02, max_iter=12, s2_floor=1e-8, **common)
-    assert len(rots) == len(screened) == 32 and len(fits) == nr.N_KEEP
+    assert len(rots) == len(screened) == 2 * nr.N_ROT_2D and len(fits) == nr.N_KEEP
     for _, k, st in fits:  # the fixed σ² never moves; fixed-σ² EM runs its max_iter and counts as converged
         assert st.s2 == 0.02 and st.w == 0.3 and st.it == 12 and st.ok
         hand = _by_hand(xn, yn, rots[k], 0.3, lam=2.0, max_iter=12, tol=1e-6, fixed_s2=0.02)

@@ -472,11 +472,38 @@ def test_a_large_nonrigid_registration_with_another_kernel_is_refused(monkeypatc
     (dict(metric="l2"), "metric must be one of"),
     (dict(kernel="Weights"), "kernel must be one of ('weights', 'means'); got 'Weights'"),
     (dict(progress="bar"), "progress must be a callable progress(done, total) or None; got 'bar'"),
+    (dict(n_threads=0), "n_threads must be"),
+    (dict(n_threads=1.5), "n_threads must be"),
 ])
 def test_each_bad_option_gets_a_value_error_naming_it(kwargs, words):
     with pytest.raises(ValueError) as info:
         sl.register(fish(10), fish(12), **kwargs)
     assert str(info.value).startswith(words)  # the message starts with the parameter's name
+
+
+def test_the_threads_of_the_search_change_nothing_and_default_to_the_cores_outside_a_dask_worker(monkeypatch):
+    x, y = noisy_case()
+    one = sl.register(x, y, n_threads=1, warn=False)
+    two = sl.register(x, y, n_threads=2, warn=False)
+    np.testing.assert_array_equal(one.points, two.points)
+    np.testing.assert_array_equal(one.correspondence, two.correspondence)
+    assert (one.sigma2, one.w, one.objective, one.reliable) == (two.sigma2, two.w, two.objective, two.reliable)
+    seen = []
+    from shapelib.pointsets import _nonrigid
+
+    fit_all = _nonrigid.fit_all
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs["n_threads"])
+        return fit_all(*args, **kwargs)
+
+    monkeypatch.setattr(_nonrigid, "fit_all", spy)
+    monkeypatch.setattr(reg, "n_cores", lambda: 3)
+    sl.register(x, y, warn=False)
+    monkeypatch.setattr(reg, "in_dask_worker", lambda: True)
+    sl.register(x, y, warn=False)
+    sl.register(x, y, warn=False, n_threads=2)
+    assert seen == [3, 1, 2]
 
 
 def test_sigma2_none_means_auto_and_w_zero_is_allowed():

@@ -355,7 +355,7 @@ def _extrapolate(c0, s0, c1, s1, c2, s2, s2_floor):
     return c0 - 2.0 * alpha * r + alpha * alpha * v, max(math.exp(min(lx, 30.0)), s2_floor)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, nogil=True)
 def _em_loop(u, q, ev, full, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_floor, log_wn, plain, lab):
     """:func:`run_em`'s iterations, compiled (the kernel as :func:`_apply` takes it): ``plain`` EM
     iterations, then the cycle of the module docstring (two EM iterations, SQUAREM's extrapolation,
@@ -482,7 +482,7 @@ def run_em(st, y, *, lam, volume, max_iter, tol, fixed_s2=None, s2_floor=1e-12, 
     return st
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FAST)
+@njit(cache=True, error_model="numpy", fastmath=_FAST, nogil=True)
 def _neg_loglik(theta, y, s2, log_wn, log_wv, lab):
     """``−Σ_j log[(1 − w)/n Σ_i N(y_j; θ_i, σ²I) + w/V]`` with ``log_wn = log((1 − w)/n)`` and
     ``log_wv = log(w/V)`` (−inf without outliers), each column's sum scaled by its largest term; a

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._executor import in_dask_worker, n_cores
 from .._validate import check_nonnegative_int, check_positive, check_positive_int, check_sigma2
 from ..geometry.metrics import alpha_metric, fisher_rao_metric
 from ..solver.linalg import one_blas_thread
@@ -353,7 +354,7 @@ class RegistrationResult:
 def register(source, target, *, transform: str = "nonrigid", metric: str = "alpha", sigma2="auto", w="auto",
              reflection: bool = False, lam: float = 2.0, sigma2_metric: float = 2.0, kernel: str = "weights",
              n_angles: int = 36, max_iter: int = 150, tol: float = 1e-5, n_steps: int = 16,
-             warn: bool = True, progress=None, landmarks=None) -> RegistrationResult:
+             warn: bool = True, progress=None, landmarks=None, n_threads: int | None = None) -> RegistrationResult:
     """Register the point set ``source`` onto ``target`` by the information geometry.
 
     Rigid, similarity or affine: the pose minimises a density distance over every rotation, then
@@ -413,6 +414,10 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         compares the search's fits; the other points are matched as usual. A few landmarks decide
         a pose that a near-symmetric shape or a partial target leaves ambiguous. Each source and
         target index at most once.
+    n_threads : int, optional
+        Threads of the non-rigid search: its starts, and then its final fits, run side by side (the
+        compiled EM releases the GIL; the result does not depend on the number). Default: every core
+        this process may use, one inside a Dask worker (where the engine runs one task per core).
 
     Returns
     -------
@@ -490,11 +495,13 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         raise ValueError(f"progress must be a callable progress(done, total) or None; got {progress!r}")
     tick = progress if progress is not None else (lambda done, total: None)
     pairs = _check_landmarks(landmarks, len(x), len(y), transform)
+    threads = (1 if in_dask_worker() else n_cores()) if n_threads is None else check_positive_int(
+        n_threads, name="n_threads")
 
     def fit(xs, ys, pairs_s):
         if transform == "nonrigid":
             return _register_nonrigid(xs, ys, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, max_iter,
-                                      tol, n_steps, warn, tick, pairs=pairs_s)
+                                      tol, n_steps, warn, tick, pairs=pairs_s, n_threads=threads)
         return _register(xs, ys, transform, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, n_angles,
                          max_iter, tol, n_steps, warn, tick)
 
@@ -646,7 +653,7 @@ def _nonrigid_frame(x, y, fixed_s2, target_s2=None):
 
 
 def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, max_iter, tol, n_steps,
-                       warn, tick, pairs=None):
+                       warn, tick, pairs=None, n_threads=1):
     """Non-rigid: the search of :mod:`shapelib.pointsets._nonrigid` over starts and outlier weights."""
     from . import _nonrigid
 
@@ -659,7 +666,8 @@ def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, 
     volume = box_volume(yn)
     labels = label_array(pairs, len(yn))
     fits, rots, _ = _nonrigid.fit_all(xn, yn, kernel_of=search_kernel, w=None if auto_w else w,
-                                      reflection=reflection, progress=tick, volume=volume, labels=labels, **em_opts)
+                                      reflection=reflection, progress=tick, volume=volume, labels=labels,
+                                      n_threads=n_threads, **em_opts)
     return _nonrigid_result(x, y, frame, s2_eval, fits, rots, metric=metric, reflection=reflection, s2g=s2g,
                             kernel=kernel, em_opts=em_opts, n_steps=n_steps, warn=warn, stacklevel=5,
                             volume=volume, labels=labels)
