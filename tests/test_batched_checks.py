@@ -239,3 +239,170 @@ def test_the_device_solvers_defaults_are_the_cpu_solvers():
     ours, cpu = (inspect.signature(f).parameters for f in (batched.lbfgs_solve, shapelib.geodesic))
     for name in ("tol", "max_iter", "window"):
         assert ours[name].default == cpu[name].default, name
+
+
+# -------------------------------------------------------------------------------------------------
+# The automatic batch size and the device lookups, with stand-in devices (no JAX program is compiled)
+# -------------------------------------------------------------------------------------------------
+
+
+class _Device:
+    """A stand-in JAX device: a name and what its ``memory_stats()`` reports (None: nothing, as JAX's CPU)."""
+
+    def __init__(self, name, stats=None, fails=False):
+        self.name, self.stats, self.fails = name, stats, fails
+
+    def memory_stats(self):
+        if self.fails:
+            raise RuntimeError("memory_stats is not implemented for this platform")
+        return self.stats
+
+    def __str__(self):
+        return self.name
+
+
+def _largest_fitting(budget, per_pair):
+    """The most pairs of ``per_pair`` bytes each within ``budget`` bytes, clipped to [1, 1024], by counting."""
+    b = 1
+    while b < 1024 and (b + 1) * per_pair <= budget:
+        b += 1
+    return b
+
+
+def _use_devices(monkeypatch, devices):
+    """batched.jax_device looks ``device`` up in ``devices``; the lookups are recorded."""
+    asked = []
+
+    def lookup(device=None):
+        asked.append(device)
+        return devices[device]
+
+    monkeypatch.setattr(batched, "jax_device", lookup)
+    return asked
+
+
+GIB = 2 ** 30
+
+
+def test_the_auto_batch_is_the_most_pairs_that_fit_40_percent_of_the_memory_the_device_reports(monkeypatch):
+    """A device that reports its memory gets 40 % of it; one that does not (JAX's CPU: None, an empty report, a
+    report without the limit, or an error) 2 GiB; a pair's arrays take 8 bytes an entry."""
+    devices = {"gpu": _Device("gpu:0", {"bytes_limit": 80 * GIB, "bytes_in_use": 10 * GIB}),
+               "cpu": _Device("cpu:0", None), None: _Device("other:0", {"bytes_limit": 16 * GIB}),
+               "empty": _Device("e:0", {}), "nolimit": _Device("n:0", {"bytes_in_use": 5 * GIB}),
+               "fails": _Device("f:0", fails=True)}
+    asked = _use_devices(monkeypatch, devices)
+    problems = [("fisher_rao", 16, 20, 4000), ("fisher_rao", 32, 12, 9000), ("fisher_rao", 8, 40, 2500),
+                ("alpha", 16, 100, 1)]
+    for metric, n, k, grid in problems:
+        per_pair = 8 * _entries_per_pair(metric, n, k, grid)
+        assert 1 < _largest_fitting(2 * GIB, per_pair) < 1024  # problems between the floor and the cap
+        for device, budget in (("gpu", 0.4 * 80 * GIB), (None, 0.4 * 16 * GIB), ("cpu", 2 * GIB),
+                               ("empty", 2 * GIB), ("nolimit", 2 * GIB), ("fails", 2 * GIB)):
+            asked.clear()
+            assert _auto_batch(metric, n, k, grid, device) == _largest_fitting(budget, per_pair), (metric, device)
+            assert asked == [device]  # the memory of the device asked for
+    # the 80 GiB device's batches are not the 2 GiB default's (the report is read)
+    per_pair = 8 * _entries_per_pair("fisher_rao", 16, 20, 4000)
+    assert _largest_fitting(0.4 * 80 * GIB, per_pair) != _largest_fitting(2 * GIB, per_pair)
+
+
+def _spy_solves(monkeypatch):
+    """batched.lbfgs_solve replaced by a spy that records its first call and stops the solve there."""
+    calls = []
+
+    class Stop(Exception):
+        pass
+
+    def spy(paths, **kwargs):
+        calls.append(dict(kwargs, paths=np.array(paths)))
+        raise Stop
+
+    monkeypatch.setattr(batched, "lbfgs_solve", spy)
+    return calls, Stop
+
+
+def test_with_no_options_the_device_solve_stops_as_shapelib_geodesic_does(monkeypatch):
+    """batched_geodesics called with its defaults hands the device loop shapelib.geodesic's defaults: its metric
+    and steps (the path's shape), tolerance, iterations and window."""
+    import inspect
+
+    import shapelib
+
+    cpu = {name: p.default for name, p in inspect.signature(shapelib.geodesic).parameters.items()}
+    calls, stop = _spy_solves(monkeypatch)
+    v = U[[1, 2, 0]] * 0.9
+    with pytest.raises(stop):
+        batched_geodesics(np.stack([U, U]), np.stack([v, U + 0.2]), sigma2=0.5, device="cpu")
+    (call,) = calls
+    assert call["metric"] == cpu["metric"] and call["paths"].shape == (2, cpu["n_steps"] + 1, 3, 2)
+    assert (call["tol"], call["max_iter"], call["window"]) == (cpu["tol"], cpu["max_iter"], cpu["window"])
+    np.testing.assert_allclose(call["paths"][0], np.linspace(U, v, cpu["n_steps"] + 1), rtol=0, atol=1e-15)
+
+
+def _fr_pairs(scales):
+    """Fisher–Rao pairs whose solve grids grow with ``scale`` (the shapes' spread)."""
+    rng = np.random.default_rng(3)
+    base = rng.normal(size=(4, 2))
+    return np.stack([base * s for s in scales]), np.stack([(base + 0.3 * rng.normal(size=base.shape)) * s
+                                                           for s in scales])
+
+
+def test_the_auto_batch_fits_the_largest_solve_grid_and_batches_go_smallest_grid_first(monkeypatch):
+    """Fisher–Rao pairs of three grid sizes on a device that reports its memory: the device calls take the pairs
+    by the size of their solve grid, smallest first (so each call pads its grids least), as many a call as fit
+    40 % of the memory with the largest grid's arrays."""
+    s2, n, kw = 0.5, 4, dict(grid_spacing=0.6, grid_margin=4.0)
+    us, vs = _fr_pairs([3.0, 1.0, 2.0, 1.5, 2.5])
+    straight = np.linspace(us, vs, n + 1, axis=1)
+    sizes = [len(_solve_grid(p, s2, kw["grid_spacing"], kw["grid_margin"]).nodes) for p in straight]
+    assert len(set(sizes)) == 5
+    per_pair = 8 * _entries_per_pair("fisher_rao", n, 4, max(sizes))
+    memory = 3.5 * per_pair / 0.4  # room for 3 pairs of the largest grid (and more of the smallest)
+    assert 8 * _entries_per_pair("fisher_rao", n, 4, min(sizes)) * 4 <= 0.4 * memory
+    _use_devices(monkeypatch, {"gpu": _Device("gpu:0", {"bytes_limit": memory})})
+    calls, stop = _spy_solves(monkeypatch)
+    with pytest.raises(stop):
+        batched_geodesics(us, vs, metric="fisher_rao", sigma2=s2, n_steps=n, device="gpu", **kw)
+    first = np.argsort(sizes)[:3]
+    np.testing.assert_allclose(calls[0]["paths"], straight[first], rtol=0, atol=1e-14)
+    assert calls[0]["metric"] == "fisher_rao" and calls[0]["nodes"].shape[:2] == (3, bucket(sizes[first[-1]]))
+    # two pairs, the larger grid first, one a call: the smaller one goes first
+    calls.clear()
+    with pytest.raises(stop):
+        batched_geodesics(us[[0, 1]], vs[[0, 1]], metric="fisher_rao", sigma2=s2, n_steps=n, device="gpu",
+                          batch_size=1, **kw)
+    np.testing.assert_allclose(calls[0]["paths"], straight[[1]], rtol=0, atol=1e-14)
+
+
+class _Jax:
+    """What jax.devices answers on a machine with ``gpus`` GPUs and ``cpus`` CPU devices (JAX's platform names are
+    lower case; an unknown or absent one raises RuntimeError)."""
+
+    def __init__(self, gpus, cpus):
+        self.by = {"gpu": [_Device(f"cuda:{i}") for i in range(gpus)], "cpu": [_Device(f"TFRT_CPU_{i}")
+                                                                               for i in range(cpus)]}
+
+    def devices(self, backend=None):
+        if backend is None:
+            return self.by["gpu"] or self.by["cpu"]  # JAX's default: the GPUs where there are some
+        if not self.by.get(backend):
+            raise RuntimeError(f"Unknown backend {backend}")
+        return self.by[backend]
+
+
+def test_the_device_lookups_pick_jaxs_default_its_first_cpu_and_its_first_gpu(monkeypatch):
+    import jax
+
+    two_gpus = _Jax(gpus=2, cpus=1)
+    monkeypatch.setattr(jax, "devices", two_gpus.devices)
+    assert jax_device() is two_gpus.by["gpu"][0] and jax_device(None) is two_gpus.by["gpu"][0]
+    assert jax_device("cpu") is two_gpus.by["cpu"][0]
+    assert jax_device("gpu") is two_gpus.by["gpu"][0]
+    no_gpu = _Jax(gpus=0, cpus=2)
+    monkeypatch.setattr(jax, "devices", no_gpu.devices)
+    assert jax_device() is no_gpu.by["cpu"][0] and jax_device("cpu") is no_gpu.by["cpu"][0]
+    with pytest.raises(RuntimeError) as err:
+        jax_device("gpu")
+    assert str(err.value).startswith(f'device="gpu" but JAX sees no GPU (JAX {jax.__version__}, devices: '
+                                     f'TFRT_CPU_0, TFRT_CPU_1); on a CUDA 12 machine: ')

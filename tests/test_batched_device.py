@@ -385,3 +385,88 @@ def test_a_path_that_leaves_its_grid_is_solved_again_on_a_new_grid(fr_pairs, mon
     for r in short:
         assert r.log["regrids"] == batched.MAX_REGRIDS and r.stop_reason == StopReason.MAX_ITER
         assert r.n_iter == 2 * (batched.MAX_REGRIDS + 1) and len(r.log["energy"]) == r.n_iter + 1
+
+
+# -------------------------------------------------------------------------------------------------
+# Padding, dtypes, defaults and devices of the device solves
+# -------------------------------------------------------------------------------------------------
+
+
+def test_integer_paths_are_solved_as_their_float_copies(starts):
+    whole = np.round(2 * starts).astype(int)  # landmarks on a half-unit lattice, as integers
+    r_int = batched.lbfgs_solve(whole, metric="alpha", sigma2=S2, tol=1e-300, max_iter=2, device="cpu")
+    r_float = batched.lbfgs_solve(whole.astype(float), metric="alpha", sigma2=S2, tol=1e-300, max_iter=2,
+                                  device="cpu")
+    assert r_int["path"].dtype == np.float64
+    np.testing.assert_array_equal(r_int["path"], r_float["path"])
+    np.testing.assert_array_equal(r_int["energy"], r_float["energy"])
+
+
+def test_a_batch_three_lanes_short_of_its_bucket_gives_each_pair_what_it_gets_in_another_batch(starts, paths):
+    """17 pairs run as 20 lanes (three idle copies of the first pair): pair by pair the results of the nine-pair
+    batch (ten lanes, one idle)."""
+    many = np.concatenate([starts, starts[:8]])
+    assert batched.bucket(len(many)) - len(many) == 3
+    kw = dict(metric="alpha", sigma2=S2, tol=1e-300, max_iter=2, device="cpu")
+    r17, r9 = batched.lbfgs_solve(many, **kw), batched.lbfgs_solve(starts, **kw)
+    for key in ("path", "energy", "n_iter", "grad_norm", "rel_change"):
+        assert len(r17[key]) == 17
+        np.testing.assert_allclose(r17[key], np.concatenate([r9[key], r9[key][:8]]), rtol=1e-13, atol=0)
+    assert r17["stopped_by"] == r9["stopped_by"] + r9["stopped_by"][:8]
+    seventeen = np.concatenate([paths] * 5 + [paths[:2]])
+    length17, energy17 = batched.batched_lengths(seventeen, metric="alpha", sigma2=S2, device="cpu")
+    length3, energy3 = batched.batched_lengths(paths, metric="alpha", sigma2=S2, device="cpu")
+    np.testing.assert_allclose(length17, np.concatenate([length3] * 5 + [length3[:2]]), rtol=1e-13)
+    np.testing.assert_allclose(energy17, np.concatenate([energy3] * 5 + [energy3[:2]]), rtol=1e-13)
+
+
+def test_the_energy_trace_has_room_for_every_iteration_of_a_long_run(starts):
+    """max_iter beyond the shortest trace (TRACE_MIN): the trace still holds max_iter + 1 energies."""
+    max_iter = batched.TRACE_MIN
+    r = batched.lbfgs_solve(starts, metric="alpha", sigma2=S2, tol=1e3, max_iter=max_iter, window=1, device="cpu")
+    assert r["energies"].shape[1] >= max_iter + 1
+    assert list(r["n_iter"]) == [1] * 9 and np.all(np.isnan(r["energies"][:, 2:]))
+
+
+def test_lbfgs_solves_defaults_are_shapelib_geodesics(starts, monkeypatch):
+    """With no stop options, lbfgs_solve asks its device loop for shapelib.geodesic's tolerance, iterations and
+    window (the loop itself replaced by a spy: no solve)."""
+    import inspect
+
+    cpu = {name: p.default for name, p in inspect.signature(shapelib.geodesic).parameters.items()}
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def program(metric, trace, history):
+        def loop(x0, ends, s2, nodes, weights, tol, target, step0, f, g, max_iter, window):
+            seen.append(dict(trace=trace, tol=tol, max_iter=max_iter, window=window))
+            raise Stop
+        return loop
+
+    monkeypatch.setattr(batched, "_compiled_solver", program)
+    with pytest.raises(Stop):
+        batched.lbfgs_solve(starts, metric="alpha", sigma2=S2, device="cpu")
+    (call,) = seen
+    assert (call["tol"], call["max_iter"], call["window"]) == (cpu["tol"], cpu["max_iter"], cpu["window"])
+    assert call["trace"] >= cpu["max_iter"] + 1
+
+
+def test_every_device_lookup_of_a_call_is_the_device_asked_for(alpha_pairs, fr_pairs, monkeypatch):
+    """device="cpu" reaches every JAX computation of a call (the solves, the lengths, a one-step pair's length,
+    the auto batch's memory, the log), as a device lookup of "cpu"."""
+    us, vs, kw, _, _ = alpha_pairs
+    asked = []
+    lookup = batched.jax_device
+
+    def recorded(device=None):
+        asked.append(device)
+        return lookup(device)
+
+    monkeypatch.setattr(batched, "jax_device", recorded)
+    batched.batched_geodesics(us, vs, device="cpu", **kw)
+    fr_us, fr_vs, fr_kw, _ = fr_pairs
+    batched.batched_geodesics(fr_us[:1], fr_vs[:1], device="cpu", **{**fr_kw, "n_steps": 1})
+    batched.batched_lengths(np.linspace(us, vs, N + 1, axis=1), metric="alpha", sigma2=S2, device="cpu")
+    assert len(asked) >= 7 and set(asked) == {"cpu"}

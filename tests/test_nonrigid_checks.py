@@ -179,6 +179,25 @@ def test_the_search_on_threads_is_the_search_in_one_thread_and_reports_every_ste
     assert ticks == [(k, total) for k in range(1, total + 1)]
 
 
+@pytest.mark.parametrize("n_threads", [None, 1, 2, 3])
+def test_the_search_runs_on_at_most_n_threads_named_threads_and_in_the_callers_thread_with_one(n_threads):
+    """Seen from ``progress`` (called in the caller's thread) while the search runs: the pool's threads, named
+    shapelib-register, never more than ``n_threads``; none with one thread (the default, None here), where the
+    search runs in the caller's thread; and none left afterwards."""
+    xn, yn = _pair()
+    seen = set()
+
+    def look(done, total):
+        assert threading.current_thread() is threading.main_thread()
+        seen.update(t.name for t in threading.enumerate() if t.name.startswith("shapelib-register"))
+
+    nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=None, fixed_s2=None,
+               reflection=False, max_iter=80, tol=1e-6, s2_floor=1e-8, progress=look,
+               **({} if n_threads is None else {"n_threads": n_threads}))
+    assert (1 <= len(seen) <= n_threads) if (n_threads or 1) > 1 else not seen
+    assert not [t for t in threading.enumerate() if t.name.startswith("shapelib-register")]
+
+
 def test_an_error_during_the_threaded_search_reaches_the_caller_and_leaves_no_thread():
     xn, yn = _pair()
 

@@ -288,7 +288,7 @@ def lbfgs_solve(paths, *, metric, sigma2, nodes=None, weights=None, tol=1e-6, ma
     dict of numpy arrays
         ``path`` (B, n + 1, K, d), ``energy`` (B,) on the solve's grid, ``grad_norm``, ``n_iter``,
         ``stopped_by`` (list of :class:`~shapelib.solver.result.StopReason`), ``energies``
-        (B, max_iter + 1; NaN after the last iteration), ``rel_change`` (last accepted step).
+        (B, at least max_iter + 1; NaN after the last iteration), ``rel_change`` (last accepted step).
     """
     paths = np.asarray(paths, dtype=np.float64)
     b = len(paths)
@@ -426,7 +426,9 @@ def _entries_per_pair(metric, n, k, grid_size):
 
 
 def _auto_batch(metric, n, k, grid_size, device):
-    """Pairs per device call: a share of the device's memory (or 2 GiB where JAX does not say)."""
+    """Pairs per device call: the most pairs whose arrays (:func:`_entries_per_pair` entries of 8 bytes each)
+    fit in 40 % of the memory the device reports (``memory_stats()["bytes_limit"]``), or in 2 GiB where JAX
+    does not report it; at least 1, at most 1024."""
     budget = 2 * 2**30
     try:
         stats = jax_device(device).memory_stats() or {}
@@ -459,7 +461,8 @@ def batched_geodesics(us, vs, *, metric: str = "alpha", sigma2, n_steps: int = 1
     device : {None, "cpu", "gpu"}
         JAX device (module docstring).
     batch_size : int, optional
-        Pairs per device call; default from the device's memory and the problem's size.
+        Pairs per device call; default: as many as fit in 40 % of the device's memory (2 GiB where JAX does
+        not report it), estimated from the largest Fisher–Rao grid among the pairs, at most 1024.
     warn : bool
         One :class:`~shapelib.solver.result.GeodesicWarning` if any pair stopped before converging.
 
