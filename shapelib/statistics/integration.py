@@ -240,17 +240,19 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
     x = _shapes(shapes, procrustes)
     n, k, d = x.shape
     mean = x.mean(axis=0)
+    centred = mean - mean.mean(axis=0)
+    spread = np.linalg.svd(centred, compute_uv=False)  # a zero: the landmarks on one line (plane in 3-D)
+    gaps = np.linalg.norm(mean[:, None] - mean[None], axis=-1)[np.triu_indices(k, 1)]
+    if spread[-1] <= 1e-8 * spread[0] or gaps.min() <= 1e-8 * spread[0]:
+        raise ValueError("shapes: the mean configuration has no thin-plate spline: its landmarks lie on one line "
+                         "(one plane in 3-D) or two of them coincide")
     lk = bending_energy_matrix(mean)
     lam, vec = np.linalg.eigh((lk + lk.T) / 2)
     m = k - d - 1
     lam, vec = lam[-m:], vec[:, -m:]  # the affine null space (d + 1 zero eigenvalues) left out
-    if not (np.all(np.isfinite(lam)) and lam[0] > 1e-10 * lam[-1]):
-        raise ValueError(f"shapes: the mean configuration has no thin-plate spline (fewer than {m} positive "
-                         "bending energies): its landmarks lie on one line (one plane in 3-D) or coincide")
     scores = np.einsum("km,nkc->nmc", vec, x)
     variances = scores.var(axis=0, ddof=1).sum(axis=1)
-    size2 = np.sum((mean - mean.mean(axis=0)) ** 2)  # the squared centroid size of the mean
-    flat = np.flatnonzero(variances <= 1e-24 * size2)  # rounding of identical specimens, or none at all
+    flat = np.flatnonzero(variances <= 1e-24 * np.sum(centred**2))  # rounding of identical specimens, or none at all
     if flat.size:
         raise ValueError(f"shapes: the specimens do not vary along partial warp {flat[0]} (bending energy "
                          f"{lam[flat[0]]:.4g}); the slope needs variation at every scale")

@@ -1,0 +1,282 @@
+"""Global integration (the slope of log partial-warp variance on log bending energy) against
+independent computations: bending energies from the spline's kernel projected by hand, geomorph's
+``globalIntegration`` redone step by step, data built with an exact variance profile along the
+partial warps, the known slopes of self-similar, integrated and isotropic variation, pose, size,
+order and labelling invariances, and the errors at the public door."""
+
+import numpy as np
+import pytest
+from scipy.linalg import null_space
+
+import shapelib as sl
+from shapelib.statistics.integration import GlobalIntegrationResult
+
+MEAN_2D = np.array([[0, 0], [1, 0], [2, 0.1], [2, 1], [1, 1.2], [0, 1], [0.6, 0.5], [1.5, 0.4]])
+MEAN_3D = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0.2], [1, 0.1, 1], [0.2, 1, 1],
+                    [1, 1, 1.1], [0.5, 0.4, 0.6]])
+
+
+def _rot(t):
+    return np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+
+
+def _kernel(x, geomorph=False):
+    """The thin-plate kernel by loops: r² log r in 2-D (r² log r² in geomorph's), −r in 3-D."""
+    k, d = x.shape
+    u = np.zeros((k, k))
+    for a in range(k):
+        for b in range(k):
+            r = np.sqrt(sum((x[a, c] - x[b, c]) ** 2 for c in range(d)))
+            if d == 3:
+                u[a, b] = -r
+            elif r > 0:
+                u[a, b] = r**2 * np.log(r**2 if geomorph else r)
+    return u
+
+
+def _energies_by_projection(x):
+    """The nonzero eigenvalues of the bending-energy matrix without inverting the bordered matrix:
+    ``L_K = N (Nᵀ U N)⁻¹ Nᵀ`` with ``N`` an orthonormal basis of the non-affine vectors."""
+    basis = null_space(np.c_[np.ones(len(x)), x].T)
+    return np.sort(1.0 / np.linalg.eigvalsh(basis.T @ _kernel(x) @ basis))
+
+
+def _partial_warps(mean):
+    lam, e = np.linalg.eigh(sl.bending_energy_matrix(mean))
+    m = len(mean) - mean.shape[1] - 1
+    return lam[-m:], e[:, -m:]
+
+
+def _exact_profile(mean, sd, n, rng):
+    """n specimens ``mean + Σ_j e_j z_ijᵀ`` whose scores on partial warp j have sample variance
+    exactly ``sd[j]²`` in each coordinate (and mean 0)."""
+    _, e = _partial_warps(mean)
+    m, d = e.shape[1], mean.shape[1]
+    assert n > m * d, "the centred columns need n > m d specimens"
+    z = rng.normal(size=(n, m * d))
+    q, _ = np.linalg.qr(z - z.mean(axis=0))  # orthonormal, centred columns
+    scores = np.sqrt(n - 1) * q.reshape(n, m, d) * np.asarray(sd)[None, :, None]
+    return mean + np.einsum("km,nmc->nkc", e, scores)
+
+
+def _geomorph(a):
+    """geomorph's globalIntegration step by step: its kernel, solve(L), eigen (decreasing), each
+    specimen's projections as one row (x of every warp, then y), var, the k rows summed, lm."""
+    ref = a.mean(axis=0)
+    p, k = ref.shape
+    big = np.zeros((p + k + 1, p + k + 1))
+    big[:p, :p] = _kernel(ref, geomorph=True)
+    big[:p, p:] = np.c_[np.ones(p), ref]
+    big[p:, :p] = big[:p, p:].T
+    be_matrix = np.linalg.solve(big, np.eye(p + k + 1))[:p, :p]
+    vals, vecs = np.linalg.eigh(be_matrix)
+    vals, vecs = vals[::-1], vecs[:, ::-1]
+    m = p - k - 1
+    be, emat = vals[:m], vecs[:, :m]
+    rows = np.array([(a[i].T @ emat).T.flatten(order="F") for i in range(len(a))])
+    wvar = rows.var(axis=0, ddof=1)
+    pwvar = np.log(wvar.reshape(k, m).sum(axis=0))
+    slope, _ = np.polyfit(np.log(be), pwvar, 1)
+    return slope, be
+
+
+@pytest.mark.parametrize("mean", [MEAN_2D, MEAN_3D], ids=["2-D", "3-D"])
+def test_the_bending_energies_are_the_nonzero_eigenvalues_of_the_kernel_projected_off_the_affine_part(mean):
+    rng = np.random.default_rng(0)
+    dev = 0.01 * rng.normal(size=(4,) + mean.shape)
+    shapes = np.concatenate([mean + dev, mean - dev])  # mean exactly ``mean`` up to rounding
+    res = sl.global_integration(shapes, procrustes=False)
+    expected = _energies_by_projection(mean)
+    assert len(res.bending_energies) == len(mean) - mean.shape[1] - 1
+    np.testing.assert_allclose(res.bending_energies, expected, rtol=1e-8)
+    np.testing.assert_allclose(res.mean, mean, atol=1e-15)
+
+
+@pytest.mark.parametrize("mean", [MEAN_2D, MEAN_3D], ids=["2-D", "3-D"])
+def test_the_partial_warps_are_orthonormal_and_free_of_the_affine_part(mean):
+    res = sl.global_integration(_exact_profile(mean, np.ones(len(mean) - mean.shape[1] - 1), 20,
+                                               np.random.default_rng(1)), procrustes=False)
+    e = res.partial_warps
+    np.testing.assert_allclose(e.T @ e, np.eye(e.shape[1]), atol=1e-12)
+    np.testing.assert_allclose(np.c_[np.ones(len(mean)), res.mean].T @ e, 0, atol=1e-10)
+    assert np.all(np.diff(res.bending_energies) > 0)
+
+
+@pytest.mark.parametrize("mean", [MEAN_2D, MEAN_3D], ids=["2-D", "3-D"])
+def test_the_slope_is_geomorph_s_redone_step_by_step(mean):
+    rng = np.random.default_rng(2)
+    shapes = mean + 0.02 * rng.normal(size=(30,) + mean.shape) * rng.uniform(0.2, 2, size=(1, len(mean), 1))
+    res = sl.global_integration(shapes, procrustes=False)
+    slope, be = _geomorph(shapes)
+    assert res.value == pytest.approx(slope, rel=1e-10)
+    # geomorph's 2-D kernel r² log r² is twice r² log r: its bending energies are half of these
+    factor = 0.5 if mean.shape[1] == 2 else 1.0
+    np.testing.assert_allclose(be[::-1], factor * res.bending_energies, rtol=1e-8)
+
+
+@pytest.mark.parametrize("beta", [-2.0, -1.0, -0.5, 0.0, 0.7])
+@pytest.mark.parametrize("mean", [MEAN_2D, MEAN_3D], ids=["2-D", "3-D"])
+def test_variances_proportional_to_a_power_of_the_bending_energy_give_that_power_as_the_slope(mean, beta):
+    lam, _ = _partial_warps(mean)
+    sd = 0.01 * (lam / lam[0]) ** (beta / 2)
+    res = sl.global_integration(_exact_profile(mean, sd, 30, np.random.default_rng(3)), procrustes=False)
+    assert res.value == pytest.approx(beta, abs=1e-9)
+    np.testing.assert_allclose(res.variances, mean.shape[1] * sd**2, rtol=1e-9)
+    # the line goes through every point: log v = intercept + slope log λ
+    np.testing.assert_allclose(np.log(res.variances), res.intercept + res.value * np.log(res.bending_energies),
+                               atol=1e-9)
+
+
+@pytest.mark.parametrize("beta", [-2.0, -1.0, -0.3])
+def test_a_random_sample_with_a_power_profile_aligned_by_procrustes_recovers_the_power(beta):
+    rng = np.random.default_rng(4)
+    lam, e = _partial_warps(MEAN_2D)
+    scores = rng.normal(size=(3000, len(lam), 2)) * 0.01 * (lam / lam[0])[:, None] ** (beta / 2)
+    shapes = MEAN_2D + np.einsum("km,nmc->nkc", e, scores)
+    shapes = np.einsum("nkc,nbc->nkb", shapes, np.array([_rot(t) for t in rng.uniform(0, 6, 3000)]))
+    res = sl.global_integration(shapes * rng.uniform(0.5, 3, (3000, 1, 1)) + rng.normal(size=(3000, 1, 2)))
+    assert res.value == pytest.approx(beta, abs=0.05)
+
+
+@pytest.mark.parametrize("mean", [MEAN_2D, MEAN_3D], ids=["2-D", "3-D"])
+def test_isotropic_landmark_noise_gives_a_slope_near_zero_not_minus_one(mean):
+    rng = np.random.default_rng(5)
+    res = sl.global_integration(mean + 0.01 * rng.normal(size=(3000,) + mean.shape))
+    assert abs(res.value) < 0.05
+    assert res.reading == "disintegrated"
+
+
+def test_the_slope_is_free_of_each_specimen_s_position_orientation_and_size():
+    rng = np.random.default_rng(6)
+    shapes = MEAN_2D + 0.03 * rng.normal(size=(25, 8, 2))
+    ref = sl.global_integration(shapes)
+    moved = (np.einsum("nkc,nbc->nkb", shapes, np.array([_rot(t) for t in rng.uniform(0, 6, 25)]))
+             * rng.uniform(0.1, 10, (25, 1, 1)) + rng.normal(scale=5, size=(25, 1, 2)))
+    res = sl.global_integration(moved)
+    assert res.value == pytest.approx(ref.value, rel=1e-7)
+    np.testing.assert_allclose(res.variances, ref.variances, rtol=1e-6)
+    np.testing.assert_allclose(res.bending_energies, ref.bending_energies, rtol=1e-7)
+
+
+@pytest.mark.parametrize("procrustes", [True, False])
+def test_the_slope_is_free_of_the_order_of_the_specimens_and_of_the_landmarks(procrustes):
+    rng = np.random.default_rng(7)
+    shapes = MEAN_2D + 0.03 * rng.normal(size=(25, 8, 2))
+    ref = sl.global_integration(shapes, procrustes=procrustes)
+    shuffled = shapes[rng.permutation(25)][:, rng.permutation(8)]
+    res = sl.global_integration(shuffled, procrustes=procrustes)
+    assert res.value == pytest.approx(ref.value, rel=1e-8)
+    np.testing.assert_allclose(res.bending_energies, ref.bending_energies, rtol=1e-8)
+    np.testing.assert_allclose(res.variances, ref.variances, rtol=1e-7)
+
+
+@pytest.mark.parametrize("mean, power", [(MEAN_2D, -2), (MEAN_3D, -1)], ids=["2-D", "3-D"])
+def test_scaling_the_coordinates_scales_the_bending_energies_by_a_power_of_the_size_and_keeps_the_slope(mean, power):
+    rng = np.random.default_rng(8)
+    shapes = mean + 0.02 * rng.normal(size=(15,) + mean.shape)
+    ref = sl.global_integration(shapes, procrustes=False)
+    res = sl.global_integration(7.0 * shapes, procrustes=False)
+    np.testing.assert_allclose(res.bending_energies, 7.0**power * ref.bending_energies, rtol=1e-8)
+    np.testing.assert_allclose(res.variances, 49.0 * ref.variances, rtol=1e-10)
+    assert res.value == pytest.approx(ref.value, rel=1e-8)
+
+
+def _result(value, tolerance):
+    return GlobalIntegrationResult(value=value, intercept=0.0, bending_energies=np.ones(3), variances=np.ones(3),
+                                   partial_warps=np.eye(3), mean=np.zeros((3, 2)), n_specimens=10, tolerance=tolerance)
+
+
+@pytest.mark.parametrize("value, tolerance, reading", [
+    (-1.0, 0.5, "self-similar"), (-1.5, 0.5, "self-similar"), (-0.5, 0.5, "self-similar"),
+    (-1.5000001, 0.5, "integrated"), (-0.4999999, 0.5, "disintegrated"),
+    (-1.3, 0.25, "integrated"), (-0.7, 0.25, "disintegrated"), (0.0, 0.25, "disintegrated"),
+    (-3.0, 0.25, "integrated")])
+def test_a_slope_reads_as_self_similar_within_the_tolerance_of_minus_one(value, tolerance, reading):
+    assert _result(value, tolerance).reading == reading
+    assert f", {reading} (" in _result(value, tolerance).summary()
+
+
+def test_the_summary_names_the_sample_the_slope_and_how_it_reads():
+    lam, _ = _partial_warps(MEAN_2D)
+    res = sl.global_integration(_exact_profile(MEAN_2D, 0.01 * (lam / lam[0]) ** -1.0, 40,
+                                               np.random.default_rng(9)), procrustes=False)
+    text = res.summary()
+    assert res.reading == "integrated"
+    assert "40 specimens, 5 partial warps" in text
+    assert "= -2," in text and "integrated (steeper than −1" in text
+    wider = sl.global_integration(_exact_profile(MEAN_2D, 0.01 * (lam / lam[0]) ** -1.0, 40,
+                                                 np.random.default_rng(9)), procrustes=False, tolerance=1.5)
+    assert wider.reading == "self-similar" and "within 1.5 of −1" in wider.summary()
+    assert wider.value == res.value
+
+
+def test_the_default_tolerance_is_a_tenth():
+    lam, _ = _partial_warps(MEAN_2D)
+    for beta, reading in [(-1.09, "self-similar"), (-1.11, "integrated"), (-0.89, "disintegrated")]:
+        shapes = _exact_profile(MEAN_2D, 0.01 * (lam / lam[0]) ** (beta / 2), 20, np.random.default_rng(10))
+        res = sl.global_integration(shapes, procrustes=False)
+        assert res.tolerance == 0.1 and res.reading == reading
+
+
+@pytest.mark.parametrize("shapes, match", [
+    (MEAN_2D[:4] + np.zeros((10, 1, 1)), "at least 5 landmarks"),
+    (MEAN_3D[:5] + np.zeros((10, 1, 1)), "at least 6 landmarks"),
+    (MEAN_2D + np.zeros((2, 1, 1)), "at least 3 specimens"),
+    (MEAN_2D, "shapes must have shape"),
+    (np.zeros((10, 8, 4)), "d = 2 or 3"),
+])
+def test_malformed_shapes_are_refused_naming_the_parameter(shapes, match):
+    with pytest.raises(ValueError, match=match) as info:
+        sl.global_integration(shapes + np.random.default_rng(0).normal(scale=0.01, size=np.shape(shapes)))
+    assert "shapes" in str(info.value)
+
+
+def test_a_non_finite_coordinate_is_refused():
+    shapes = MEAN_2D + 0.01 * np.random.default_rng(0).normal(size=(10, 8, 2))
+    shapes[3, 2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"shapes\[3\].*non-finite"):
+        sl.global_integration(shapes, procrustes=False)
+
+
+@pytest.mark.parametrize("procrustes", [True, False])
+def test_identical_specimens_have_no_variation_to_fit(procrustes):
+    with pytest.raises(ValueError, match="shapes: the specimens do not vary along partial warp 0"):
+        sl.global_integration(MEAN_2D + np.zeros((5, 1, 1)), procrustes=procrustes)
+
+
+def test_variation_missing_at_one_scale_is_named():
+    lam, _ = _partial_warps(MEAN_2D)
+    sd = np.ones(len(lam))
+    sd[2] = 0.0
+    with pytest.raises(ValueError, match="partial warp 2 "):
+        sl.global_integration(_exact_profile(MEAN_2D, 0.01 * sd, 20, np.random.default_rng(0)), procrustes=False)
+
+
+def _collinear(rng):
+    s = np.arange(6.0) + 0.01 * rng.normal(size=(20, 6))
+    return np.stack([s, 2 * s], axis=-1)
+
+
+def _coplanar(rng):
+    xy = np.c_[np.arange(7.0), np.sin(np.arange(7.0))] + 0.01 * rng.normal(size=(20, 7, 2))
+    return np.concatenate([xy, np.zeros((20, 7, 1))], axis=-1)
+
+
+def _coinciding(rng):
+    dev = 0.01 * rng.normal(size=(10, 8, 2))
+    mean = MEAN_2D.copy()
+    mean[7] = mean[6] + [3e-9, 0]
+    return np.concatenate([mean + dev, mean - dev])
+
+
+@pytest.mark.parametrize("make", [_collinear, _coplanar, _coinciding], ids=["collinear", "coplanar", "coinciding"])
+def test_a_mean_configuration_without_a_thin_plate_spline_is_refused(make):
+    with pytest.raises(ValueError, match="shapes: the mean configuration has no thin-plate spline"):
+        sl.global_integration(make(np.random.default_rng(0)), procrustes=False)
+
+
+@pytest.mark.parametrize("tolerance", [0, -0.1, np.nan, "0.1"])
+def test_a_tolerance_that_is_not_positive_is_refused(tolerance):
+    shapes = MEAN_2D + 0.01 * np.random.default_rng(0).normal(size=(10, 8, 2))
+    with pytest.raises(ValueError, match="tolerance"):
+        sl.global_integration(shapes, tolerance=tolerance)
