@@ -210,6 +210,18 @@ def test_the_summary_names_the_sample_the_slope_and_how_it_reads():
     assert wider.value == res.value
 
 
+@pytest.mark.parametrize("value, text", [
+    (-2.0, "slope of log variance on log bending energy = -2, integrated (steeper than −1: relatively more "
+           "variation at the large scales; −1 is self-similarity, 0 isotropic landmark noise)"),
+    (-0.9, "slope of log variance on log bending energy = -0.9, self-similar (within 0.25 of −1: the same "
+           "variation at every scale; −1 is self-similarity, 0 isotropic landmark noise)"),
+    (-0.25, "slope of log variance on log bending energy = -0.25, disintegrated (shallower than −1: relatively "
+            "more variation at the small scales; −1 is self-similarity, 0 isotropic landmark noise)"),
+])
+def test_the_summary_reads_each_slope_in_words(value, text):
+    assert _result(value, 0.25).summary() == "global integration (10 specimens, 3 partial warps): " + text
+
+
 def test_the_default_tolerance_is_a_tenth():
     lam, _ = _partial_warps(MEAN_2D)
     for beta, reading in [(-1.09, "self-similar"), (-1.11, "integrated"), (-0.89, "disintegrated")]:
@@ -219,11 +231,13 @@ def test_the_default_tolerance_is_a_tenth():
 
 
 @pytest.mark.parametrize("shapes, match", [
-    (MEAN_2D[:4] + np.zeros((10, 1, 1)), "at least 5 landmarks"),
-    (MEAN_3D[:5] + np.zeros((10, 1, 1)), "at least 6 landmarks"),
-    (MEAN_2D + np.zeros((2, 1, 1)), "at least 3 specimens"),
-    (MEAN_2D, "shapes must have shape"),
-    (np.zeros((10, 8, 4)), "d = 2 or 3"),
+    (MEAN_2D[:4] + np.zeros((10, 1, 1)), r"^shapes: at least 5 landmarks are needed in 2-D \(two partial warps, "
+                                         r"K − 3, for a slope\); got shape \(10, 4, 2\)$"),
+    (MEAN_3D[:5] + np.zeros((10, 1, 1)), r"^shapes: at least 6 landmarks are needed in 3-D \(two partial warps, "
+                                         r"K − 4, for a slope\); got shape \(10, 5, 3\)$"),
+    (MEAN_2D + np.zeros((2, 1, 1)), r"^shapes: at least 3 specimens are needed; got shape \(2, 8, 2\)$"),
+    (MEAN_2D, "^shapes must have shape"),
+    (np.zeros((10, 8, 4)), "^shapes: landmarks must have d = 2 or 3"),
 ])
 def test_malformed_shapes_are_refused_naming_the_parameter(shapes, match):
     with pytest.raises(ValueError, match=match) as info:
@@ -231,10 +245,21 @@ def test_malformed_shapes_are_refused_naming_the_parameter(shapes, match):
     assert "shapes" in str(info.value)
 
 
+@pytest.mark.parametrize("mean", [MEAN_2D, MEAN_3D], ids=["2-D", "3-D"])
+def test_the_fewest_specimens_and_landmarks_give_a_slope(mean):
+    """Three specimens and d + 3 landmarks: two partial warps, a line through two points."""
+    rng = np.random.default_rng(12)
+    small = mean[: mean.shape[1] + 3]
+    res = sl.global_integration(small + 0.02 * rng.normal(size=(3,) + small.shape))
+    assert len(res.bending_energies) == 2 and np.isfinite(res.value)
+    expected = np.diff(np.log(res.variances)) / np.diff(np.log(res.bending_energies))
+    assert res.value == pytest.approx(expected[0], rel=1e-12)
+
+
 def test_a_non_finite_coordinate_is_refused():
     shapes = MEAN_2D + 0.01 * np.random.default_rng(0).normal(size=(10, 8, 2))
     shapes[3, 2, 1] = np.nan
-    with pytest.raises(ValueError, match=r"shapes\[3\].*non-finite"):
+    with pytest.raises(ValueError, match=r"^shapes\[3\] contains non-finite values"):
         sl.global_integration(shapes, procrustes=False)
 
 
@@ -248,35 +273,57 @@ def test_variation_missing_at_one_scale_is_named():
     lam, _ = _partial_warps(MEAN_2D)
     sd = np.ones(len(lam))
     sd[2] = 0.0
-    with pytest.raises(ValueError, match="partial warp 2 "):
+    with pytest.raises(ValueError) as info:
         sl.global_integration(_exact_profile(MEAN_2D, 0.01 * sd, 20, np.random.default_rng(0)), procrustes=False)
+    assert str(info.value) == (f"shapes: the specimens do not vary along partial warp 2 (bending energy {lam[2]:.4g}); "
+                               "the slope needs variation at every scale")
 
 
 def _collinear(rng):
     s = np.arange(6.0) + 0.01 * rng.normal(size=(20, 6))
-    return np.stack([s, 2 * s], axis=-1)
+    return np.stack([s, 2 * s + 1], axis=-1)  # on the line y = 2x + 1
 
 
 def _coplanar(rng):
     xy = np.c_[np.arange(7.0), np.sin(np.arange(7.0))] + 0.01 * rng.normal(size=(20, 7, 2))
-    return np.concatenate([xy, np.zeros((20, 7, 1))], axis=-1)
+    return np.concatenate([xy, np.ones((20, 7, 1))], axis=-1)  # on the plane z = 1
 
 
 def _coinciding(rng):
     dev = 0.01 * rng.normal(size=(10, 8, 2))
-    mean = MEAN_2D.copy()
-    mean[7] = mean[6] + [3e-9, 0]
+    mean = MEAN_2D * [1, 0.1]  # extents about 2.1 and 0.13 along the principal axes
+    mean[7] = mean[6] + [3e-9, 0]  # closer than 1e-8 of the largest extent
     return np.concatenate([mean + dev, mean - dev])
 
 
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 @pytest.mark.parametrize("make", [_collinear, _coplanar, _coinciding], ids=["collinear", "coplanar", "coinciding"])
-def test_a_mean_configuration_without_a_thin_plate_spline_is_refused(make):
-    with pytest.raises(ValueError, match="shapes: the mean configuration has no thin-plate spline"):
-        sl.global_integration(make(np.random.default_rng(0)), procrustes=False)
+def test_a_mean_configuration_without_a_thin_plate_spline_is_refused_at_any_scale(make, scale):
+    with pytest.raises(ValueError) as info:
+        sl.global_integration(scale * make(np.random.default_rng(0)), procrustes=False)
+    assert str(info.value) == ("shapes: the mean configuration has no thin-plate spline: its landmarks lie on one "
+                               "line (one plane in 3-D) or two of them coincide")
+
+
+def test_landmarks_a_millionth_of_the_extent_apart_are_kept():
+    dev = 0.01 * np.random.default_rng(0).normal(size=(10, 8, 2))
+    mean = MEAN_2D * [1, 0.1]
+    mean[7] = mean[6] + [2e-6, 0]
+    res = sl.global_integration(np.concatenate([mean + dev, mean - dev]), procrustes=False)
+    assert len(res.bending_energies) == 5
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_affine_copies_of_one_configuration_have_no_variation_to_fit_at_any_scale(scale):
+    rng = np.random.default_rng(11)
+    maps = rng.normal(size=(10, 2, 2))
+    shapes = scale * (np.einsum("kc,nbc->nkb", MEAN_2D, maps) + rng.normal(size=(10, 1, 2)))
+    with pytest.raises(ValueError, match="^shapes: the specimens do not vary along partial warp 0 "):
+        sl.global_integration(shapes, procrustes=False)
 
 
 @pytest.mark.parametrize("tolerance", [0, -0.1, np.nan, "0.1"])
 def test_a_tolerance_that_is_not_positive_is_refused(tolerance):
     shapes = MEAN_2D + 0.01 * np.random.default_rng(0).normal(size=(10, 8, 2))
-    with pytest.raises(ValueError, match="tolerance"):
+    with pytest.raises(ValueError, match="^tolerance must be a positive finite number"):
         sl.global_integration(shapes, tolerance=tolerance)
