@@ -181,6 +181,27 @@ def test_scaling_the_coordinates_scales_the_bending_energies_by_a_power_of_the_s
     assert res.value == pytest.approx(ref.value, rel=1e-8)
 
 
+def test_the_slope_is_the_same_on_coordinates_projected_onto_the_tangent_space_at_the_mean():
+    """gpagen's projection (geomorph's ``orp``): each aligned specimen's component along the
+    unit-size mean removed, that mean added back."""
+    rng = np.random.default_rng(13)
+    shapes = MEAN_2D + 0.15 * rng.normal(size=(40, 8, 2))  # very variable shapes: far from the tangent space
+    res = sl.global_integration(shapes)
+    aligned = sl.procrustes_coordinates(shapes)
+    mu = aligned.mean(axis=0)  # centred, as the aligned specimens are
+    mu /= np.linalg.norm(mu)
+    tangent = aligned @ (np.eye(16) - np.outer(mu, mu)) + mu
+    assert np.abs(tangent - aligned).max() > 1e-3  # the projection moves them
+    projected = sl.global_integration(tangent.reshape(40, 8, 2), procrustes=False)
+    assert projected.value == pytest.approx(res.value, rel=1e-9)
+
+
+def test_residuals_from_the_mean_are_refused_as_coordinates():
+    shapes = MEAN_2D + 0.02 * np.random.default_rng(14).normal(size=(20, 8, 2))
+    with pytest.raises(ValueError, match="^shapes: the mean configuration is nearly a single point"):
+        sl.global_integration(shapes - shapes.mean(axis=0), procrustes=False)
+
+
 def _result(value, tolerance):
     return GlobalIntegrationResult(value=value, intercept=0.0, bending_energies=np.ones(3), variances=np.ones(3),
                                    partial_warps=np.eye(3), mean=np.zeros((3, 2)), n_specimens=10, tolerance=tolerance)

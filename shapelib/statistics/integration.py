@@ -179,9 +179,10 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
     ------
     ValueError
         If ``shapes`` is not a finite (N, K, d) array with d = 2 or 3, has fewer than 3 specimens or
-        fewer than d + 3 landmarks, its mean configuration has no thin-plate spline (landmarks on
-        one line, or one plane in 3-D, or coinciding), or the specimens do not vary along a partial
-        warp; if ``tolerance`` is not positive.
+        fewer than d + 3 landmarks, its mean configuration is nearly a single point (residuals
+        rather than coordinates) or has no thin-plate spline (landmarks on one line, or one plane
+        in 3-D, or coinciding), or the specimens do not vary along a partial warp; if
+        ``tolerance`` is not positive.
 
     See Also
     --------
@@ -191,22 +192,25 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
 
     Notes
     -----
-    This follows geomorph's ``globalIntegration`` (geomorph 4.0): the mean of the specimens as
+    This follows geomorph's ``globalIntegration`` (geomorph 4.0.8): the mean of the specimens as
     given, the partial warps of its bending-energy matrix, the projections of each coordinate,
     their variances (divisor N − 1) summed over the coordinates, and the least-squares slope of
     the logarithms over all the partial warps. It differs in these respects:
 
     * geomorph takes already aligned coordinates; here the specimens are aligned first unless
       ``procrustes=False``. shapelib's alignment leaves the coordinates on the shape sphere, where
-      ``gpagen`` projects them onto the tangent space of the mean: the slopes differ by a little
-      for samples of very variable shape, not at all with ``procrustes=False`` on the same
-      coordinates.
+      ``gpagen`` projects them onto the tangent space of the mean; that projection subtracts from
+      each specimen a multiple of the mean configuration, whose projections on its own partial
+      warps are zero, so the slope is the same.
     * The 2-D kernel of :func:`shapelib.bending_energy_matrix` is ``r² log r``, geomorph's
       ``r² log r²``: geomorph's bending energies are half of these, which moves the line, not its
       slope.
     * geomorph rounds the eigenvalues to seven significant digits of the largest (``zapsmall``)
       and keeps the positive ones; here the ``K − d − 1`` largest are kept unrounded, and a mean
-      configuration with fewer positive ones (no thin-plate spline) is an error.
+      configuration without a thin-plate spline (landmarks on a line or plane, or coinciding) is
+      an error.
+    * Fewer than d + 3 landmarks (one partial warp: geomorph's slope is ``NA``) and specimens that
+      do not vary along a partial warp (a logarithm of 0) are errors here.
     * geomorph plots the points, the line and a line of slope −1; here the points are returned
       (``bending_energies``, ``variances``) for a plot of one's own, and the slope is read as
       integrated, self-similar or disintegrated with ``tolerance``.
@@ -243,6 +247,10 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
     centred = mean - mean.mean(axis=0)
     spread = np.linalg.svd(centred, compute_uv=False)  # a zero: the landmarks on one line (plane in 3-D)
     gaps = np.linalg.norm(mean[:, None] - mean[None], axis=-1)[np.triu_indices(k, 1)]
+    own = np.sum((x - x.mean(axis=1, keepdims=True)) ** 2, axis=(1, 2))  # each specimen's squared size
+    if np.sum(centred**2) <= 1e-16 * own.mean():
+        raise ValueError("shapes: the mean configuration is nearly a single point (below 1e-8 of the specimens' "
+                         "size): pass landmark coordinates, not residuals from the mean")
     if spread[-1] <= 1e-8 * spread[0] or gaps.min() <= 1e-8 * spread[0]:
         raise ValueError("shapes: the mean configuration has no thin-plate spline: its landmarks lie on one line "
                          "(one plane in 3-D) or two of them coincide")
@@ -250,6 +258,9 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
     lam, vec = np.linalg.eigh((lk + lk.T) / 2)
     m = k - d - 1
     lam, vec = lam[-m:], vec[:, -m:]  # the affine null space (d + 1 zero eigenvalues) left out
+    if not np.all(lam > 0):  # a safeguard: the checks above leave a spline with m positive energies
+        raise ValueError("shapes: the bending energies of the mean configuration are not all positive to rounding; "
+                         "its landmarks are too close to one line (one plane in 3-D) or to each other")
     scores = np.einsum("km,nkc->nmc", vec, x)
     variances = scores.var(axis=0, ddof=1).sum(axis=1)
     flat = np.flatnonzero(variances <= 1e-24 * np.sum(centred**2))  # rounding of identical specimens, or none at all
