@@ -209,6 +209,9 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
       and keeps the positive ones; here the ``K − d − 1`` largest are kept unrounded, and a mean
       configuration without a thin-plate spline (landmarks on a line or plane, or coinciding) is
       an error.
+    * The spline is solved for the mean scaled to unit centroid size and its energies rescaled to
+      the mean's size (exactly: ``s⁻²`` in 2-D, ``s⁻¹`` in 3-D), which keeps them accurate whatever
+      the units of the coordinates; geomorph solves at the size given (about 1 after ``gpagen``).
     * Fewer than d + 3 landmarks (one partial warp: geomorph's slope is ``NA``) and specimens that
       do not vary along a partial warp (a logarithm of 0) are errors here.
     * geomorph plots the points, the line and a line of slope −1; here the points are returned
@@ -247,23 +250,26 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
     centred = mean - mean.mean(axis=0)
     spread = np.linalg.svd(centred, compute_uv=False)  # a zero: the landmarks on one line (plane in 3-D)
     gaps = np.linalg.norm(mean[:, None] - mean[None], axis=-1)[np.triu_indices(k, 1)]
-    own = np.sum((x - x.mean(axis=1, keepdims=True)) ** 2, axis=(1, 2))  # each specimen's squared size
-    if np.sum(centred**2) <= 1e-16 * own.mean():
+    # the mean's spread against the specimens' own (each coordinate's variance over the landmarks)
+    if centred.var() <= 1e-16 * x.var(axis=1).mean():
         raise ValueError("shapes: the mean configuration is nearly a single point (below 1e-8 of the specimens' "
                          "size): pass landmark coordinates, not residuals from the mean")
     if spread[-1] <= 1e-8 * spread[0] or gaps.min() <= 1e-8 * spread[0]:
         raise ValueError("shapes: the mean configuration has no thin-plate spline: its landmarks lie on one line "
                          "(one plane in 3-D) or two of them coincide")
-    lk = bending_energy_matrix(mean)
+    # the spline of the mean at unit centroid size (the bordered system is best conditioned there), its
+    # energies brought back to the mean's size s: the kernel scales as s² r² log r (2-D; the s² log s r²
+    # left over is affine) or s r (3-D), so the energies as s⁻² or s⁻¹
+    size = np.sqrt(np.sum(centred**2))
+    lk = bending_energy_matrix(centred / size)
     lam, vec = np.linalg.eigh((lk + lk.T) / 2)
+    lam = lam / size ** (2 if d == 2 else 1)
     m = k - d - 1
+    # distinct landmarks not on one line (plane) have a thin-plate spline: m positive bending energies
     lam, vec = lam[-m:], vec[:, -m:]  # the affine null space (d + 1 zero eigenvalues) left out
-    if not np.all(lam > 0):  # a safeguard: the checks above leave a spline with m positive energies
-        raise ValueError("shapes: the bending energies of the mean configuration are not all positive to rounding; "
-                         "its landmarks are too close to one line (one plane in 3-D) or to each other")
     scores = np.einsum("km,nkc->nmc", vec, x)
     variances = scores.var(axis=0, ddof=1).sum(axis=1)
-    flat = np.flatnonzero(variances <= 1e-24 * np.sum(centred**2))  # rounding of identical specimens, or none at all
+    flat = np.flatnonzero(variances <= 1e-24 * size**2)  # rounding of identical specimens, or none at all
     if flat.size:
         raise ValueError(f"shapes: the specimens do not vary along partial warp {flat[0]} (bending energy "
                          f"{lam[flat[0]]:.4g}); the slope needs variation at every scale")
