@@ -338,6 +338,14 @@ def test_landmarks_a_millionth_of_the_extent_apart_are_kept():
     assert len(res.bending_energies) == 5
 
 
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 1e6])
+def test_variation_of_a_ten_billionth_of_the_size_is_fitted_at_any_scale(scale):
+    lam, _ = _partial_warps(MEAN_2D)
+    shapes = scale * _exact_profile(MEAN_2D, 1e-10 * (lam / lam[0]) ** -1.0, 20, np.random.default_rng(15))
+    res = sl.global_integration(shapes, procrustes=False)
+    assert res.value == pytest.approx(-2.0, abs=1e-3)
+
+
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_affine_copies_of_one_configuration_have_no_variation_to_fit_at_any_scale(scale):
     rng = np.random.default_rng(11)
