@@ -79,7 +79,8 @@ _LAZY_FUNCTIONS = {"read_point_sets": "io", "write_point_set": "io", "read_slide
                    "PLSResult": "statistics.pls", "modularity_test": "statistics.modularity",
                    "ModularityResult": "statistics.modularity", "bilateral_symmetry": "statistics.symmetry",
                    "SymmetryResult": "statistics.symmetry", "trajectory_analysis": "statistics.trajectory",
-                   "TrajectoryResult": "statistics.trajectory"}
+                   "TrajectoryResult": "statistics.trajectory", "global_integration": "statistics.integration",
+                   "GlobalIntegrationResult": "statistics.integration"}
 
 
 def __getattr__(name):
@@ -122,6 +123,8 @@ __all__ = [
     "SymmetryResult",
     "trajectory_analysis",
     "TrajectoryResult",
+    "global_integration",
+    "GlobalIntegrationResult",
     "as_point_set",  # shapelib.pointsets
     "as_point_sets",
     "density_inner",

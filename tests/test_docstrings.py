@@ -28,7 +28,7 @@ MATH_MODULES = (
     "shapelib.retrieval", "shapelib.statistics.linear_model", "shapelib.statistics.allometry",
     "shapelib.solver.transport", "shapelib.statistics.disparity", "shapelib.statistics.pls",
     "shapelib.statistics.modularity",
-    "shapelib.statistics.symmetry", "shapelib.statistics.trajectory",
+    "shapelib.statistics.symmetry", "shapelib.statistics.trajectory", "shapelib.statistics.integration",
 )
 MODULES = MATH_MODULES + ("shapelib.datasets", "shapelib.plotting")
 

@@ -129,7 +129,7 @@ AREAS = (
          "geodesic, parallel transport, the Fréchet mean, tangent PCA, geodesic regression, a permutation test of a "
          "difference in mean shape — tests and ordinations on distance matrices, and geomorph's "
          "analyses of Procrustes coordinates: linear models, allometry, disparity, two-block PLS, modularity, "
-         "bilateral symmetry and phenotypic trajectories. "
+         "bilateral symmetry, phenotypic trajectories and global integration. "
          "``frechet_mean``, ``tangent_pca``, ``geodesic_regression`` and ``mean_difference_test`` "
          "are the same functions as ``shapelib.statistics.frechet_mean`` and so on, documented "
          "once, under their top-level names; their log maps run on the engine's workers "
@@ -139,7 +139,7 @@ AREAS = (
           "shapelib.statistics.distance_based", "shapelib.statistics.sweep", "shapelib.statistics.linear_model",
           "shapelib.statistics.allometry", "shapelib.statistics.disparity", "shapelib.statistics.pls",
           "shapelib.statistics.modularity", "shapelib.statistics.symmetry",
-          "shapelib.statistics.trajectory"),
+          "shapelib.statistics.trajectory", "shapelib.statistics.integration"),
          """
          shapelib.log_map
          shapelib.exp_map
@@ -182,6 +182,8 @@ AREAS = (
          shapelib.SymmetryResult
          shapelib.trajectory_analysis
          shapelib.TrajectoryResult
+         shapelib.global_integration
+         shapelib.GlobalIntegrationResult
          shapelib.holm_adjust
          """),
     Area("engine", "Engine",
