@@ -139,7 +139,9 @@ def bending_energy_matrix(reference) -> np.ndarray:
     3-D, ``P = [1, x]``); ``vᵀ L_K v`` is the bending energy of the spline taking the reference
     onto reference + ``v`` along one coordinate, zero for affine ``v``.
 
-    This is the matrix of [1]_ that minimum-bending-energy sliding [2]_ uses.
+    This is the matrix of [1]_ that minimum-bending-energy sliding [2]_ uses. It is computed at unit
+    centroid size and rescaled exactly, ``L_K(s·x) = s⁻² L_K(x)`` in 2-D and ``s⁻¹ L_K(x)`` in 3-D, so
+    raw coordinates of any size (pixels, micrometres) keep full accuracy.
 
     Parameters
     ----------
@@ -178,6 +180,15 @@ def bending_energy_matrix(reference) -> np.ndarray:
     """
     x = np.asarray(reference, dtype=np.float64)
     k, d = x.shape
+    # Solved at unit centroid size, then rescaled exactly: the bordered system of raw coordinates
+    # (say 10⁴ pixels) mixes entries of r² log r ~ 10⁹ with ones and loses most of its digits.
+    # On the space Pᵀv = 0 that L_K acts on, U(s·x) = s² U(x) in 2-D (the extra s² log s · r² is
+    # annihilated: r²_ij = |x_i|² + |x_j|² − 2 x_i·x_j) and s U(x) in 3-D, so L_K(s·x) = s⁻² L_K(x)
+    # in 2-D and s⁻¹ L_K(x) in 3-D; a translation changes nothing.
+    x = x - x.mean(axis=0)
+    size = float(np.sqrt(np.sum(x ** 2)))
+    if size > 0:
+        x = x / size
     r = np.linalg.norm(x[:, None] - x[None], axis=-1)
     if d == 2:
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -186,7 +197,8 @@ def bending_energy_matrix(reference) -> np.ndarray:
         u = -r
     p = np.hstack([np.ones((k, 1)), x])
     full = np.block([[u, p], [p.T, np.zeros((d + 1, d + 1))]])
-    return np.linalg.pinv(full)[:k, :k]
+    lk = np.linalg.pinv(full)[:k, :k]
+    return lk / size ** (2 if d == 2 else 1) if size > 0 else lk
 
 
 def _tangents(x, sliders):
