@@ -361,3 +361,66 @@ def test_landmarks_belong_to_the_nonrigid_registration():
     a = sl.register(x, y, landmarks=np.zeros((0, 2), dtype=int), warn=False)
     b = sl.register(x, y, warn=False)
     np.testing.assert_array_equal(a.points, b.points)
+
+
+def _turn(axis, radians):
+    """The rotation by ``radians`` about ``axis`` (Rodrigues)."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(radians) * k + (1 - np.cos(radians)) * k @ k
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("reflection", [False, True])
+def test_the_landmarks_rotation_recovers_a_known_rotation(d, reflection):
+    """The search's extra start: the rotation of least squares taking the source landmarks onto the
+    target's. Landmarks of a turned (and scaled, shifted) copy give back the turn; a mirrored copy gives the
+    mirror only when reflections are allowed; one pair, or pairs that coincide, give no start."""
+    rng = np.random.default_rng(d)
+    x = rng.normal(size=(30, d))
+    turn = _turn(rng.normal(size=3), 2.3) if d == 3 else np.array([[np.cos(2.3), -np.sin(2.3)],
+                                                                     [np.sin(2.3), np.cos(2.3)]])
+    perm = rng.permutation(30)
+    y = (1.7 * x @ turn.T + 0.4)[perm]
+    where = np.argsort(perm)
+    pairs = np.column_stack([[3, 11, 20, 27][:d + 1], where[[3, 11, 20, 27][:d + 1]]])  # d of them: a mirror
+    # in the plane (3-D) or line (2-D) of their centred points fits them as well
+    lab = label_array(pairs, 30)
+    np.testing.assert_allclose(_nonrigid.landmark_rotation(x, y, lab, reflection), turn, atol=1e-12)
+    mirror = np.diag([1.0] * (d - 1) + [-1.0])
+    got = _nonrigid.landmark_rotation(x @ mirror, y, lab, reflection)
+    assert np.linalg.det(got) == pytest.approx(-1.0 if reflection else 1.0)
+    if reflection:
+        np.testing.assert_allclose(got, turn @ mirror, atol=1e-12)
+    assert _nonrigid.landmark_rotation(x, y, label_array(pairs[:1], 30), reflection) is None
+    assert _nonrigid.landmark_rotation(x, y, label_array(np.zeros((0, 2), int), 30), reflection) is None
+    same = np.column_stack([[3, 3], where[[3, 3]]])
+    assert _nonrigid.landmark_rotation(np.repeat(x[:1], 30, axis=0), y, label_array(same[:1], 30), reflection) is None
+
+
+def _egg(n, seed):
+    """Points on a 3-D egg-like surface whose symmetries only small odd terms break (other poses fit it
+    nearly as well), moved by a smooth bump, turned by 50° about a random axis, shuffled; and three
+    landmarks spread over it (source point, its target point)."""
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    r = 1 + 0.3 * v[:, 0] + 0.2 * v[:, 1] * v[:, 2] + 0.15 * v[:, 2] ** 2 + 0.2 * v[:, 1] ** 3
+    x = r[:, None] * v * np.array([1.2, 1.0, 0.8])
+    x -= x.mean(axis=0)
+    bump = 0.1 * np.exp(-np.sum((x - x[0]) ** 2, axis=1) / 0.5)[:, None] * np.array([0.0, 0.6, 0.8])
+    truth = 1.3 * (x + bump) @ _turn(rng.normal(size=3), np.radians(50)).T + 0.2
+    perm = rng.permutation(n)
+    src = registration.farthest_points(x, 3)
+    return x, truth[perm], truth, np.column_stack([src, np.argsort(perm)[src]])
+
+
+@pytest.mark.parametrize("seed", [0, 2, 3])
+def test_three_landmarks_decide_the_pose_of_a_near_symmetric_surface(seed):
+    """Without the landmarks' own start (the cube's rotations only) the search kept another pose in these
+    three cases, 0.10–0.13 of the size from the truth (flagged); with it each ends on the truth."""
+    x, y, truth, lm = _egg(400, seed)
+    res = sl.register(x, y, landmarks=lm, warn=False)
+    size = np.sqrt(np.mean(np.sum((truth - truth.mean(axis=0)) ** 2, axis=1)))
+    assert np.mean(np.linalg.norm(res.points - truth, axis=1)) / size < 0.01
+    assert res.reliable
