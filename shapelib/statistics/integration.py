@@ -209,9 +209,10 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
       and keeps the positive ones; here the ``K − d − 1`` largest are kept unrounded, and a mean
       configuration without a thin-plate spline (landmarks on a line or plane, or coinciding) is
       an error.
-    * The spline is solved for the mean scaled to unit centroid size and its energies rescaled to
-      the mean's size (exactly: ``s⁻²`` in 2-D, ``s⁻¹`` in 3-D), which keeps them accurate whatever
-      the units of the coordinates; geomorph solves at the size given (about 1 after ``gpagen``).
+    * :func:`shapelib.bending_energy_matrix` solves the spline at unit centroid size and rescales
+      its energies to the mean's size (exactly: ``s⁻²`` in 2-D, ``s⁻¹`` in 3-D), which keeps them
+      accurate whatever the units of the coordinates; geomorph solves at the size given (about 1
+      after ``gpagen``).
     * Fewer than d + 3 landmarks (one partial warp: geomorph's slope is ``NA``) and specimens that
       do not vary along a partial warp (a logarithm of 0) are errors here.
     * geomorph plots the points, the line and a line of slope −1; here the points are returned
@@ -257,13 +258,9 @@ def global_integration(shapes, *, procrustes: bool = True, tolerance: float = 0.
     if spread[-1] <= 1e-8 * spread[0] or gaps.min() <= 1e-8 * spread[0]:
         raise ValueError("shapes: the mean configuration has no thin-plate spline: its landmarks lie on one line "
                          "(one plane in 3-D) or two of them coincide")
-    # the spline of the mean at unit centroid size (the bordered system is best conditioned there), its
-    # energies brought back to the mean's size s: the kernel scales as s² r² log r (2-D; the s² log s r²
-    # left over is affine) or s r (3-D), so the energies as s⁻² or s⁻¹
     size = np.sqrt(np.sum(centred**2))
-    lk = bending_energy_matrix(centred / size)
+    lk = bending_energy_matrix(mean)  # solved at unit centroid size, rescaled to the mean's
     lam, vec = np.linalg.eigh((lk + lk.T) / 2)
-    lam = lam / size ** (2 if d == 2 else 1)
     m = k - d - 1
     # distinct landmarks not on one line (plane) have a thin-plate spline: m positive bending energies
     lam, vec = lam[-m:], vec[:, -m:]  # the affine null space (d + 1 zero eigenvalues) left out
