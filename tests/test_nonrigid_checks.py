@@ -427,3 +427,36 @@ def test_with_kernel_factors_a_weight_kernel_once_when_invariant_and_keeps_a_mea
     means = nr.with_kernel(lambda v: np.kron(_gauss_kernel(v), np.eye(2)), invariant=False)(u)
     assert means.q is None
     np.testing.assert_array_equal(means.full, np.kron(_gauss_kernel(u), np.eye(2)))
+
+
+def test_in_3d_the_landmarks_start_joins_the_search_without_changing_the_others(monkeypatch):
+    """With known pairs in 3-D the landmarks' rotation is start 24, after the cube's 24; it is screened,
+    carried to the final fits at every weight besides the N_KEEP best of the cube's, and progress counts it.
+    The other fits are bit for bit those of the same search without it."""
+    from shapelib.pointsets._coherent_em import label_array
+
+    rng = np.random.default_rng(3)
+    x = _normalised(rng.normal(size=(24, 3)) * np.array([1.3, 1.0, 0.7]))
+    turn = Rotation.from_rotvec([0.6, -0.9, 0.4]).as_matrix()
+    perm = rng.permutation(24)
+    y = _normalised((x @ turn.T)[perm])
+    where = np.argsort(perm)
+    labels = label_array(np.column_stack([[0, 7, 15], where[[0, 7, 15]]]), 24)
+    opts = dict(kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=None, fixed_s2=None, reflection=False,
+                max_iter=60, tol=1e-6, s2_floor=1e-8, labels=labels)
+    ticks = []
+    fits, rots, screened = nr.fit_all(x, y, progress=lambda done, total: ticks.append((done, total)), **opts)
+    assert len(rots) == 25 and len(screened) == 25
+    np.testing.assert_allclose(rots[24], turn, atol=1e-12)  # exact landmarks: the turn itself
+    assert sorted(k for _, k, _ in fits if k == 24) == [24] * len(nr.W_GRID)
+    total = 25 + (nr.N_KEEP + 1) * len(nr.W_GRID)
+    assert ticks == [(k, total) for k in range(1, total + 1)]
+    monkeypatch.setattr(nr, "landmark_rotation", lambda *a: None)
+    without, rots0, _ = nr.fit_all(x, y, **opts)
+    assert len(rots0) == 24 and len(without) == nr.N_KEEP * len(nr.W_GRID)
+    others = [c for c in fits if c[1] != 24]
+    assert [(f, k) for f, k, _ in others] == [(f, k) for f, k, _ in without]
+    for (_, _, a), (_, _, b) in zip(others, without):
+        np.testing.assert_array_equal(a.coef, b.coef)
+    # the best fit lies on the target, each point on its own
+    assert np.mean(np.linalg.norm(fits[0][2].theta - y[where], axis=1)) < 0.05
