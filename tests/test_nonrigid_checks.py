@@ -451,6 +451,15 @@ def test_in_3d_the_landmarks_start_joins_the_search_without_changing_the_others(
     assert sorted(k for _, k, _ in fits if k == 24) == [24] * len(nr.W_GRID)
     total = 25 + (nr.N_KEEP + 1) * len(nr.W_GRID)
     assert ticks == [(k, total) for k in range(1, total + 1)]
+    # a mirrored source, reflections allowed: the landmarks' start is the improper map
+    mirror = np.diag([1.0, 1.0, -1.0])
+    _, rots_m, _ = nr.fit_all(x @ mirror, y, **dict(opts, reflection=True, max_iter=5, w=0.2))
+    assert len(rots_m) == 49
+    np.testing.assert_allclose(rots_m[48], turn @ mirror, atol=1e-12)
+    # not in 2-D: the grid's 16 starts only
+    x2, y2 = x[:, :2], y[:, :2]
+    _, rots2, _ = nr.fit_all(_normalised(x2), _normalised(y2), **dict(opts, max_iter=5, w=0.2))
+    assert len(rots2) == nr.N_ROT_2D
     monkeypatch.setattr(nr, "landmark_rotation", lambda *a: None)
     without, rots0, _ = nr.fit_all(x, y, **opts)
     assert len(rots0) == 24 and len(without) == nr.N_KEEP * len(nr.W_GRID)

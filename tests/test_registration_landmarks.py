@@ -392,10 +392,17 @@ def test_the_landmarks_rotation_recovers_a_known_rotation(d, reflection):
     assert np.linalg.det(got) == pytest.approx(-1.0 if reflection else 1.0)
     if reflection:
         np.testing.assert_allclose(got, turn @ mirror, atol=1e-12)
+    # a configuration a thousand times smaller is no less a configuration
+    np.testing.assert_allclose(_nonrigid.landmark_rotation(1e-3 * x, 1e-3 * y, lab, reflection), turn, atol=1e-9)
+    if d == 2:  # in the plane two pairs fix a rotation
+        np.testing.assert_allclose(_nonrigid.landmark_rotation(x, y, label_array(pairs[:2], 30), reflection), turn,
+                                   atol=1e-12)
     assert _nonrigid.landmark_rotation(x, y, label_array(pairs[:1], 30), reflection) is None
     assert _nonrigid.landmark_rotation(x, y, label_array(np.zeros((0, 2), int), 30), reflection) is None
-    same = np.column_stack([[3, 3], where[[3, 3]]])
-    assert _nonrigid.landmark_rotation(np.repeat(x[:1], 30, axis=0), y, label_array(same[:1], 30), reflection) is None
+    # two pairs whose points coincide on one side or the other: no direction to turn
+    same = np.repeat(x[:1], 30, axis=0)
+    assert _nonrigid.landmark_rotation(same, y, label_array(pairs[:2], 30), reflection) is None
+    assert _nonrigid.landmark_rotation(x, np.repeat(y[:1], 30, axis=0), label_array(pairs[:2], 30), reflection) is None
 
 
 def _egg(n, seed):

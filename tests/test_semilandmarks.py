@@ -192,6 +192,11 @@ def test_bending_energy_matrix_keeps_its_accuracy_at_any_coordinate_size(rng, d,
     np.testing.assert_allclose(lk * scale ** (2 if d == 2 else 1), unit, rtol=0, atol=1e-9 * np.abs(unit).max())
 
 
+def test_bending_energy_matrix_of_coincident_landmarks_is_an_error():
+    with pytest.raises(ValueError, match="reference: all its landmarks coincide"):
+        bending_energy_matrix(np.full((6, 2), 3.0))
+
+
 def test_a_semilandmark_between_coincident_neighbours_stays():
     """Its tangent is undefined (a zero chord): the point does not move, and nothing is NaN."""
     y = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5], [0.2, 0.7]])

@@ -154,6 +154,11 @@ def bending_energy_matrix(reference) -> np.ndarray:
         ``L_K``: symmetric, positive semi-definite, with the affine functions of the reference in
         its null space.
 
+    Raises
+    ------
+    ValueError
+        If all the landmarks of ``reference`` coincide.
+
     See Also
     --------
     slide_semilandmarks : Minimises ``xᵀ (I_d ⊗ L_K) x`` along the sliders.
@@ -187,8 +192,9 @@ def bending_energy_matrix(reference) -> np.ndarray:
     # in 2-D and s⁻¹ L_K(x) in 3-D; a translation changes nothing.
     x = x - x.mean(axis=0)
     size = float(np.sqrt(np.sum(x ** 2)))
-    if size > 0:
-        x = x / size
+    if size == 0:
+        raise ValueError("reference: all its landmarks coincide: there is no thin-plate spline")
+    x = x / size
     r = np.linalg.norm(x[:, None] - x[None], axis=-1)
     if d == 2:
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -198,7 +204,7 @@ def bending_energy_matrix(reference) -> np.ndarray:
     p = np.hstack([np.ones((k, 1)), x])
     full = np.block([[u, p], [p.T, np.zeros((d + 1, d + 1))]])
     lk = np.linalg.pinv(full)[:k, :k]
-    return lk / size ** (2 if d == 2 else 1) if size > 0 else lk
+    return lk / size ** (2 if d == 2 else 1)
 
 
 def _tangents(x, sliders):
