@@ -134,7 +134,7 @@ def landmark_rotation(xn, yn, labels, reflection):
     two pairs or pairs that coincide on one side."""
     from ..geometry.procrustes import optimal_rotation
 
-    j = np.flatnonzero(labels >= 0) if len(labels) else np.zeros(0, dtype=np.intp)
+    j = np.flatnonzero(labels >= 0)  # label_array's empty array when none is known: no pair
     if len(j) < 2:
         return None
     a = yn[j] - yn[j].mean(axis=0)
