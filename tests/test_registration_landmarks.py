@@ -322,16 +322,19 @@ def test_the_landmarks_join_the_subsets_renumbered_onto_the_same_points(monkeypa
     assert not set(lm[:, 0]) & set(spread_x) and not set(lm[:, 1]) & set(spread_y)
     seen = []
 
-    def fit(xs, ys, pairs):
-        seen.append((xs, ys, pairs))
+    def fit(xs, ys, pairs, part):
+        seen.append((xs, ys, pairs, part))
         return sl.register(xs, ys, landmarks=pairs, warn=False)
 
     res = registration._register_large(x, y, fit, lm)
-    (xs, ys, sub), = seen
+    (xs, ys, sub, part), (xs2, ys2, sub2, part2) = seen  # the fit, then its check on other subsets
+    assert (part, part2) == ((0, 2), (1, 2))
     np.testing.assert_array_equal(xs, x[np.sort(np.concatenate([spread_x, lm[:, 0]]))])
     np.testing.assert_array_equal(ys, y[np.sort(np.concatenate([spread_y, lm[:, 1]]))])
-    np.testing.assert_array_equal(xs[sub[:, 0]], x[lm[:, 0]])
-    np.testing.assert_array_equal(ys[sub[:, 1]], y[lm[:, 1]])
+    for a, b, p in ((xs, ys, sub), (xs2, ys2, sub2)):
+        np.testing.assert_array_equal(a[p[:, 0]], x[lm[:, 0]])
+        np.testing.assert_array_equal(b[p[:, 1]], y[lm[:, 1]])
+    assert not np.array_equal(xs2, xs) and not np.array_equal(ys2, ys)
     np.testing.assert_array_equal(res.correspondence[lm[:, 0]], lm[:, 1])
 
 

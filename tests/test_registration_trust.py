@@ -257,3 +257,67 @@ def test_the_command_line_takes_the_em_options_its_message_names(tmp_path, capsy
     assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.csv"), "--max-iter", "400", "--tol", "1e-4"]) == 0
     assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.csv"), "--max-iter", "0"]) == 1
     assert "max_iter" in capsys.readouterr().err
+
+
+def test_a_large_registration_is_checked_by_the_same_fit_on_other_subsets(monkeypatch):
+    """Over MAX_POINTS a second fit runs on other farthest-point subsets (each grown from the point farthest
+    from its set's centroid); on a well-determined outline both put the points in the same places. The
+    distance reported is the one between the result and that second fit, redone here by the public API;
+    progress counts both fits."""
+    from shapelib.pointsets import registration
+
+    monkeypatch.setattr(registration, "MAX_POINTS", 80)
+    x = fish(300)
+    y = warp(x, 0.25)[::-1]
+    calls = []
+    res = sl.register(x, y, progress=lambda done, total: calls.append((done, total)), warn=False)
+    assert not any("other subsets" in r for r in res.reasons)
+    far = [int(np.argmax(np.sum((a - a.mean(axis=0)) ** 2, axis=1))) for a in (x, y)]
+    jx, jy = (registration.farthest_points(a, 80, first=f) for a, f in zip((x, y), far))
+    assert len(set(jx) ^ set(registration.farthest_points(x, 80))) > 0  # other subsets indeed
+    other = sl.register(x[jx], y[jy], warn=False)
+    apart = np.mean(np.linalg.norm(res.points - other.warp(x), axis=1)) / size(y)
+    assert res.diagnostics["subset_disagreement"] == pytest.approx(apart, rel=1e-9)
+    assert apart < registration.SUBSET_DISAGREEMENT
+    total = calls[0][1]
+    assert calls == [(k, total) for k in range(1, total + 1)] and total % 2 == 0
+
+
+def _egg(n, seed):
+    """Points on a 3-D egg-like surface whose symmetries only small odd terms break, moved by a smooth
+    bump, turned by 50°, shuffled; three landmarks spread over it (source point, its target point)."""
+    from scipy.spatial.transform import Rotation
+
+    from shapelib.pointsets.registration import farthest_points
+
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    r = 1 + 0.3 * v[:, 0] + 0.2 * v[:, 1] * v[:, 2] + 0.15 * v[:, 2] ** 2 + 0.2 * v[:, 1] ** 3
+    x = r[:, None] * v * np.array([1.2, 1.0, 0.8])
+    x -= x.mean(axis=0)
+    bump = 0.1 * np.exp(-np.sum((x - x[0]) ** 2, axis=1) / 0.5)[:, None] * np.array([0.0, 0.6, 0.8])
+    axis = rng.normal(size=3)
+    turn = Rotation.from_rotvec(np.radians(50) * axis / np.linalg.norm(axis)).as_matrix()
+    truth = 1.3 * (x + bump) @ turn.T + 0.2
+    perm = rng.permutation(n)
+    src = farthest_points(x, 3)
+    return x, truth[perm], truth, np.column_stack([src, np.argsort(perm)[src]])
+
+
+def test_a_large_surface_whose_points_slide_along_it_is_flagged_by_the_second_fit(monkeypatch):
+    """A densely sampled smooth surface registered through subsets a tenth of its size: the landmarks fix
+    the pose, but not where along the surface each point goes, and two fits on different subsets put the
+    points apart. The result says so — and it is indeed wrong."""
+    from shapelib.pointsets import registration
+
+    monkeypatch.setattr(registration, "MAX_POINTS", 200)
+    x, y, truth, lm = _egg(2000, 1)
+    with pytest.warns(sl.RegistrationWarning, match="a fit on other subsets of the points moves them"):
+        res = sl.register(x, y, landmarks=lm)
+    assert not res.reliable
+    assert [r for r in res.reasons if "other subsets" in r] == list(res.reasons[-1:])
+    assert res.diagnostics["subset_disagreement"] > registration.SUBSET_DISAGREEMENT
+    assert "other subsets" in res.summary()
+    error = np.mean(np.linalg.norm(res.points - truth, axis=1)) / size(truth)
+    assert error > 0.05

@@ -22,7 +22,10 @@ Both sets are mixtures of eq. (5), one component per point, centred and scaled t
    leave the density almost unchanged — and deforms from the pose the search finds.)
    ``reliable`` is False when another start reaches a nearly equal objective with a different
    fit, when σ is large against the target's point spacing, or when most of the source is
-   unmatched. Sets of over ``MAX_POINTS`` points go through farthest-point subsets.
+   unmatched. Sets of over ``MAX_POINTS`` points go through farthest-point subsets, twice (two
+   subsets of each set, from different first points): ``reliable`` is also False when the two
+   fits move the source points apart by more than ``SUBSET_DISAGREEMENT`` of the target's RMS
+   radius on average — the data do not fix where along the shape each point belongs.
 3. **The deformation is a geodesic.** The path from the posed source to the fitted ``θ`` (points
    in correspondence) is the α-order (or Fisher–Rao) geodesic (:func:`shapelib.geodesic`) at the
    target's leave-one-out σ² (the spacing of its points, the scale of the paper's geodesics),
@@ -498,16 +501,20 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     threads = (1 if in_dask_worker() else n_cores()) if n_threads is None else check_positive_int(
         n_threads, name="n_threads")
 
-    def fit(xs, ys, pairs_s):
+    def fit(xs, ys, pairs_s, part=(0, 1)):
+        # part (i, n): the i-th of the n fits of a large registration; progress counts all n, the first warns
+        i, n = part
+        tick_p = (lambda done, total: tick(i * total + done, n * total)) if n > 1 else tick
+        warn_p = warn and i == 0
         if transform == "nonrigid":
             return _register_nonrigid(xs, ys, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, max_iter,
-                                      tol, n_steps, warn, tick, pairs=pairs_s, n_threads=threads)
+                                      tol, n_steps, warn_p, tick_p, pairs=pairs_s, n_threads=threads)
         return _register(xs, ys, transform, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, n_angles,
-                         max_iter, tol, n_steps, warn, tick)
+                         max_iter, tol, n_steps, warn_p, tick_p)
 
     with one_blas_thread():
         if max(len(x), len(y)) > MAX_POINTS:
-            return _register_large(x, y, fit, pairs)
+            return _register_large(x, y, fit, pairs, warn=warn)
         return fit(x, y, pairs)
 
 
@@ -718,13 +725,19 @@ def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2
 
 #: source points warped at a time in a large registration (bounds the kernel block's memory)
 WARP_BLOCK = 4096
+#: a large registration is not reliable when its second fit, on other subsets, moves the source points
+#: farther than this from the first's on average, in units of the target's RMS radius (the failure line of
+#: the registration benchmarks). Measured on the two record cases of ``benchmarks/bench_registration_large.py``
+#: that nothing else flags: 2-D, 10⁴ points, three subset pairs 0.014–0.016 apart (errors 0.010–0.021); 3-D
+#: with three landmarks, 0.053–0.063 apart (errors 0.044–0.069)
+SUBSET_DISAGREEMENT = 0.05
 
 
-def farthest_points(a, k):
+def farthest_points(a, k, *, first=None):
     """Indices of ``k`` points of ``a`` spread over it: farthest-point sampling from the point nearest
-    the centroid (deterministic)."""
+    the centroid (deterministic), or from point ``first``."""
     idx = np.empty(k, dtype=np.intp)
-    idx[0] = int(np.argmin(np.sum((a - a.mean(axis=0)) ** 2, axis=1)))
+    idx[0] = int(np.argmin(np.sum((a - a.mean(axis=0)) ** 2, axis=1))) if first is None else first
     dist = np.sum((a - a[idx[0]]) ** 2, axis=1)
     for i in range(1, k):
         idx[i] = int(np.argmax(dist))
@@ -732,11 +745,27 @@ def farthest_points(a, k):
     return np.sort(idx)
 
 
-def _register_large(x, y, fit, pairs=None):
-    """Sets over ``MAX_POINTS``: ``fit`` (the registration of two sets) on farthest-point subsets of
-    ``MAX_POINTS``, its warp (the kernel's, or the pose of a rigid transform) applied to every source
-    point in blocks, correspondences by nearest neighbours within 3σ plus a point spacing. Memory is
-    O((n + m) · MAX_POINTS) whatever the sizes."""
+def _subsets(x, y, pairs, first_x=None, first_y=None):
+    """Farthest-point subsets of ``MAX_POINTS`` (less the landmarks) of each set, from the given first
+    points (default: nearest the centroid), the landmarks joined to them and their rows renumbered into
+    them: ``(ix, iy, sub_pairs)``."""
+    k = 0 if pairs is None else len(pairs)
+    ix = farthest_points(x, min(len(x), MAX_POINTS - k), first=first_x)
+    iy = farthest_points(y, min(len(y), MAX_POINTS - k), first=first_y)
+    if not k:
+        return ix, iy, None
+    ix, iy = np.union1d(ix, pairs[:, 0]), np.union1d(iy, pairs[:, 1])
+    return ix, iy, np.column_stack([np.searchsorted(ix, pairs[:, 0]), np.searchsorted(iy, pairs[:, 1])])
+
+
+def _register_large(x, y, fit, pairs=None, *, warn=True):
+    """Sets over ``MAX_POINTS``: ``fit(xs, ys, pairs, part)`` (the registration of two sets, the
+    ``part[0]``-th of ``part[1]``) on farthest-point subsets of ``MAX_POINTS``, its warp (the kernel's,
+    or the pose of a rigid transform) applied to every source point in blocks, correspondences by
+    nearest neighbours within 3σ plus a point spacing. A second fit on other subsets (farthest points
+    from the points farthest from the centroids) checks the first: where they move the source points
+    apart by more than ``SUBSET_DISAGREEMENT`` of the target's RMS radius, the result is not reliable.
+    Memory is O((n + m) · MAX_POINTS) whatever the sizes."""
     from dataclasses import replace
 
     from scipy.spatial import cKDTree
@@ -745,14 +774,21 @@ def _register_large(x, y, fit, pairs=None):
     if k > MAX_POINTS // 2:
         raise ValueError(f"landmarks: at most {MAX_POINTS // 2} known correspondences for sets over {MAX_POINTS} "
                          f"points; got {k}")
-    ix = farthest_points(x, min(len(x), MAX_POINTS - k))
-    iy = farthest_points(y, min(len(y), MAX_POINTS - k))
-    sub_pairs = None
-    if k:  # the landmarks join the subsets, their rows renumbered into them
-        ix, iy = np.union1d(ix, pairs[:, 0]), np.union1d(iy, pairs[:, 1])
-        sub_pairs = np.column_stack([np.searchsorted(ix, pairs[:, 0]), np.searchsorted(iy, pairs[:, 1])])
-    sub = fit(x[ix], y[iy], sub_pairs)
-    points = np.concatenate([sub.warp(x[i:i + WARP_BLOCK]) for i in range(0, len(x), WARP_BLOCK)])
+    ix, iy, sub_pairs = _subsets(x, y, pairs)
+    sub = fit(x[ix], y[iy], sub_pairs, (0, 2))
+    points = _warp_blocks(sub, x)
+    far = [int(np.argmax(np.sum((a - a.mean(axis=0)) ** 2, axis=1))) for a in (x, y)]
+    jx, jy, other_pairs = _subsets(x, y, pairs, *far)
+    other = fit(x[jx], y[jy], other_pairs, (1, 2))
+    radius = float(np.sqrt(np.mean(np.sum((y - y.mean(axis=0)) ** 2, axis=1))))
+    apart = float(np.mean(np.linalg.norm(points - _warp_blocks(other, x), axis=1))) / max(radius, 1e-300)
+    reasons = list(sub.reasons)
+    if apart > SUBSET_DISAGREEMENT:
+        why = (f"a fit on other subsets of the points moves them {apart:.3f} of the target's radius away on average: "
+               f"the data do not fix where along the shape each point belongs")
+        reasons.append(why)
+        if warn:
+            warnings.warn("register: the registration is probably wrong: " + why, RegistrationWarning, stacklevel=3)
     reach = 3.0 * np.sqrt(sub.sigma2) + np.sqrt(_spacing2(y))
     dist, near = cKDTree(y).query(points)
     corr = np.where(dist <= reach, near, -1)
@@ -760,9 +796,14 @@ def _register_large(x, y, fit, pairs=None):
     tcorr = np.where(dist_t <= reach, near_t, -1)
     if k:  # the known correspondences as given
         corr[pairs[:, 0]], tcorr[pairs[:, 1]] = pairs[:, 1], pairs[:, 0]
-    diagnostics = dict(sub.diagnostics, subsets=(len(ix), len(iy)))
+    diagnostics = dict(sub.diagnostics, subsets=(len(ix), len(iy)), subset_disagreement=apart)
     return replace(sub, points=points, correspondence=corr, target_correspondence=tcorr, diagnostics=diagnostics,
-                   _source=x, _target=y, _p=None, _geodesic=None)
+                   reliable=not reasons, reasons=tuple(reasons), _source=x, _target=y, _p=None, _geodesic=None)
+
+
+def _warp_blocks(res, x):
+    """``res.warp`` applied to the points ``x`` in blocks of ``WARP_BLOCK``."""
+    return np.concatenate([res.warp(x[i:i + WARP_BLOCK]) for i in range(0, len(x), WARP_BLOCK)])
 
 
 def _similarity_part(x, theta, reflection):
