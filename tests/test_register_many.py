@@ -203,3 +203,67 @@ def test_the_targets_sigma2_does_not_depend_on_the_source():
     other = y + 0.01 * np.sin(7 * y[:, ::-1])
     assert _target_sigma2(other.shape, other.tobytes()) == _nonrigid_frame(y, other, None)[2]
     assert _target_sigma2(other.shape, other.tobytes()) != _target_sigma2(y.shape, y.tobytes())
+
+
+
+def test_reflection_reaches_each_fit_of_the_jax_batch():
+    """A bent outline and a turned mirror image of it, each way round, each pair in its own device call
+    (``batch_size=1``): with ``reflection=True`` a mirror start wins (register's default, rotations only,
+    fits another start), on JAX as in register, and ``timings`` says where the search ran."""
+    jax = import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    s = _bend(_outline(30))
+    mirrored = (_bend(_outline(30, phase=0.04)) * [1.0, -1.0]) @ _rot(0.5).T
+    pairs = [(s, mirrored), (mirrored, s)]
+    timings = {}
+    got = _quiet(shapelib.register_many, pairs, backend="jax", device="cpu", reflection=True, batch_size=1,
+                 timings=timings)
+    for (x, y), g in zip(pairs, got):
+        ref = _quiet(shapelib.register, x, y, reflection=True)
+        assert np.linalg.det(ref._start[0]) < 0 < np.linalg.det(_quiet(shapelib.register, x, y)._start[0])
+        assert np.abs(g.points - ref.points).max() / ref._frame[1] < 1e-6
+        np.testing.assert_allclose(g._start[0], ref._start[0], atol=1e-12)
+        assert (g.w, g.n_iter, g.reliable) == (ref.w, ref.n_iter, ref.reliable)
+    assert set(timings) == {"prep", "search", "assembly", "device"}
+    assert timings["device"] == str(jax.devices("cpu")[0]) and timings["search"] > 0.0
+
+
+def test_a_fixed_outlier_weight_and_the_em_options_reach_the_jax_batch():
+    """With ``w=0`` (not in the searched grid) and other ``lam``, ``sigma2_metric``, ``tol`` and ``max_iter``
+    the batched fit is register's with the same options, not register's default."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    opts = dict(w=0.0, lam=3.0, sigma2_metric=1.0, tol=1e-4, max_iter=60)
+    got = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", **opts)[0]
+    ref = _quiet(shapelib.register, *PAIRS[0], **opts)
+    default = _quiet(shapelib.register, *PAIRS[0])
+    assert got.w == ref.w == 0.0 != default.w
+    assert np.abs(got.points - ref.points).max() / ref._frame[1] < 1e-6
+    assert np.abs(default.points - ref.points).max() / ref._frame[1] > 1e-4   # the options change the fit
+    assert (got.n_iter, got.reliable) == (ref.n_iter, ref.reliable)
+    assert got.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
+    assert got.sigma2_metric == pytest.approx(ref.sigma2_metric, rel=1e-12) != default.sigma2_metric
+
+def test_the_jax_batch_warns_by_default_and_not_with_warn_false():
+    """Two EM iterations do not converge: one RegistrationWarning by default, none with ``warn=False``, as
+    register does."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    with pytest.warns(shapelib.RegistrationWarning):
+        shapelib.register_many(PAIRS[:1], backend="jax", device="cpu", max_iter=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = shapelib.register_many(PAIRS[:1], backend="jax", device="cpu", max_iter=2, warn=False)
+    assert (got[0].n_iter, got[0].converged) == (2, False)
+
+
+def test_device_gpu_runs_on_a_gpu_or_is_refused_saying_jax_sees_none():
+    jax = import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    try:
+        gpus = jax.devices("gpu")
+    except RuntimeError:
+        gpus = []
+    if gpus:
+        timings = {}
+        _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="gpu", timings=timings)
+        assert timings["device"] == str(gpus[0])
+    else:
+        with pytest.raises(RuntimeError, match='^device="gpu" but JAX sees no GPU'):
+            shapelib.register_many(PAIRS[:1], backend="jax", device="gpu")
