@@ -267,3 +267,16 @@ def test_device_gpu_runs_on_a_gpu_or_is_refused_saying_jax_sees_none():
     else:
         with pytest.raises(RuntimeError, match='^device="gpu" but JAX sees no GPU'):
             shapelib.register_many(PAIRS[:1], backend="jax", device="gpu")
+
+
+def test_a_batch_padded_with_repeated_pairs_gives_each_pair_its_own_fit():
+    """Nine pairs run as a batch of ten (the device programs are compiled for a few batch sizes; the tenth
+    repeats the first pair and is dropped): each result is register's for its own pair."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    pairs = [(_outline(8 + k % 3), _bend(_outline(8, phase=0.1 * k)) @ _rot(0.3 * k).T) for k in range(9)]
+    got = _quiet(shapelib.register_many, pairs, backend="jax", device="cpu")
+    assert len(got) == 9
+    for k, ((x, y), g) in enumerate(zip(pairs, got)):
+        ref = _quiet(shapelib.register, x, y)
+        assert np.abs(g.points - ref.points).max() / ref._frame[1] < 1e-6, k
+        np.testing.assert_allclose(g._start[0], ref._start[0], atol=1e-12)
