@@ -80,8 +80,9 @@ def test_the_jax_batch_equals_register_one_by_one(both):
         np.testing.assert_allclose([f for f, _, _ in got.diagnostics["candidates"]],
                                    [f for f, _, _ in ref.diagnostics["candidates"]], rtol=1e-8, atol=1e-8)
         assert got.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
-        assert (got.n_iter, got.converged, got.reliable, got.reasons) == \
-            (ref.n_iter, ref.converged, ref.reliable, ref.reasons), i
+        assert (got.n_iter, got.converged, got.stop_reason, got.reliable, got.reasons) == \
+            (ref.n_iter, ref.converged, ref.stop_reason, ref.reliable, ref.reasons), i
+        assert got.pose.stop_reason == ref.pose.stop_reason == "tolerance", i
         np.testing.assert_array_equal(got.correspondence, ref.correspondence)
         np.testing.assert_array_equal(got.target_correspondence, ref.target_correspondence)
         assert got.objective == pytest.approx(ref.objective, rel=1e-6)
@@ -243,15 +244,17 @@ def test_a_fixed_outlier_weight_and_the_em_options_reach_the_jax_batch():
     assert got.sigma2_metric == pytest.approx(ref.sigma2_metric, rel=1e-12) != default.sigma2_metric
 
 def test_the_jax_batch_warns_by_default_and_not_with_warn_false():
-    """Two EM iterations do not converge: one RegistrationWarning by default, none with ``warn=False``, as
-    register does."""
+    """Two EM iterations do not converge: one RegistrationWarning by default, none with ``warn=False``, and
+    the result says why EM stopped, as register's does."""
     import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
     with pytest.warns(shapelib.RegistrationWarning):
         shapelib.register_many(PAIRS[:1], backend="jax", device="cpu", max_iter=2)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         got = shapelib.register_many(PAIRS[:1], backend="jax", device="cpu", max_iter=2, warn=False)
-    assert (got[0].n_iter, got[0].converged) == (2, False)
+    ref = _quiet(shapelib.register, *PAIRS[0], max_iter=2)
+    assert (got[0].n_iter, got[0].converged, got[0].stop_reason) == (ref.n_iter, ref.converged, ref.stop_reason) \
+        == (2, False, "max_iter")
 
 
 def test_device_gpu_runs_on_a_gpu_or_is_refused_saying_jax_sees_none():
@@ -280,3 +283,16 @@ def test_a_batch_padded_with_repeated_pairs_gives_each_pair_its_own_fit():
         ref = _quiet(shapelib.register, x, y)
         assert np.abs(g.points - ref.points).max() / ref._frame[1] < 1e-6, k
         np.testing.assert_allclose(g._start[0], ref._start[0], atol=1e-12)
+
+
+def test_a_jax_call_whose_every_pair_is_over_max_points_names_no_device(monkeypatch):
+    """No pair reaches the device (each is register's, bit for bit): the timings name no device and count
+    no search time."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    from shapelib.pointsets import _batch
+
+    monkeypatch.setattr(_batch, "MAX_POINTS", 20)
+    timings = {}
+    got = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", timings=timings)
+    np.testing.assert_array_equal(got[0].points, _quiet(shapelib.register, *PAIRS[0]).points)
+    assert timings == {"prep": 0.0, "search": 0.0, "assembly": 0.0, "device": None}
