@@ -247,8 +247,9 @@ def test_the_jax_batch_warns_by_default_and_not_with_warn_false():
     """Two EM iterations do not converge: one RegistrationWarning by default, none with ``warn=False``, and
     the result says why EM stopped, as register's does."""
     import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
-    with pytest.warns(shapelib.RegistrationWarning):
+    with pytest.warns(shapelib.RegistrationWarning) as caught:
         shapelib.register_many(PAIRS[:1], backend="jax", device="cpu", max_iter=2)
+    assert any("after 2 iterations without converging" in str(w.message) for w in caught)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         got = shapelib.register_many(PAIRS[:1], backend="jax", device="cpu", max_iter=2, warn=False)
@@ -296,3 +297,43 @@ def test_a_jax_call_whose_every_pair_is_over_max_points_names_no_device(monkeypa
     got = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", timings=timings)
     np.testing.assert_array_equal(got[0].points, _quiet(shapelib.register, *PAIRS[0]).points)
     assert timings == {"prep": 0.0, "search": 0.0, "assembly": 0.0, "device": None}
+
+
+def test_a_pair_of_exactly_max_points_points_is_batched(monkeypatch):
+    """``MAX_POINTS`` is the largest set the batch takes: a pair of that many points is fitted on the device."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    from shapelib.pointsets import _batch
+
+    monkeypatch.setattr(_batch, "MAX_POINTS", len(PAIRS[0][0]))
+    timings = {}
+    got = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", timings=timings)[0]
+    ref = _quiet(shapelib.register, *PAIRS[0])
+    assert np.abs(got.points - ref.points).max() / ref._frame[1] < 1e-6
+    assert timings["device"] is not None and timings["search"] > 0.0
+
+
+def test_every_option_reaches_register_for_a_pair_over_max_points(monkeypatch):
+    """A pair over ``MAX_POINTS`` goes to register with each option given to the JAX call: register's result
+    with that option, bit for bit, not its default's; fits_many gives that result's fit."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    from shapelib.pointsets import _batch
+    from shapelib.pointsets._batch import fits_many
+
+    monkeypatch.setattr(_batch, "MAX_POINTS", 10)
+    s = _bend(_outline(14))
+    pair = (s, (_bend(_outline(14, phase=0.04)) * [1.0, -1.0]) @ _rot(0.5).T)  # a mirror image: reflection wins
+    default = _quiet(shapelib.register, *pair)
+    for key, value in (("reflection", True), ("w", 0.0), ("lam", 0.5), ("sigma2_metric", 0.5), ("max_iter", 3),
+                       ("tol", 0.05), ("n_steps", 3)):
+        got = _quiet(shapelib.register_many, [pair], backend="jax", **{key: value})[0]
+        ref = _quiet(shapelib.register, *pair, **{key: value})
+        np.testing.assert_array_equal(got.points, ref.points, err_msg=key)
+        assert len(got.path) == len(ref.path) and got.sigma2_metric == ref.sigma2_metric, key
+        assert (got.n_iter, len(got.path), got.sigma2_metric, got.w, np.linalg.det(got._start[0])) != \
+            (default.n_iter, len(default.path), default.sigma2_metric, default.w, np.linalg.det(default._start[0])), key
+        assert fits_many([pair], backend="jax", **{key: value}) == [(ref.sigma2, ref.converged, ref.n_iter)], key
+    with pytest.warns(shapelib.RegistrationWarning):
+        shapelib.register_many([pair], backend="jax", max_iter=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        shapelib.register_many([pair], backend="jax", max_iter=2, warn=False)
