@@ -5,6 +5,7 @@ naming the parameter and the pair."""
 
 import os
 import sys
+import time
 import warnings
 
 import numpy as np
@@ -216,23 +217,29 @@ def test_reflection_reaches_each_fit_of_the_jax_batch():
     mirrored = (_bend(_outline(30, phase=0.04)) * [1.0, -1.0]) @ _rot(0.5).T
     pairs = [(s, mirrored), (mirrored, s)]
     timings = {}
+    t0 = time.perf_counter()
     got = _quiet(shapelib.register_many, pairs, backend="jax", device="cpu", reflection=True, batch_size=1,
                  timings=timings)
+    elapsed = time.perf_counter() - t0
     for (x, y), g in zip(pairs, got):
         ref = _quiet(shapelib.register, x, y, reflection=True)
         assert np.linalg.det(ref._start[0]) < 0 < np.linalg.det(_quiet(shapelib.register, x, y)._start[0])
         assert np.abs(g.points - ref.points).max() / ref._frame[1] < 1e-6
         np.testing.assert_allclose(g._start[0], ref._start[0], atol=1e-12)
         assert (g.w, g.n_iter, g.reliable) == (ref.w, ref.n_iter, ref.reliable)
+        np.testing.assert_allclose(g.pose.matrix, ref.pose.matrix, atol=1e-8)   # the pose: a mirror image too
+        assert np.linalg.det(g.pose.matrix) < 0
     assert set(timings) == {"prep", "search", "assembly", "device"}
     assert timings["device"] == str(jax.devices("cpu")[0]) and timings["search"] > 0.0
+    parts = [timings[k] for k in ("prep", "search", "assembly")]
+    assert all(type(t) is float and t >= 0.0 for t in parts) and sum(parts) <= elapsed   # parts of the call
 
 
 def test_a_fixed_outlier_weight_and_the_em_options_reach_the_jax_batch():
     """With ``w=0`` (not in the searched grid) and other ``lam``, ``sigma2_metric``, ``tol`` and ``max_iter``
     the batched fit is register's with the same options, not register's default."""
     import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
-    opts = dict(w=0.0, lam=3.0, sigma2_metric=1.0, tol=1e-4, max_iter=60)
+    opts = dict(w=0.0, lam=3.0, sigma2_metric=1.0, tol=1e-4, max_iter=60, n_steps=5)
     got = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", **opts)[0]
     ref = _quiet(shapelib.register, *PAIRS[0], **opts)
     default = _quiet(shapelib.register, *PAIRS[0])
@@ -242,6 +249,7 @@ def test_a_fixed_outlier_weight_and_the_em_options_reach_the_jax_batch():
     assert (got.n_iter, got.reliable) == (ref.n_iter, ref.reliable)
     assert got.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
     assert got.sigma2_metric == pytest.approx(ref.sigma2_metric, rel=1e-12) != default.sigma2_metric
+    assert len(got.path) == len(ref.path) == 6 != len(default.path)   # n_steps segments of the deformation
 
 def test_the_jax_batch_warns_by_default_and_not_with_warn_false():
     """Two EM iterations do not converge: one RegistrationWarning by default, none with ``warn=False``, and
