@@ -65,11 +65,13 @@ bench: setup
 # mutation testing of one module of the numerical core, or of those changed since a commit, against the tests
 # that cover it (benchmarks/mutation_targets.toml; minutes per module; not part of `make test`):
 #   make mutate MODULE=shapelib/geometry/gmm.py     make mutate SINCE=main     (RECORD=1: into the docs' record)
+#   make mutate MODULE=shapelib/pointsets/_batch.py ONLY="_search _register_jax"   (those functions' mutants only)
 MODULE ?=
+ONLY   ?=
 SINCE  ?=
 RECORD ?=
 mutate: setup
-	nice -n 10 $(PY) benchmarks/mutation.py $(MODULE) $(if $(SINCE),--since $(SINCE),) $(if $(RECORD),--record,)
+	nice -n 10 $(PY) benchmarks/mutation.py $(MODULE) $(if $(SINCE),--since $(SINCE),) $(if $(ONLY),--only $(ONLY),) $(if $(RECORD),--record,)
 
 clean:
 	rm -rf $(VENV) results/*/ results/REPORT.md docs/_build docs/api/generated docs/api/reference docs/api/backreferences docs/auto_examples \

@@ -4,6 +4,7 @@ a constant, an argument) its tests notice.
     python benchmarks/mutation.py shapelib/geometry/gmm.py [more modules]   # or: make mutate MODULE=...
     python benchmarks/mutation.py --since <commit>                          # or: make mutate SINCE=...
     python benchmarks/mutation.py --renote          # the record's survivors' reasons again from the notes
+    python benchmarks/mutation.py MODULE --only f g # the mutants of functions f and g only (Class.method for a method)
 
 Each module is mutated in a scratch copy of the repository (build/mutation/<module>/, so the checkout
 is never touched) and only the test files that cover it are run against each mutant (the mapping is
@@ -121,9 +122,17 @@ def _diffs(names: list[str], work: Path) -> dict[str, str]:
     return json.loads(out)
 
 
-def run_module(module: str, tests: list[str], *, max_children: int, timeout_multiplier: float) -> dict:
-    """Mutate ``module`` in a scratch copy, run ``tests`` against every mutant; the counts and the survivors."""
+def mutant_patterns(slug: str, functions: list[str]) -> list[str]:
+    """mutmut's names of the mutants of ``functions`` of module ``slug`` (``f``, or ``Class.method``), as globs."""
+    return [f"{slug}.x{'ǁ'.join(['', *f.split('.')]) if '.' in f else '_' + f}__mutmut_*" for f in functions]
+
+
+def run_module(module: str, tests: list[str], *, max_children: int, timeout_multiplier: float,
+               only: list[str] | None = None) -> dict:
+    """Mutate ``module`` in a scratch copy, run ``tests`` against every mutant (or those of the functions
+    ``only``); the counts and the survivors."""
     slug = module.removesuffix(".py").replace("/", ".")
+    patterns = mutant_patterns(slug, only) if only else []
     work = SCRATCH / slug
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)
@@ -134,10 +143,15 @@ def run_module(module: str, tests: list[str], *, max_children: int, timeout_mult
                                          + _mutmut_config(module, tests, timeout_multiplier, module in fork_unsafe()))
     load_start, t0 = loadavg(), time.perf_counter()
     with open(work / "mutmut.log", "w") as log:
-        rc = _mutmut(["run", "--max-children", str(max_children)], work, log).returncode
+        # mutmut picks the tests of a glob by the functions' names it matches: a glob of the function's name
+        # (the exact mutants are picked from the results below)
+        wide = [q.removesuffix("__mutmut_*") + "*" for q in patterns]
+        rc = _mutmut(["run", "--max-children", str(max_children), *wide], work, log).returncode
     seconds = time.perf_counter() - t0
     listing = _mutmut(["results", "--all", "true"], work).stdout
     status = dict(re.findall(r"^\s+(\S+): (.+?)\s*$", listing, flags=re.M))
+    if patterns:
+        status = {k: v for k, v in status.items() if any(fnmatch.fnmatchcase(k, p) for p in patterns)}
     if rc != 0 or not status:
         tail = (work / "mutmut.log").read_text()[-3000:]
         raise RuntimeError(f"mutmut failed on {module} (exit {rc}); the end of {work / 'mutmut.log'}:\n{tail}")
@@ -154,11 +168,14 @@ def run_module(module: str, tests: list[str], *, max_children: int, timeout_mult
         survivors.append({"mutant": name, "status": status[name], "diff": body,
                           "why": reason(why, name)})
     killed = sum(counts.get(s, 0) for s in KILLED)
-    return {"module": module, "tests": tests, "date": machine()["date"], "tool": f"mutmut {_version()}",
+    run = {"module": module, "tests": tests, "date": machine()["date"], "tool": f"mutmut {_version()}",
             "loadavg_start": load_start, "loadavg_end": loadavg(), "seconds": round(seconds, 1),
             "timeout_multiplier": timeout_multiplier, "mutants": len(status), "killed": killed,
             "survived": len(status) - killed, "by_status": counts,
             "score": round(100.0 * killed / len(status), 1), "survivors": survivors}
+    if only:  # a part of the module: the record says which
+        run["only"] = list(only)
+    return run
 
 
 def _version() -> str:
@@ -199,6 +216,9 @@ def main(argv=None) -> int:
                    help="mutants tested at once (default: the cores but one)")
     p.add_argument("--timeout-multiplier", type=float, default=10.0,
                    help="a mutant whose tests run this many times longer than unmutated is killed (timeout)")
+    p.add_argument("--only", nargs="+", metavar="FUNCTION",
+                   help="mutate only these functions of the (one) module (Class.method for a method); the record "
+                        "names them")
     p.add_argument("--record", action="store_true", help="write the scores into docs/_data/benchmarks/mutation.json")
     p.add_argument("--renote", action="store_true",
                    help="only rewrite the recorded survivors' reasons from benchmarks/mutation_notes.toml")
@@ -220,12 +240,14 @@ def main(argv=None) -> int:
         if m not in known:
             raise SystemExit(f"{m} is not in benchmarks/mutation_targets.toml: add it with the tests that cover it; "
                              f"known: {', '.join(sorted(known))}")
+    if a.only and len(modules) != 1:
+        p.error("--only needs exactly one module")
     runs = []
     for m in modules:
         print(f"mutating {m} (tests: {' '.join(known[m])}) in {SCRATCH}", flush=True)
-        r = run_module(m, known[m], max_children=a.max_children, timeout_multiplier=a.timeout_multiplier)
+        r = run_module(m, known[m], max_children=a.max_children, timeout_multiplier=a.timeout_multiplier, only=a.only)
         runs.append(r)
-        print(f"{m}: {r['mutants']} mutants, {r['killed']} killed, {r['survived']} survived "
+        print(f"{m}{' (' + ', '.join(a.only) + ' only)' if a.only else ''}: {r['mutants']} mutants, {r['killed']} killed, {r['survived']} survived "
               f"({r['score']:.1f} %) in {r['seconds']:.0f} s", flush=True)
         for s in r["survivors"]:
             print(f"  {s['mutant']} [{s['status']}] {s['why']}\n    " + s["diff"].replace("\n", "\n    "))

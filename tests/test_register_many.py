@@ -5,6 +5,7 @@ naming the parameter and the pair."""
 
 import os
 import sys
+import time
 import warnings
 
 import numpy as np
@@ -80,8 +81,9 @@ def test_the_jax_batch_equals_register_one_by_one(both):
         np.testing.assert_allclose([f for f, _, _ in got.diagnostics["candidates"]],
                                    [f for f, _, _ in ref.diagnostics["candidates"]], rtol=1e-8, atol=1e-8)
         assert got.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
-        assert (got.n_iter, got.converged, got.reliable, got.reasons) == \
-            (ref.n_iter, ref.converged, ref.reliable, ref.reasons), i
+        assert (got.n_iter, got.converged, got.stop_reason, got.reliable, got.reasons) == \
+            (ref.n_iter, ref.converged, ref.stop_reason, ref.reliable, ref.reasons), i
+        assert got.pose.stop_reason == ref.pose.stop_reason == "tolerance", i
         np.testing.assert_array_equal(got.correspondence, ref.correspondence)
         np.testing.assert_array_equal(got.target_correspondence, ref.target_correspondence)
         assert got.objective == pytest.approx(ref.objective, rel=1e-6)
@@ -203,3 +205,143 @@ def test_the_targets_sigma2_does_not_depend_on_the_source():
     other = y + 0.01 * np.sin(7 * y[:, ::-1])
     assert _target_sigma2(other.shape, other.tobytes()) == _nonrigid_frame(y, other, None)[2]
     assert _target_sigma2(other.shape, other.tobytes()) != _target_sigma2(y.shape, y.tobytes())
+
+
+
+def test_reflection_reaches_each_fit_of_the_jax_batch():
+    """A bent outline and a turned mirror image of it, each way round, each pair in its own device call
+    (``batch_size=1``): with ``reflection=True`` a mirror start wins (register's default, rotations only,
+    fits another start), on JAX as in register, and ``timings`` says where the search ran."""
+    jax = import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    s = _bend(_outline(30))
+    mirrored = (_bend(_outline(30, phase=0.04)) * [1.0, -1.0]) @ _rot(0.5).T
+    pairs = [(s, mirrored), (mirrored, s)]
+    timings = {}
+    t0 = time.perf_counter()
+    got = _quiet(shapelib.register_many, pairs, backend="jax", device="cpu", reflection=True, batch_size=1,
+                 timings=timings)
+    elapsed = time.perf_counter() - t0
+    for (x, y), g in zip(pairs, got):
+        ref = _quiet(shapelib.register, x, y, reflection=True)
+        assert np.linalg.det(ref._start[0]) < 0 < np.linalg.det(_quiet(shapelib.register, x, y)._start[0])
+        assert np.abs(g.points - ref.points).max() / ref._frame[1] < 1e-6
+        np.testing.assert_allclose(g._start[0], ref._start[0], atol=1e-12)
+        assert (g.w, g.n_iter, g.reliable) == (ref.w, ref.n_iter, ref.reliable)
+        np.testing.assert_allclose(g.pose.matrix, ref.pose.matrix, atol=1e-8)   # the pose: a mirror image too
+        assert np.linalg.det(g.pose.matrix) < 0
+    assert set(timings) == {"prep", "search", "assembly", "device"}
+    assert timings["device"] == str(jax.devices("cpu")[0]) and timings["search"] > 0.0
+    parts = [timings[k] for k in ("prep", "search", "assembly")]
+    assert all(type(t) is float and t >= 0.0 for t in parts) and sum(parts) <= elapsed   # parts of the call
+
+
+def test_a_fixed_outlier_weight_and_the_em_options_reach_the_jax_batch():
+    """With ``w=0`` (not in the searched grid) and other ``lam``, ``sigma2_metric``, ``tol`` and ``max_iter``
+    the batched fit is register's with the same options, not register's default."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    opts = dict(w=0.0, lam=3.0, sigma2_metric=1.0, tol=1e-4, max_iter=60, n_steps=5)
+    got = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", **opts)[0]
+    ref = _quiet(shapelib.register, *PAIRS[0], **opts)
+    default = _quiet(shapelib.register, *PAIRS[0])
+    assert got.w == ref.w == 0.0 != default.w
+    assert np.abs(got.points - ref.points).max() / ref._frame[1] < 1e-6
+    assert np.abs(default.points - ref.points).max() / ref._frame[1] > 1e-4   # the options change the fit
+    assert (got.n_iter, got.reliable) == (ref.n_iter, ref.reliable)
+    assert got.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
+    assert got.sigma2_metric == pytest.approx(ref.sigma2_metric, rel=1e-12) != default.sigma2_metric
+    assert len(got.path) == len(ref.path) == 6 != len(default.path)   # n_steps segments of the deformation
+
+def test_the_jax_batch_warns_by_default_and_not_with_warn_false():
+    """Two EM iterations do not converge: one RegistrationWarning by default, none with ``warn=False``, and
+    the result says why EM stopped, as register's does."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    with pytest.warns(shapelib.RegistrationWarning) as caught:
+        shapelib.register_many(PAIRS[:1], backend="jax", device="cpu", max_iter=2)
+    assert any("after 2 iterations without converging" in str(w.message) for w in caught)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = shapelib.register_many(PAIRS[:1], backend="jax", device="cpu", max_iter=2, warn=False)
+    ref = _quiet(shapelib.register, *PAIRS[0], max_iter=2)
+    assert (got[0].n_iter, got[0].converged, got[0].stop_reason) == (ref.n_iter, ref.converged, ref.stop_reason) \
+        == (2, False, "max_iter")
+
+
+def test_device_gpu_runs_on_a_gpu_or_is_refused_saying_jax_sees_none():
+    jax = import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    try:
+        gpus = jax.devices("gpu")
+    except RuntimeError:
+        gpus = []
+    if gpus:
+        timings = {}
+        _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="gpu", timings=timings)
+        assert timings["device"] == str(gpus[0])
+    else:
+        with pytest.raises(RuntimeError, match='^device="gpu" but JAX sees no GPU'):
+            shapelib.register_many(PAIRS[:1], backend="jax", device="gpu")
+
+
+def test_a_batch_padded_with_repeated_pairs_gives_each_pair_its_own_fit():
+    """Nine pairs run as a batch of ten (the device programs are compiled for a few batch sizes; the tenth
+    repeats the first pair and is dropped): each result is register's for its own pair."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    pairs = [(_outline(8 + k % 3), _bend(_outline(8, phase=0.1 * k)) @ _rot(0.3 * k).T) for k in range(9)]
+    got = _quiet(shapelib.register_many, pairs, backend="jax", device="cpu")
+    assert len(got) == 9
+    for k, ((x, y), g) in enumerate(zip(pairs, got)):
+        ref = _quiet(shapelib.register, x, y)
+        assert np.abs(g.points - ref.points).max() / ref._frame[1] < 1e-6, k
+        np.testing.assert_allclose(g._start[0], ref._start[0], atol=1e-12)
+
+
+def test_a_jax_call_whose_every_pair_is_over_max_points_names_no_device(monkeypatch):
+    """No pair reaches the device (each is register's, bit for bit): the timings name no device and count
+    no search time."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    from shapelib.pointsets import _batch
+
+    monkeypatch.setattr(_batch, "MAX_POINTS", 20)
+    timings = {}
+    got = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", timings=timings)
+    np.testing.assert_array_equal(got[0].points, _quiet(shapelib.register, *PAIRS[0]).points)
+    assert timings == {"prep": 0.0, "search": 0.0, "assembly": 0.0, "device": None}
+
+
+def test_a_pair_of_exactly_max_points_points_is_batched(monkeypatch):
+    """``MAX_POINTS`` is the largest set the batch takes: a pair of that many points is fitted on the device."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    from shapelib.pointsets import _batch
+
+    monkeypatch.setattr(_batch, "MAX_POINTS", len(PAIRS[0][0]))
+    timings = {}
+    got = _quiet(shapelib.register_many, PAIRS[:1], backend="jax", device="cpu", timings=timings)[0]
+    ref = _quiet(shapelib.register, *PAIRS[0])
+    assert np.abs(got.points - ref.points).max() / ref._frame[1] < 1e-6
+    assert timings["device"] is not None and timings["search"] > 0.0
+
+
+def test_every_option_reaches_register_for_a_pair_over_max_points(monkeypatch):
+    """A pair over ``MAX_POINTS`` goes to register with each option given to the JAX call: register's result
+    with that option, bit for bit, not its default's; fits_many gives that result's fit."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    from shapelib.pointsets import _batch
+    from shapelib.pointsets._batch import fits_many
+
+    monkeypatch.setattr(_batch, "MAX_POINTS", 10)
+    s = _bend(_outline(14))
+    pair = (s, (_bend(_outline(14, phase=0.04)) * [1.0, -1.0]) @ _rot(0.5).T)  # a mirror image: reflection wins
+    default = _quiet(shapelib.register, *pair)
+    for key, value in (("reflection", True), ("w", 0.0), ("lam", 0.5), ("sigma2_metric", 0.5), ("max_iter", 3),
+                       ("tol", 0.05), ("n_steps", 3)):
+        got = _quiet(shapelib.register_many, [pair], backend="jax", **{key: value})[0]
+        ref = _quiet(shapelib.register, *pair, **{key: value})
+        np.testing.assert_array_equal(got.points, ref.points, err_msg=key)
+        assert len(got.path) == len(ref.path) and got.sigma2_metric == ref.sigma2_metric, key
+        assert (got.n_iter, len(got.path), got.sigma2_metric, got.w, np.linalg.det(got._start[0])) != \
+            (default.n_iter, len(default.path), default.sigma2_metric, default.w, np.linalg.det(default._start[0])), key
+        assert fits_many([pair], backend="jax", **{key: value}) == [(ref.sigma2, ref.converged, ref.n_iter)], key
+    with pytest.warns(shapelib.RegistrationWarning):
+        shapelib.register_many([pair], backend="jax", max_iter=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        shapelib.register_many([pair], backend="jax", max_iter=2, warn=False)

@@ -519,8 +519,10 @@ def _retrieval(r: dict) -> list[Table]:
 
 def _mutation(r: dict) -> list[Table]:
     mods = r.get("modules", [])
-    rows = [[f"``{m['module']}``", _date(m["date"]), m["tool"], str(m["mutants"]), str(m["killed"]), str(m["survived"]),
-             f"{m['score']:.1f} %"] for m in mods]
+    # a run of some functions only (mutation.py --only) says which
+    part = lambda m: f" ({', '.join(m['only'])} only)" if m.get("only") else ""  # noqa: E731
+    rows = [[f"``{m['module']}``{part(m)}", _date(m["date"]), m["tool"], str(m["mutants"]), str(m["killed"]),
+             str(m["survived"]), f"{m['score']:.1f} %"] for m in mods]
     note = ("Killed: a test of the module's test files (benchmarks/mutation_targets.toml) failed or ran past the time "
             "limit. Each module's load average at its start is in the record.")
     tables = [Table("Mutation score per module", ["module", "date", "tool", "mutants", "killed", "survived", "score"],
