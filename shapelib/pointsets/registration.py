@@ -191,12 +191,16 @@ class RegistrationResult:
         2 target point spacings, or more than a third of the source points match no target point
         (the warp only extrapolates them). The thresholds were chosen on samples 1–5 of the
         Chui–Rangarajan benchmark (and the last also on two samples of the 3-D benchmark's surfaces).
+        Sets of over ``MAX_POINTS`` points are also not reliable when a second fit, on other
+        subsets, moves the source points more than ``SUBSET_DISAGREEMENT`` (0.05) of the target's
+        RMS radius from the first on average.
         ``register`` then warns (:class:`RegistrationWarning`) and ``summary()`` says so.
     reasons : tuple of str
         Why ``reliable`` is False (empty when it is True).
     diagnostics : dict
         What ``reliable`` was decided from: σ in target point spacings, the share of unmatched source
-        points, and every final fit of the search as ``(objective, start, w)``, best first.
+        points, and every final fit of the search as ``(objective, start, w)``, best first; for sets
+        of over ``MAX_POINTS`` points also ``subsets`` (their sizes) and ``subset_disagreement``.
     target_correspondence : ndarray of int, shape (m,)
         For each target point the index of its source point (largest posterior), −1 where the
         outlier component explains more than half of it (clutter, a part the source lacks).
