@@ -283,28 +283,6 @@ def test_a_large_registration_is_checked_by_the_same_fit_on_other_subsets(monkey
     assert calls == [(k, total) for k in range(1, total + 1)] and total % 2 == 0
 
 
-def _egg(n, seed):
-    """Points on a 3-D egg-like surface whose symmetries only small odd terms break, moved by a smooth
-    bump, turned by 50°, shuffled; three landmarks spread over it (source point, its target point)."""
-    from scipy.spatial.transform import Rotation
-
-    from shapelib.pointsets.registration import farthest_points
-
-    rng = np.random.default_rng(seed)
-    v = rng.normal(size=(n, 3))
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
-    r = 1 + 0.3 * v[:, 0] + 0.2 * v[:, 1] * v[:, 2] + 0.15 * v[:, 2] ** 2 + 0.2 * v[:, 1] ** 3
-    x = r[:, None] * v * np.array([1.2, 1.0, 0.8])
-    x -= x.mean(axis=0)
-    bump = 0.1 * np.exp(-np.sum((x - x[0]) ** 2, axis=1) / 0.5)[:, None] * np.array([0.0, 0.6, 0.8])
-    axis = rng.normal(size=3)
-    turn = Rotation.from_rotvec(np.radians(50) * axis / np.linalg.norm(axis)).as_matrix()
-    truth = 1.3 * (x + bump) @ turn.T + 0.2
-    perm = rng.permutation(n)
-    src = farthest_points(x, 3)
-    return x, truth[perm], truth, np.column_stack([src, np.argsort(perm)[src]])
-
-
 def test_a_large_surface_whose_points_slide_along_it_is_flagged_by_the_second_fit(monkeypatch):
     """A densely sampled smooth surface registered through subsets a tenth of its size: the landmarks fix
     the pose, but not where along the surface each point goes, and two fits on different subsets put the
@@ -312,6 +290,8 @@ def test_a_large_surface_whose_points_slide_along_it_is_flagged_by_the_second_fi
     from shapelib.pointsets import registration
 
     monkeypatch.setattr(registration, "MAX_POINTS", 200)
+    from test_registration_landmarks import _egg
+
     x, y, truth, lm = _egg(2000, 1)
     with pytest.warns(sl.RegistrationWarning, match="^register: the registration is probably wrong: a fit on other "
                                                      "subsets of the points moves them"):
