@@ -114,6 +114,11 @@ def _rms(x):
     return float(np.sqrt(np.mean(np.sum(x * x, axis=1))))
 
 
+def _centroid_sq(a):
+    """Each point's squared distance from the centroid of ``a``."""
+    return np.sum((a - a.mean(axis=0)) ** 2, axis=1)
+
+
 def _posteriors(theta, y, s2, w):
     """P (n, m) with the uniform component over the target's bounding box; and Σ_ij P_ij |y_j − θ_i|²."""
     p = posteriors(theta, y, s2, w, box_volume(y))
@@ -741,7 +746,7 @@ def farthest_points(a, k, *, first=None):
     """Indices of ``k`` points of ``a`` spread over it: farthest-point sampling from the point nearest
     the centroid (deterministic), or from point ``first``."""
     idx = np.empty(k, dtype=np.intp)
-    idx[0] = int(np.argmin(np.sum((a - a.mean(axis=0)) ** 2, axis=1))) if first is None else first
+    idx[0] = int(np.argmin(_centroid_sq(a))) if first is None else first
     dist = np.sum((a - a[idx[0]]) ** 2, axis=1)
     for i in range(1, k):
         idx[i] = int(np.argmax(dist))
@@ -781,10 +786,10 @@ def _register_large(x, y, fit, pairs=None, *, warn=True):
     ix, iy, sub_pairs = _subsets(x, y, pairs)
     sub = fit(x[ix], y[iy], sub_pairs, (0, 2))
     points = _warp_blocks(sub, x)
-    far = [int(np.argmax(np.sum((a - a.mean(axis=0)) ** 2, axis=1))) for a in (x, y)]
+    far = [int(np.argmax(_centroid_sq(a))) for a in (x, y)]
     jx, jy, other_pairs = _subsets(x, y, pairs, *far)
     other = fit(x[jx], y[jy], other_pairs, (1, 2))
-    radius = float(np.sqrt(np.mean(np.sum((y - y.mean(axis=0)) ** 2, axis=1))))
+    radius = _rms(y - y.mean(axis=0))
     apart = float(np.mean(np.linalg.norm(points - _warp_blocks(other, x), axis=1))) / max(radius, 1e-300)
     reasons = list(sub.reasons)
     if apart > SUBSET_DISAGREEMENT:
