@@ -144,7 +144,9 @@ def test_the_em_map_gives_the_objective_at_its_input():
     u, y, kernel, o = _problem()
     st = EMState(u=u, kernel=kernel, coef=0.02 * np.cos(u), s2=0.07, w=0.1)
     n, d = u.shape
-    out = _em_map(u, kernel.q, np.ascontiguousarray(kernel.q.T), kernel.ev, np.zeros((0, 0)), y, np.sum(y * y, axis=1),
+    # the arrays contiguous, as run_em passes them: the loop's compiled specialisation, not another one
+    q = np.ascontiguousarray(kernel.q)
+    out = _em_map(u, q, np.ascontiguousarray(q.T), kernel.ev, np.zeros((0, 0)), y, np.sum(y * y, axis=1),
                   st.coef, st.s2,
                   outlier_term(n, d, 1.0, st.w, o["volume"]), o["lam"], False, o["s2_floor"], np.log(0.9 / n), NO_LABELS)
     assert out[2] == pytest.approx(objective(st, y, lam=o["lam"], volume=o["volume"]), rel=1e-12)
