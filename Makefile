@@ -15,6 +15,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[study,dev,models]'
+	$(PY) -m shapelib._warmup  # the numba kernels compiled once, into numba's cache beside the sources
 	touch $@
 
 $(VENV)/.docs-installed: $(VENV)/.installed pyproject.toml

@@ -21,6 +21,7 @@ RANK = {
     "comparison": 3,
     "distances": 4, "statistics": 4, "pointsets": 4, "retrieval": 5, "rerank": 5,
     "io": 5, "pairwise": 5, "plotting": 5,
+    "_warmup": 5,  # calls the registration and the geodesic once each, to compile the kernels
     "datasets": 6,
     "study": 7,
     "cli": 8,
