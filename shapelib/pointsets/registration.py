@@ -377,9 +377,9 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     ``G`` the α-order (or Fisher–Rao) metric of the source mixture in its weight coordinates
     (:mod:`shapelib.pointsets._coherent_em` has the equations), and the deformation is the geodesic of
     that metric from the posed source to ``θ``. σ² and the outlier weight are chosen from the data
-    with no switch to set, and the deformation's weight against the data (``lam`` σ²) follows σ². The sets may have different sizes and need no
-    correspondence; the target may hold outliers and miss parts of the source, and the source parts
-    of the target. The result says when it probably failed (``reliable``, ``reasons``).
+    with no switch to set, and the deformation's weight against the data (``lam`` σ²) follows σ².
+    The sets may have different sizes and need no correspondence; the target may hold outliers and
+    miss parts of the source, and the source parts of the target. The result says when it probably failed (``reliable``, ``reasons``).
 
     Parameters
     ----------
