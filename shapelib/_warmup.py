@@ -2,8 +2,8 @@
 
 The compiled loops (:mod:`shapelib.geometry._kernels`, :mod:`shapelib.pointsets._coherent_em`) are
 compiled on their first call and cached beside their sources (``cache=True``): the first
-registration or geodesic of a fresh installation waits for the compiler (about half a minute in
-all on a 2-core machine), later ones and later processes read the cache. ``make setup`` runs this
+registration or geodesic of a fresh installation waits for the compiler (48 s in
+all on an idle 2-core machine), later ones and later processes read the cache. ``make setup`` runs this
 module after installing, so that neither the first test run nor the first notebook pays for it:
 one tiny registration and one tiny geodesic of each metric in 2-D and 3-D reach every kernel with
 the argument types the library passes.
