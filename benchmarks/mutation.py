@@ -247,7 +247,8 @@ def main(argv=None) -> int:
         print(f"mutating {m} (tests: {' '.join(known[m])}) in {SCRATCH}", flush=True)
         r = run_module(m, known[m], max_children=a.max_children, timeout_multiplier=a.timeout_multiplier, only=a.only)
         runs.append(r)
-        print(f"{m}{' (' + ', '.join(a.only) + ' only)' if a.only else ''}: {r['mutants']} mutants, {r['killed']} killed, {r['survived']} survived "
+        part = f" ({', '.join(a.only)} only)" if a.only else ""
+        print(f"{m}{part}: {r['mutants']} mutants, {r['killed']} killed, {r['survived']} survived "
               f"({r['score']:.1f} %) in {r['seconds']:.0f} s", flush=True)
         for s in r["survivors"]:
             print(f"  {s['mutant']} [{s['status']}] {s['why']}\n    " + s["diff"].replace("\n", "\n    "))

@@ -207,7 +207,6 @@ def test_the_targets_sigma2_does_not_depend_on_the_source():
     assert _target_sigma2(other.shape, other.tobytes()) != _target_sigma2(y.shape, y.tobytes())
 
 
-
 def test_reflection_reaches_each_fit_of_the_jax_batch():
     """A bent outline and a turned mirror image of it, each way round, each pair in its own device call
     (``batch_size=1``): with ``reflection=True`` a mirror start wins (register's default, rotations only,
@@ -250,6 +249,7 @@ def test_a_fixed_outlier_weight_and_the_em_options_reach_the_jax_batch():
     assert got.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
     assert got.sigma2_metric == pytest.approx(ref.sigma2_metric, rel=1e-12) != default.sigma2_metric
     assert len(got.path) == len(ref.path) == 6 != len(default.path)   # n_steps segments of the deformation
+
 
 def test_the_jax_batch_warns_by_default_and_not_with_warn_false():
     """Two EM iterations do not converge: one RegistrationWarning by default, none with ``warn=False``, and

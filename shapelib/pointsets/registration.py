@@ -379,7 +379,8 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     that metric from the posed source to ``θ``. σ² and the outlier weight are chosen from the data
     with no switch to set, and the deformation's weight against the data (``lam`` σ²) follows σ².
     The sets may have different sizes and need no correspondence; the target may hold outliers and
-    miss parts of the source, and the source parts of the target. The result says when it probably failed (``reliable``, ``reasons``).
+    miss parts of the source, and the source parts of the target. The result says when it probably
+    failed (``reliable``, ``reasons``).
 
     Parameters
     ----------
