@@ -237,7 +237,7 @@ def test_progress_is_reported_for_every_start_and_fit_and_checked():
     x = fish(40)
     calls = []
     register_quietly(x, warp(x, 0.2), progress=lambda done, total: calls.append((done, total)))
-    total = shapelib.pointsets._nonrigid.N_ROT_2D + shapelib.pointsets._nonrigid.N_KEEP * 3
+    total = shapelib.pointsets._nonrigid.N_ROT_2D + shapelib.pointsets._nonrigid.N_KEEP * len(shapelib.pointsets._nonrigid.W_GRID)
     assert [c[1] for c in calls] == [total] * total
     assert [c[0] for c in calls] == list(range(1, total + 1))
     calls.clear()

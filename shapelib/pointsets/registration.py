@@ -395,15 +395,15 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         too): estimated by EM.
     w : float or "auto"
         Weight of the uniform (outlier) component in ``[0, 1)``. ``"auto"`` (default): non-rigid,
-        the weight of least negative log-posterior among 0.05, 0.2 and 0.5 (each fit at its own
+        the weight of least negative log-posterior among 0.01, 0.05, 0.2 and 0.5 (each fit at its own
         fixed weight); rigid, similarity and affine, estimated by EM with the pose held.
     reflection : bool
         Also search mirror images of the source.
     lam : float
         λ, the weight of the deformation's squared dual-metric length (non-rigid). On the
-        Chui–Rangarajan benchmark a larger λ suited occluded targets, but the default 2 had the
-        fewest failures over all the levels, on samples 1–5 (27, against 29–30 for λ = 1, 4, 8) and
-        on samples 6–10 (29, against 33–39).
+        Chui–Rangarajan benchmark a larger λ suited the occluded fish, but the default 2 had the
+        fewest failures over all the levels, on samples 1–5 (24, against 25–28 for λ = 1, 4, 8) and
+        on samples 6–10 (27, against 30–39).
     sigma2_metric : float
         σ_g² of the metric that regularises and carries the deformation, in units of the target's
         squared RMS radius (default 2: the kernel ``exp(−|Δ|²/4σ_g²)`` is CPD's Gaussian of width
