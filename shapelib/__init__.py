@@ -7,96 +7,82 @@ the paper, and which module derives it: "The paper's equations in the code" in t
 of the documentation (``make docs``; ``api/reference/equations.html``).
 """
 
-from ._validate import InputError
-from .solver.bracket import DistanceBracket, distance_bracket, distance_brackets
-from .solver.batched import batched_lengths
-from .comparison.diffeomorphism import diffeomorphism_warp, landmark_diffeomorphism
-from .distances import MetricInfo, distance, metric_info, pair_record, register_metric
-from .solver.geodesic import GeodesicResult, GeodesicWarning, fisher_rao_lower_bound, geodesic, geodesics, path_length
-from .solver.logexp import exp_map, log_map, tangent_space
-from .solver.transport import parallel_transport
-from .solver.path_metric import AlphaPathMetric, FisherRaoPathMetric, PathMetric, path_metric
-from .solver.result import BracketStopReason, StopReason
-from .geometry.gmm import gmm_density, l2_distance
-from .geometry.bound_matrices import alpha_bound_matrix, bound_matrix_sweep, fisher_rao_bound_matrix
-from .geometry.metrics import alpha_metric, alpha_quadratic_form, fisher_rao_metric, fisher_rao_quadratic_form
-from .geometry.procrustes import (
-    PoseWarning,
-    centroid_size,
-    generalized_procrustes,
-    pose_align,
-    preshape,
-    procrustes_align,
-    procrustes_distance,
-)
-from .geometry.scale import ScaleWarning, landmark_spacing, sigma_ratio, to_centroid_size
-from .geometry.scale import Sigma2Estimate, estimate_sigma2
-from .comparison.hausdorff import hausdorff_distance
-from .comparison.splines import tps_bending_energy, wendland_bending_energy
-from .comparison.warp import extrinsic_warp
-from .comparison.missing import MissingEstimate, estimate_missing, tps_map
-from .geometry.semilandmarks import SlideResult, bending_energy_matrix, curve_sliders, slide_semilandmarks
-from .pointsets import (
-    RegistrationResult,
-    RegistrationWarning,
-    register,
-    register_many,
-    EMWarning,
-    MixtureFit,
-    fit_mixture,
-    Pose,
-    PoseSearchWarning,
-    align,
-    as_point_set,
-    as_point_sets,
-    bhattacharyya_affinity,
-    density_distance,
-    density_inner,
-    hellinger_sq,
-    l2_distance_sq,
-)
-from .pointsets.outline import outline_topology, resample_closed, trace_outline
-from .pointsets.invariant import InvariantDistance, invariant_distance, invariant_distance_matrix, normalise_points
-from .retrieval import BullseyeScore, bullseye, nearest_wrong, procrustes_outline_matrix
-from .rerank import rerank
+import lazy_loader as _lazy
 
+from ._validate import InputError
 from ._version import __version__  # noqa: F401  (the package version)
 
-#: modules above the mathematics, imported on first use (``shapelib.io.read_landmarks(...)`` works
-#: after ``import shapelib``, which itself imports neither pandas' IO nor Dask nor zarr)
-_LAZY_SUBMODULES = ("io", "pairwise", "statistics", "datasets", "study", "plotting", "cli")
+#: every public name, imported from its module on first use (``lazy_loader``, Scientific Python's
+#: SPEC 1): ``import shapelib`` loads none of the compiled kernels, SciPy, IO, Dask or zarr, so that a
+#: notebook kernel, a Dask worker or a command that needs one part of the package pays for that part
+#: only. ``shapelib.register`` (or ``from shapelib import register``) imports its module then.
+_PUBLIC = {
+    "solver.bracket": ["DistanceBracket", "distance_bracket", "distance_brackets"],
+    "solver.batched": ["batched_lengths"],
+    "solver.geodesic": ["GeodesicResult", "GeodesicWarning", "fisher_rao_lower_bound", "geodesic", "geodesics",
+                        "path_length"],
+    "solver.logexp": ["exp_map", "log_map", "tangent_space"],
+    "solver.transport": ["parallel_transport"],
+    "solver.path_metric": ["AlphaPathMetric", "FisherRaoPathMetric", "PathMetric", "path_metric"],
+    "solver.result": ["BracketStopReason", "StopReason"],
+    "distances": ["MetricInfo", "distance", "metric_info", "pair_record", "register_metric"],
+    "geometry.gmm": ["gmm_density", "l2_distance"],
+    "geometry.bound_matrices": ["alpha_bound_matrix", "bound_matrix_sweep", "fisher_rao_bound_matrix"],
+    "geometry.metrics": ["alpha_metric", "alpha_quadratic_form", "fisher_rao_metric", "fisher_rao_quadratic_form"],
+    "geometry.procrustes": ["PoseWarning", "centroid_size", "generalized_procrustes", "pose_align", "preshape",
+                            "procrustes_align", "procrustes_distance"],
+    "geometry.scale": ["ScaleWarning", "landmark_spacing", "sigma_ratio", "to_centroid_size", "Sigma2Estimate",
+                       "estimate_sigma2"],
+    "geometry.semilandmarks": ["SlideResult", "bending_energy_matrix", "curve_sliders", "slide_semilandmarks"],
+    "comparison.diffeomorphism": ["diffeomorphism_warp", "landmark_diffeomorphism"],
+    "comparison.hausdorff": ["hausdorff_distance"],
+    "comparison.splines": ["tps_bending_energy", "wendland_bending_energy"],
+    "comparison.warp": ["extrinsic_warp"],
+    "comparison.missing": ["MissingEstimate", "estimate_missing", "tps_map"],
+    "pointsets": ["RegistrationResult", "RegistrationWarning", "register", "register_many", "EMWarning", "MixtureFit",
+                  "fit_mixture", "Pose", "PoseSearchWarning", "align", "as_point_set", "as_point_sets",
+                  "bhattacharyya_affinity", "density_distance", "density_inner", "hellinger_sq", "l2_distance_sq"],
+    "pointsets.outline": ["outline_topology", "resample_closed", "trace_outline"],
+    "pointsets.invariant": ["InvariantDistance", "invariant_distance", "invariant_distance_matrix", "normalise_points"],
+    "retrieval": ["BullseyeScore", "bullseye", "nearest_wrong", "procrustes_outline_matrix"],
+    "rerank": ["rerank"],
+    "io": ["read_point_sets", "write_point_set", "read_sliders"],
+    "pairwise": ["pairwise_distances"],
+    "statistics": ["frechet_mean", "tangent_pca", "geodesic_regression", "mean_difference_test"],
+    "statistics.tangent_pca": ["TangentPCA"],
+    "statistics.multiple": ["holm_adjust"],
+    "statistics.linear_model": ["shape_lm", "ShapeLinearModel", "procrustes_coordinates"],
+    "statistics.allometry": ["allometry", "AllometryResult"],
+    "statistics.disparity": ["morphological_disparity", "DisparityResult"],
+    "statistics.pls": ["two_block_pls", "PLSResult"],
+    "statistics.modularity": ["modularity_test", "ModularityResult"],
+    "statistics.symmetry": ["bilateral_symmetry", "SymmetryResult"],
+    "statistics.trajectory": ["trajectory_analysis", "TrajectoryResult"],
+    "statistics.integration": ["global_integration", "GlobalIntegrationResult"],
+}
+#: the subpackages and modules, also imported on first use (``shapelib.io.read_landmarks(...)`` works
+#: after ``import shapelib``)
+_SUBMODULES = ["geometry", "solver", "comparison", "pointsets", "distances", "retrieval", "io", "pairwise", "statistics",
+               "datasets", "study", "plotting", "cli"]  # (``shapelib.rerank`` is the function of the module rerank)
 #: earlier names of submodules, still served on first use
 _ALIASES = {"stats": "statistics", "report": "study.report"}
-#: public functions of those modules, served from the package namespace on first use
-_LAZY_FUNCTIONS = {"read_point_sets": "io", "write_point_set": "io", "read_sliders": "io",
-                   "pairwise_distances": "pairwise", "frechet_mean": "statistics", "tangent_pca": "statistics",
-                   "geodesic_regression": "statistics", "mean_difference_test": "statistics",
-                   "TangentPCA": "statistics.tangent_pca", "holm_adjust": "statistics.multiple",
-                   "shape_lm": "statistics.linear_model", "ShapeLinearModel": "statistics.linear_model",
-                   "procrustes_coordinates": "statistics.linear_model", "allometry": "statistics.allometry",
-                   "AllometryResult": "statistics.allometry", "morphological_disparity": "statistics.disparity",
-                   "DisparityResult": "statistics.disparity", "two_block_pls": "statistics.pls",
-                   "PLSResult": "statistics.pls", "modularity_test": "statistics.modularity",
-                   "ModularityResult": "statistics.modularity", "bilateral_symmetry": "statistics.symmetry",
-                   "SymmetryResult": "statistics.symmetry", "trajectory_analysis": "statistics.trajectory",
-                   "TrajectoryResult": "statistics.trajectory", "global_integration": "statistics.integration",
-                   "GlobalIntegrationResult": "statistics.integration"}
+
+_lazy_getattr, _lazy_dir, _lazy_names = _lazy.attach(__name__, submodules=_SUBMODULES, submod_attrs=_PUBLIC)
 
 
 def __getattr__(name):
-    if name in _LAZY_SUBMODULES or name in _ALIASES:
+    if name in _ALIASES:
         import importlib
 
-        return importlib.import_module(f".{_ALIASES.get(name, name)}", __name__)
-    if name in _LAZY_FUNCTIONS:
-        import importlib
-
-        return getattr(importlib.import_module(f".{_LAZY_FUNCTIONS[name]}", __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        return importlib.import_module(f".{_ALIASES[name]}", __name__)
+    if name not in _lazy_names:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return _lazy_getattr(name)
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY_SUBMODULES) | set(_LAZY_FUNCTIONS))
+    return sorted(set(_lazy_dir()) | {"InputError", "__version__"})
+
 
 __all__ = [
     "slide_semilandmarks",

@@ -27,16 +27,20 @@ def test_environment_yml_in_sync_with_pyproject():
 
 
 def test_import_shapelib_is_light_and_its_other_modules_load_on_use():
-    """`import shapelib` brings the mathematics only (the math never imports IO or Dask); the
-    documentation's `shapelib.io.read_landmarks(...)` and `shapelib.pairwise.open_store(...)` work after
-    it, loading those modules on first use."""
+    """`import shapelib` loads no module of the package beyond its door (neither the compiled kernels
+    and SciPy nor IO and Dask); each public name, `shapelib.register` as `from shapelib import geodesic`,
+    and the documentation's `shapelib.io.read_landmarks(...)` and `shapelib.pairwise.open_store(...)`,
+    loads its module on first use."""
     import subprocess
     import sys
 
     code = ("import sys, shapelib\n"
-            "heavy = [m for m in ('dask', 'distributed', 'zarr', 'shapelib.io', 'shapelib.pairwise', 'shapelib.statistics.distance_based')"
-            " if m in sys.modules]\n"
+            "heavy = [m for m in ('dask', 'distributed', 'zarr', 'numba', 'scipy', 'shapelib.io', 'shapelib.pairwise',"
+            " 'shapelib.statistics.distance_based', 'shapelib.solver.geodesic', 'shapelib.pointsets') if m in sys.modules]\n"
             "assert not heavy, heavy\n"
+            "assert callable(shapelib.register) and 'shapelib.pointsets.registration' in sys.modules\n"
+            "from shapelib import geodesic, rerank, TangentPCA\n"
+            "assert geodesic.__module__ == 'shapelib.solver.geodesic' and callable(rerank) and callable(shapelib.rerank)\n"
             "assert callable(shapelib.io.read_landmarks) and callable(shapelib.pairwise.open_store)\n"
             "assert callable(shapelib.statistics.distance_based.permanova) and 'io' in dir(shapelib)\n"
             "try:\n    shapelib.no_such_thing\nexcept AttributeError as e:\n    print(e)\n")
@@ -66,3 +70,18 @@ def test_the_statistics_need_no_optional_extra():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     assert "scikit-learn" in {_name(r) for r in project["dependencies"]}
     assert "build" in {_name(r) for r in project["optional-dependencies"]["dev"]}
+
+
+def test_every_public_name_is_served_from_the_module_its_table_names():
+    """The package's table of lazily loaded names covers ``shapelib.__all__``, and each name is the
+    object its module defines (what an eager ``from .module import name`` gave)."""
+    import importlib
+
+    import shapelib
+
+    table = {name: module for module, names in shapelib._PUBLIC.items() for name in names}
+    assert set(shapelib.__all__) - set(table) == {"InputError"}
+    assert set(table) - set(shapelib.__all__) == set()
+    for name, module in table.items():
+        assert getattr(shapelib, name) is getattr(importlib.import_module(f"shapelib.{module}"), name), name
+    assert set(shapelib.__all__) <= set(dir(shapelib))

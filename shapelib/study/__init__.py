@@ -15,11 +15,20 @@ from pathlib import Path
 import numpy as np
 
 from .._files import write_text_atomic
-from ..geometry.scale import PAPER_CENTROID_SIZE  # noqa: F401  (the study's scale, for the notebooks)
 
 __all__ = ["stratified_sample", "record_values", "record_verdict", "load_values", "save_figure", "pair_key", "default_output_dir", "VALUES_FILE", "VERDICTS"]
 
 VALUES_FILE = "values.json"
+
+
+def __getattr__(name):
+    # the study's scale, for the notebooks, from the mathematics on first use (a notebook that only
+    # records values does not load the compiled kernels and SciPy)
+    if name == "PAPER_CENTROID_SIZE":
+        from ..geometry.scale import PAPER_CENTROID_SIZE
+
+        return PAPER_CENTROID_SIZE
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def stratified_sample(idx, n: int, cells, rng) -> np.ndarray:
