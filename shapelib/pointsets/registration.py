@@ -64,6 +64,8 @@ KERNELS = ("weights", "means")
 #: non-rigid: larger sets are registered through subsets of this many points (farthest-point samples),
 #: the fit carried to every source point by the kernel: memory and time stay bounded
 MAX_POINTS = 800
+#: the start of the warning of a result that is probably wrong (its reasons follow)
+PROBABLY_WRONG = "register: the registration is probably wrong: "
 
 
 class RegistrationWarning(RuntimeWarning):
@@ -730,8 +732,7 @@ def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2
                       f"{st.s2 * sy ** 2:.3g}); raise max_iter or loosen tol", RegistrationWarning,
                       stacklevel=stacklevel)
     if warn and reasons:
-        warnings.warn("register: the registration is probably wrong: " + "; ".join(reasons), RegistrationWarning,
-                      stacklevel=stacklevel)
+        warnings.warn(PROBABLY_WRONG + "; ".join(reasons), RegistrationWarning, stacklevel=stacklevel)
     return _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, "nonrigid", metric, s2g, kernel, n_steps,
                    reasons=reasons, diagnostics=diagnostics, start=(*start, mx, sx))
 
@@ -801,7 +802,7 @@ def _register_large(x, y, fit, pairs=None, *, warn=True):
                f"the data do not fix where along the shape each point belongs")
         reasons.append(why)
         if warn:
-            warnings.warn("register: the registration is probably wrong: " + why, RegistrationWarning, stacklevel=3)
+            warnings.warn(PROBABLY_WRONG + why, RegistrationWarning, stacklevel=3)
     reach = 3.0 * np.sqrt(sub.sigma2) + np.sqrt(_spacing2(y))
     dist, near = cKDTree(y).query(points)
     corr = np.where(dist <= reach, near, -1)
