@@ -34,7 +34,8 @@ quick: setup
 test: setup
 	$(PY) -m pytest -n logical --dist worksteal
 
-# every test, the slow ones too (the JAX backend's batched and engine paths, the GPU benchmark's CPU check)
+# every test, the slow ones too (the JAX backend's batched and engine paths, the GPU benchmark's CPU check,
+# the study notebooks' quick runs)
 test-all: setup
 	$(PY) -m pytest -n logical --dist worksteal -m ""
 

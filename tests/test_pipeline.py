@@ -102,6 +102,60 @@ def test_failure_names_the_cell_and_keeps_previous_results(toy):
     assert not list(results.glob(".tmp-*"))
 
 
+def test_a_run_without_the_values_or_figures_it_must_record_fails_and_keeps_previous_results(toy, monkeypatch):
+    nbdir, results = toy
+    assert run_all.run_one("toy", quick=True, force=False, results_dir=results)[1] == "ok"
+    before = _snapshot(results / "toy")
+    monkeypatch.setitem(run_all.NOTEBOOKS["toy"], "expects", {"toy/": 2})  # GOOD records one value
+    name, status, _, msg = run_all.run_one("toy", quick=True, force=True, results_dir=results)
+    assert status == "FAILED" and msg == "toy: 1 value(s) under 'toy/', expected 2", msg
+    assert _snapshot(results / "toy") == before and not list(results.glob(".tmp-*"))
+
+
+def _finished_run(folder, name, keys, pngs, shown):
+    """A results folder as a finished run leaves it: values.json, the executed notebook, PNG files."""
+    folder.mkdir()
+    (folder / "values.json").write_text(json.dumps({"values": {k: 1.0 for k in keys}}))
+    outputs = [{"output_type": "display_data", "data": {"image/png": "iVBOR"}}] * shown
+    cells = [{"cell_type": "code", "outputs": outputs}, {"cell_type": "markdown", "source": "text"}]
+    (folder / f"{name}.ipynb").write_text(json.dumps({"cells": cells}))
+    for i in range(pngs):
+        (folder / f"figure{i}.png").write_bytes(b"\x89PNG")
+    return folder
+
+
+def test_the_output_check_counts_values_exactly_in_quick_runs_and_at_least_in_full_runs(tmp_path, monkeypatch):
+    check = run_all.check_outputs
+    monkeypatch.setitem(run_all.NOTEBOOKS, "toy", {"params": {}, "quick": {}, "data": [], "figures": 2,
+                                                   "expects": {"toy/a/": 2, "toy/b": 1}})
+    keys = ["toy/a/1", "toy/a/2", "toy/b", "other/x"]
+    ok = _finished_run(tmp_path / "ok", "toy", keys, pngs=2, shown=2)
+    check("toy", ok, quick=True)
+    check("toy", ok, quick=False)
+    more = _finished_run(tmp_path / "more", "toy", [*keys, "toy/a/3"], pngs=3, shown=3)
+    check("toy", more, quick=False)  # a full run may record more (a longer sweep)
+    with pytest.raises(run_all.NotebookError, match=r"^toy: 3 value\(s\) under 'toy/a/', expected 2$"):
+        check("toy", more, quick=True)
+    fewer = _finished_run(tmp_path / "fewer", "toy", keys[1:], pngs=2, shown=2)
+    for quick, want in ((True, "expected 2"), (False, "expected at least 2")):
+        with pytest.raises(run_all.NotebookError, match=rf"^toy: 1 value\(s\) under 'toy/a/', {want}$"):
+            check("toy", fewer, quick=quick)
+    unshown = _finished_run(tmp_path / "unshown", "toy", keys, pngs=2, shown=1)
+    with pytest.raises(run_all.NotebookError, match=r"2 figure file\(s\) but 1 figure\(s\) shown in the notebook"):
+        check("toy", unshown, quick=True)
+    missing = _finished_run(tmp_path / "missing", "toy", keys, pngs=1, shown=1)
+    with pytest.raises(run_all.NotebookError, match=r"1 figure file\(s\), expected at least 2"):
+        check("toy", missing, quick=False)
+    # Table I keys: those of the paper's table (data/reference/table1.csv), no others
+    monkeypatch.setitem(run_all.NOTEBOOKS["toy"], "expects", {"table1/procrustes/": 2})
+    table = _finished_run(tmp_path / "table", "toy", ["table1/procrustes/1-2", "table1/procrustes/1-3"], 2, 2)
+    check("toy", table, quick=True)
+    odd = _finished_run(tmp_path / "odd", "toy", ["table1/procrustes/1-2", "table1/procrustes/1-99"], 2, 2)
+    with pytest.raises(run_all.NotebookError, match=r"^toy: 1 Table I key\(s\) not in the paper's table, "
+                                                    r"e\.g\. 'table1/procrustes/1-99'$"):
+        check("toy", odd, quick=True)
+
+
 #: a notebook that keeps partial work in a store (as the population study keeps its zarr stores)
 STORED = textwrap.dedent('''\
     # %% tags=["parameters"]

@@ -56,7 +56,7 @@ REFERENCE_DIR = ROOT / "data" / "reference"
 
 
 class NotebookError(RuntimeError):
-    """A notebook failed; the message names the failing cell."""
+    """A notebook failed; the message names the failing cell, or what its run did not produce."""
 
 
 class Interrupted(KeyboardInterrupt):
@@ -258,6 +258,48 @@ def execute_notebook(name: str, params: dict, output_dir: Path, *, log_output: b
     return used
 
 
+def check_outputs(name: str, folder: Path, *, quick: bool) -> None:
+    """Check that a finished run of notebook ``name`` in ``folder`` produced what the study needs.
+
+    * Under each value-key prefix of the notebook's ``expects`` it recorded exactly that many
+      values in a quick run, and at least as many in a full run (a sweep of more points, more
+      retained modes): the report never loses a column silently.
+    * Every key of the Table I columns (``table1/<column>/...``) is one the paper's table has
+      (``data/reference/table1.csv``): the report can place each value.
+    * It saved at least the spec's ``figures`` PNG files, and shows each of them in the executed
+      notebook (the documentation renders the notebook, not the files).
+
+    Raises
+    ------
+    NotebookError
+        Naming the notebook and every shortfall.
+    """
+    spec = NOTEBOOKS[name]
+    keys = set(json.loads((folder / "values.json").read_text())["values"])
+    problems = []
+    for prefix, count in spec["expects"].items():
+        got = sum(k.startswith(prefix) for k in keys)
+        if got != count if quick else got < count:
+            problems.append(f"{got} value(s) under {prefix!r}, expected {'' if quick else 'at least '}{count}")
+    table1 = {k for k in keys if k.startswith("table1/")}
+    if table1:
+        import csv
+
+        with open(REFERENCE_DIR / "table1.csv", newline="") as f:
+            reference = {row["key"] for row in csv.DictReader(line for line in f if not line.startswith("#"))}
+        if unknown := sorted(table1 - reference):
+            problems.append(f"{len(unknown)} Table I key(s) not in the paper's table, e.g. {unknown[0]!r}")
+    pngs = sorted(folder.glob("*.png"))
+    if len(pngs) < spec.get("figures", 0):
+        problems.append(f"{len(pngs)} figure file(s), expected at least {spec['figures']}")
+    nb = json.loads((folder / f"{name}.ipynb").read_text())
+    shown = sum("image/png" in out.get("data", {}) for cell in nb["cells"] for out in cell.get("outputs", []))
+    if shown < len(pngs):
+        problems.append(f"{len(pngs)} figure file(s) but {shown} figure(s) shown in the notebook")
+    if problems:
+        raise NotebookError(f"{name}: " + "; ".join(problems))
+
+
 def _machine() -> dict:
     return {"cpus": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version(),
             "loadavg_1min": round(os.getloadavg()[0], 2)}
@@ -305,6 +347,7 @@ def run_one(name: str, *, quick: bool, force: bool, results_dir: Path = RESULTS_
         seconds = time.perf_counter() - t0
         if not (tmp / "values.json").exists():
             raise NotebookError(f"{name}: finished without writing values.json")
+        check_outputs(name, tmp, quick=quick)
         from . import record_values
 
         record_values(tmp, {}, meta={"parameters": used})
