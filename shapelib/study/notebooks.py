@@ -21,10 +21,10 @@ def registered(prefix: str, suffix: str) -> list[str]:
 MPEG7_GIFS = registered("mpeg7/", ".gif")
 
 #: name -> full parameters, quick parameters (CI), raw data files used (their checksums key the cache).
-#: ``expects`` maps a value-key prefix to how many values a quick run records under it (a full run
-#: at least as many), ``figures`` how many PNG files it saves at least: the runner checks both after
-#: every run (:func:`shapelib.study.runner.check_outputs`), so that the report never silently loses
-#: a column and the documentation a figure.
+#: ``expects`` maps a value-key prefix to how many values a quick run records under it (a full run,
+#: or one with parameters changed, at least as many), ``figures`` how many PNG files it saves at
+#: least: the runner checks both after every run (:func:`shapelib.study.runner.check_outputs`), so
+#: that the report never silently loses a column and the documentation a figure.
 #: ``"cores": "all"``: the notebook starts a worker per core and runs alone (:class:`_Cores`);
 #: ``"store": True``: it gets a ``store_dir`` for resumable zarr stores (:func:`run_one`).
 NOTEBOOKS: dict[str, dict] = {
