@@ -266,7 +266,8 @@ def check_outputs(name: str, folder: Path, *, exact: bool) -> None:
       or one with other parameters: a sweep of more points, more retained modes): the report
       never loses a column silently.
     * Every key of the Table I columns (``table1/<column>/...``) is one the paper's table has
-      (``data/reference/table1.csv``): the report can place each value.
+      (:func:`shapelib.study.report.load_reference`, ``data/reference/table1.csv``): the report can
+      place each value.
     * It saved at least the spec's ``figures`` PNG files, and shows each of them in the executed
       notebook (the documentation renders the notebook, not the files).
 
@@ -284,11 +285,9 @@ def check_outputs(name: str, folder: Path, *, exact: bool) -> None:
             problems.append(f"{got} value(s) under {prefix!r}, expected {'' if exact else 'at least '}{count}")
     table1 = {k for k in keys if k.startswith("table1/")}
     if table1:
-        import csv
+        from .report import load_reference
 
-        with open(REFERENCE_DIR / "table1.csv", newline="") as f:
-            reference = {row["key"] for row in csv.DictReader(line for line in f if not line.startswith("#"))}
-        if unknown := sorted(table1 - reference):
+        if unknown := sorted(table1 - set(load_reference(REFERENCE_DIR).index)):
             problems.append(f"{len(unknown)} Table I key(s) not in the paper's table, e.g. {unknown[0]!r}")
     pngs = sorted(folder.glob("*.png"))
     if len(pngs) < spec.get("figures", 0):
