@@ -146,8 +146,9 @@ def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative
         assert st.it == nr.SCREEN_ITER and st.w == nr.W_SCREEN
         assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume), rel=1e-9)
     kept = {k for _, k, _ in screened[:nr.N_KEEP]}
-    # the fits: each kept start at each weight, best first, each the EM run by hand
-    assert [f for f, _, _ in fits] == sorted(f for f, _, _ in fits)
+    # the fits: each kept start at each weight, best first by the criterion, each the EM run by hand
+    scores = [f + nr.W_COST * len(yn) * st.w for f, _, st in fits]
+    assert scores == sorted(scores)
     assert sorted((k, st.w) for _, k, st in fits) == sorted(itertools.product(kept, nr.W_GRID))
     for f, k, st in fits:
         if st.w == nr.W_SCREEN:  # (here none of these reaches the floor)
@@ -284,10 +285,28 @@ def test_a_distinct_fit_of_another_start_within_the_gap_says_another_pose():
     assert reasons == []
     reasons, _ = nr.assess([(0.0, 0, best), (0.125 * m, 3, other)], y, spacing2=1.0)
     assert len(reasons) == 1 and reasons[0].startswith("another pose explains the target almost as well")
-    assert re.search(r"objective 0\.125 per target point higher", reasons[0])
+    assert re.search(r"score 0\.125 per target point higher", reasons[0])
     # a negative objective: the gap is a difference, per target point
     reasons, _ = nr.assess([(-10.0, 0, best), (-10.0 + 0.05 * m, 3, other)], y, spacing2=1.0)
-    assert re.search(r"objective 0\.050 per target point", reasons[0])
+    assert re.search(r"score 0\.050 per target point", reasons[0])
+
+
+def test_a_larger_outlier_weight_must_pay_w_cost_per_target_point_it_gives_up():
+    y = _grid()
+    m = len(y)
+    low, high = _fit(y, w=0.05), _fit(y + [0.2, 0.0], w=0.5)
+    price = nr.W_COST * m * (0.5 - 0.05)  # what the larger weight costs over this target
+    # the larger weight's objective lower by less than its price: the smaller weight's fit ranks first
+    assert [st.w for _, _, st in nr.ranked([(0.0, 0, low), (-0.9 * price, 3, high)], m)] == [0.05, 0.5]
+    # lower by more: it ranks first; the order of two fits at one weight is the order of F
+    assert [st.w for _, _, st in nr.ranked([(0.0, 0, low), (-1.1 * price, 3, high)], m)] == [0.5, 0.05]
+    same = [(2.0, 0, _fit(y, w=0.2)), (1.0, 3, _fit(y, w=0.2))]
+    assert [f for f, _, _ in nr.ranked(same, m)] == [1.0, 2.0]
+    # the ambiguity gap is the criterion's: F alone 0.9 · price lower, i.e. 0.1 · price higher in score
+    reasons, _ = nr.assess([(0.0, 0, low), (-0.9 * price, 3, high)], y, spacing2=1.0)
+    gap = 0.1 * price / m
+    assert gap < nr.AMBIGUOUS_PER_POINT
+    assert re.search(rf"score {gap:.3f} per target point higher", reasons[0])
 
 
 def test_the_same_start_or_a_fit_no_farther_than_distinct_is_no_other_pose():

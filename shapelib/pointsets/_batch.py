@@ -47,7 +47,7 @@ from .._validate import check_positive, check_positive_int
 from ..geometry import _jax_kernels as jk
 from ..solver.batched import DEVICES, bucket, jax_device
 from ._coherent_em import EIG_RTOL, PLAIN_ITER, EMState, Kernel, box_volume
-from ._nonrigid import N_KEEP, SCREEN_ITER, W_GRID, W_SCREEN, start_rotations
+from ._nonrigid import N_KEEP, SCREEN_ITER, W_GRID, W_SCREEN, ranked, start_rotations
 from .checks import as_point_set
 from .registration import (MAX_POINTS, SIGMA2_FLOOR, _check_w, _nonrigid_frame, _nonrigid_result, register)
 
@@ -383,8 +383,7 @@ def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device):
                          w=float(weights[j]), it=int(it[k, j]), ok=bool(ok[k, j]),
                          why="tolerance" if ok[k, j] else "max_iter")
             cands.append((float(f[k, j]), int(start), st))
-        cands.sort(key=lambda c: c[0])
-        fits.append(cands)
+        fits.append(ranked(cands, ms[k]))
     return fits
 
 

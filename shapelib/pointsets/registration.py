@@ -12,7 +12,8 @@ Both sets are mixtures of eq. (5), one component per point, centred and scaled t
 2. **Non-rigid (the default).** EM of Coherent Point Drift's model with the metric as the
    deformation's kernel (the equations: :mod:`shapelib.pointsets._coherent_em`), started from every
    rotation of a fixed set, the best starts fitted at a few fixed outlier weights and the fit of
-   least negative log-posterior kept (the search: :mod:`shapelib.pointsets._nonrigid`). The means
+   least negative log-posterior, with a price on the outlier weight, kept (the search:
+   :mod:`shapelib.pointsets._nonrigid`). The means
    move to ``θ = u + G W`` with ``G`` the α-order metric of the source mixture in its weight
    coordinates, ``G_ab = ⟨N_a, N_b⟩_{L²} / ⟨N_a, N_a⟩_{L²} = exp(−|u_a − u_b|²/4σ_g²)``, and the
    M-step minimises ``Σ_ij P_ij |y_j − θ_i|²/2σ² + (λ/2) tr(Wᵀ G W)``: ``Wᵀ G W`` is the squared
@@ -374,8 +375,8 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     Rigid, similarity or affine: the pose minimises a density distance over every rotation, then
     EM estimates σ² (and the outlier weight). Non-rigid: EM starts from the source turned by every
     rotation of a fixed set, the best starts are carried to convergence at each of a few outlier
-    weights, and the fit of least negative log-posterior is the answer
-    (:mod:`shapelib.pointsets._nonrigid`); the source mixture's means move as ``θ = u + G W`` with
+    weights, and the fit of least negative log-posterior, with a price on the outlier weight, is the
+    answer (:mod:`shapelib.pointsets._nonrigid`); the source mixture's means move as ``θ = u + G W`` with
     ``G`` the α-order (or Fisher–Rao) metric of the source mixture in its weight coordinates
     (:mod:`shapelib.pointsets._coherent_em` has the equations), and the deformation is the geodesic of
     that metric from the posed source to ``θ``. σ² and the outlier weight are chosen from the data
@@ -397,8 +398,9 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         too): estimated by EM.
     w : float or "auto"
         Weight of the uniform (outlier) component in ``[0, 1)``. ``"auto"`` (default): non-rigid,
-        the weight of least negative log-posterior among 0.01, 0.05, 0.2 and 0.5 (each fit at its own
-        fixed weight); rigid, similarity and affine, estimated by EM with the pose held.
+        the weight of least negative log-posterior plus ``0.15 · m · w`` (a price on each of the
+        ``m`` target points given up to the outliers) among 0.01, 0.05, 0.2 and 0.5 (each fit at its
+        own fixed weight); rigid, similarity and affine, estimated by EM with the pose held.
     reflection : bool
         Also search mirror images of the source.
     lam : float
