@@ -77,6 +77,7 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
         F = -\\sum_j \\log\\Big[\\frac{1 - w}{n} \\sum_i N(y_j; θ_i, σ^2 I) + \\frac{w}{V}\\Big]
             + \\frac{λ}{2} \\operatorname{tr}(W^T G W)
 
+    plus the price ``0.15 · m · w`` of its outlier weight (``m`` target points)
     kept — for ``batch_size`` pairs × starts at once in one array program, the sets padded to the
     batch's largest ``n`` and ``m`` with masks (a padded target point takes no posterior; a padded
     source point has ``Σ_j P_ij = 0`` and so ``W_i = 0``). Each result is then assembled by the numpy
