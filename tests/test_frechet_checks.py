@@ -335,14 +335,17 @@ def test_the_statistics_share_the_path_solves_defaults(x):
 
 def test_at_the_rounding_floor_a_step_that_does_not_lower_the_certificate_is_halved_up_to_four_times(x):
     """tol = 1e-15 is below what rounding lets the certificate reach: the iteration runs to its default
-    30 iterations, and there steps stop lowering the certificate and are halved. g is of full rank here
-    (the projection is the identity), so each step's metric norm is the mean log's, ``grad_norm``,
-    halved once per backtrack (recorded with the next iteration)."""
+    30 iterations, and there steps stop lowering the certificate and are halved, four times at most
+    (whether a halved step at the floor ever lowers the certificate is rounding's choice and differs
+    between machines). Far above the floor the full step lowers it. g is of full rank here (the
+    projection is the identity), so each step's metric norm is the mean log's, ``grad_norm``, halved
+    once per backtrack (recorded with the next iteration)."""
     r = frechet_mean(x, tol=1e-15, warn=False, **OPTS)
     assert r.n_iter == 30 and not r.converged and r.converged is False and len(r.log) == 31
     assert r.tangent.rank == 12
     halvings = [h["backtracks"] for h in r.log[1:]]
-    assert max(halvings) == 4 and any(0 < b < 4 for b in halvings)
+    assert max(halvings) == 4 and all(0 <= b <= 4 for b in halvings)
+    assert halvings[:4] == [0, 0, 0, 0] and r.log[4]["certificate"] > 1e-9  # steps far above the floor
     for h, b in zip(r.log[:-1], halvings):
         assert h["step"] == pytest.approx(h["grad_norm"] * 0.5 ** b, rel=1e-6)
     assert all(type(h["log_maps"]) is int and h["log_maps"] == len(x) * (b + 1) for h, b in zip(r.log[1:], halvings))

@@ -336,15 +336,16 @@ def test_starts_tied_at_the_coarsest_sigma2_are_all_followed_and_the_best_at_sig
 
 def test_stop_reasons_follow_scipy_l_bfgs_b():
     """The reason of each of L-BFGS-B's stops, from real runs: gradient tolerance, relative objective
-    change, iteration limit, and a line search that finds no decrease (a wrong-sign gradient)."""
-    quad = minimize(lambda p: (p @ p, 2 * p), np.array([1.0, 2.0]), jac=True, method="L-BFGS-B")
-    slow = minimize(lambda p: (rosen(p), rosen_der(p)), np.array([-1.2, 1.0]), jac=True, method="L-BFGS-B",
-                    options={"ftol": 1e-3})
-    short = minimize(lambda p: (rosen(p), rosen_der(p)), np.array([-1.2, 1.0]), jac=True, method="L-BFGS-B",
-                     options={"maxiter": 2})
-    wrong = minimize(lambda p: (p @ p, -2 * p), np.array([1.0, 2.0]), jac=True, method="L-BFGS-B")
-    assert [r.status for r in (quad, slow, short, wrong)] == [0, 0, 1, 2]
-    assert [_stop(r) for r in (quad, slow, short, wrong)] == [
+    change, iteration limit, and a line search that finds no decrease (a wrong-sign gradient: SciPy
+    before 1.17 says status 2, from 1.17 status 0 and "relative reduction" at the unmoved start)."""
+    x0, r0 = np.array([1.0, 2.0]), np.array([-1.2, 1.0])
+    quad = minimize(lambda p: (p @ p, 2 * p), x0, jac=True, method="L-BFGS-B")
+    slow = minimize(lambda p: (rosen(p), rosen_der(p)), r0, jac=True, method="L-BFGS-B", options={"ftol": 1e-3})
+    short = minimize(lambda p: (rosen(p), rosen_der(p)), r0, jac=True, method="L-BFGS-B", options={"maxiter": 2})
+    wrong = minimize(lambda p: (p @ p, -2 * p), x0, jac=True, method="L-BFGS-B")
+    assert [r.status for r in (quad, slow, short)] == [0, 0, 1] and wrong.status in (0, 2)
+    assert np.array_equal(wrong.x, x0) and wrong.fun == 5.0  # no step was taken
+    assert [_stop(r, s) for r, s in ((quad, x0), (slow, r0), (short, r0), (wrong, x0))] == [
         (True, "gradient"), (True, "objective_change"), (False, "max_iter"), (True, "no_decrease")]
 
 

@@ -808,6 +808,14 @@ def _fr_qform_hessian(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
 # Compiled versions used by the geodesic solver (same formulas as above, fused per node and
 # landmark in shapelib._kernels; tests/test_kernels.py checks them against the numpy ones).
 
+
+def _compiled_layout(theta, vel):
+    """``theta`` and ``vel`` as C-ordered, writable float64 arrays: the one layout the compiled kernels
+    are compiled for (a transposed or read-only array would compile, and cache, another
+    specialisation of each kernel on first use)."""
+    return (np.require(theta, np.float64, ["C", "W"]), np.require(vel, np.float64, ["C", "W"]))
+
+
 def fr_qform_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid) -> np.ndarray:
     r"""Batched Fisher–Rao quadratic form ``vᵀ g_FR(θ) v`` on a common grid, ψ̇ fused in compiled code.
 
@@ -855,6 +863,7 @@ def fr_qform_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: Grid)
     >>> bool(np.isclose(q[0], sl.fisher_rao_quadratic_form(theta, vel, sigma2=0.5)))
     True
     """
+    theta, vel = _compiled_layout(theta, vel)
     x = grid.nodes
     out = np.empty(len(theta))
     for n, (t, v) in enumerate(zip(theta, vel)):
@@ -917,6 +926,7 @@ def fr_qform_grad_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, grid: 
     >>> bool(np.allclose(d_vel[0].ravel(), 2 * sl.fisher_rao_metric(theta, sigma2=0.5) @ vel.ravel(), rtol=1e-6))
     True
     """
+    theta, vel = _compiled_layout(theta, vel)
     m = len(theta)
     q = np.empty(m)
     d_theta = np.empty_like(theta)
@@ -999,6 +1009,7 @@ def fr_qform_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float, gri
     >>> bool(np.allclose(q_vv[0], 2 * sl.fisher_rao_metric(theta, sigma2=0.5)))
     True
     """
+    theta, vel = _compiled_layout(theta, vel)
     m, k, d = theta.shape
     q_tt, q_tv, q_vv = np.empty((3, m, k * d, k * d))
     for n in range(m):
@@ -1060,6 +1071,7 @@ def fr_qform_grad_hessian_compiled(theta: np.ndarray, vel: np.ndarray, s2: float
     >>> bool(np.isclose(q[0], fr_qform_compiled(theta[None], vel[None], 0.5, grid)[0])), q_tt.shape
     (True, (1, 6, 6))
     """
+    theta, vel = _compiled_layout(theta, vel)
     m, k, d = theta.shape
     q = np.empty(m)
     d_theta = np.empty_like(theta)

@@ -197,13 +197,20 @@ def _rms(x):
     return float(np.sqrt(np.mean(np.sum(x * x, axis=1))))
 
 
-def _stop(res) -> tuple[bool, str]:
-    if res.status == 0:
-        msg = str(res.message).upper()
-        return True, "gradient" if "GRAD" in msg else "objective_change"
+def _stop(res, start) -> tuple[bool, str]:
+    """``(converged, stop_reason)`` of an L-BFGS-B run ``res`` from the point ``start``.
+
+    A run whose line search found no decrease stops with status 2 in SciPy before 1.17; from 1.17
+    the same run ends with status 0 and "relative reduction of f" without having moved. Both are
+    ``"no_decrease"`` here (a point no step lowers at machine precision: converged), told apart from a
+    real relative-reduction stop by the point itself: it is still ``start``."""
     if res.status == 1:
         return False, "max_iter"
-    return True, "no_decrease"  # line search found no decrease at machine precision: a local minimum
+    if res.status == 0 and "GRAD" in str(res.message).upper():
+        return True, "gradient"
+    if res.status == 0 and not np.array_equal(res.x, start):
+        return True, "objective_change"
+    return True, "no_decrease"
 
 
 class _Problem:
@@ -378,12 +385,14 @@ def _search(x, y, xn, yn, cx, cy, size, scale0, s2, transform, metric, reflectio
         if fval > top + SELECT_RTOL * max(top, 1e-300) + 1e-12:
             continue
         m, p = models[i], res.x
+        start = m.start()
         for prob in problems[1:]:
+            start = p
             res = minimize(prob.fun, p, args=(m,), jac=True, method="L-BFGS-B",
                            options={"maxiter": max_iter, "ftol": 1e-15, "gtol": 1e-11})
             p = res.x
             n_iter += int(res.nit)
-        ok, why = _stop(res)
+        ok, why = _stop(res, start)
         cand = (float(res.fun), i, p, ok, why)
         if best is None or cand[0] < best[0]:
             best = cand
