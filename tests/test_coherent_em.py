@@ -147,13 +147,14 @@ def test_the_em_map_gives_the_objective_at_its_input():
     # the arrays contiguous, as run_em passes them: the loop's compiled specialisation, not another one
     q = np.ascontiguousarray(kernel.q)
     out = _em_map(u, q, np.ascontiguousarray(q.T), kernel.ev, np.zeros((0, 0)), y, np.sum(y * y, axis=1),
-                  st.coef, st.s2,
+                  st.coef, kernel.apply(st.coef), st.s2,
                   outlier_term(n, d, 1.0, st.w, o["volume"]), o["lam"], False, o["s2_floor"], np.log(0.9 / n), NO_LABELS)
-    assert out[2] == pytest.approx(objective(st, y, lam=o["lam"], volume=o["volume"]), rel=1e-12)
-    # and the iteration it gives is one plain EM iteration
+    assert out[3] == pytest.approx(objective(st, y, lam=o["lam"], volume=o["volume"]), rel=1e-12)
+    # and the iteration it gives is one plain EM iteration, with G W of the new W
     one = run_em(EMState(u=u, kernel=kernel, coef=st.coef.copy(), s2=st.s2, w=0.1), y, max_iter=1, tol=0.0, **o)
     np.testing.assert_allclose(out[0], one.coef, rtol=1e-12, atol=1e-14)
-    assert out[1] == pytest.approx(one.s2, rel=1e-12)
+    np.testing.assert_allclose(out[1], kernel.apply(out[0]), rtol=1e-10, atol=1e-13)
+    assert out[2] == pytest.approx(one.s2, rel=1e-12)
 
 
 def test_the_extrapolation_recovers_the_limit_of_a_geometric_sequence():

@@ -33,11 +33,14 @@ number of threads. Measured on a 2-core machine (sample 1 of the 56 Chui–Ranga
 thread against two: the screening 31.5 → 20.2 ms, the final fits 13.5 → 9.2 ms per registration
 (1.5–1.6×, not 2×).
 
-**Cost.** The screening's 16 × ``SCREEN_ITER`` EM iterations are about 60 % of a registration's time
-in one thread (two sets of ~100 points: ~45 µs an iteration, of which the E-step is 29 µs and the M-step the
-rest), the final fits most of the rest (with the three weights 0.05, 0.2 and 0.5 of ``W_GRID`` then:
-60 % and 30 %); the M-step's small dense products and solve are as fast
-through BLAS as written out as loops (measured). Cheaper searches, measured on samples 1–5 of the
+**Cost.** A registration of two sets of ~100 points runs about 1,000 EM iterations: the screening's
+16 × ``SCREEN_ITER`` (about 630) and the final fits' (about 370), 90 % of its time in one thread. One
+iteration took ~32 µs on a 2-core AMD EPYC (fish, 98 points, kernel rank 27): the E-step 17.5 µs
+(its exponentials vectorised, :func:`~._coherent_em._exp_neg`), the M-step the rest — the k × k
+system by Cholesky, ``G W = Q z`` carried to the next E-step (:func:`~._coherent_em._m_step`),
+which with ``EIG_RTOL`` at 1e-8 instead of 1e-10 (rank 37) took the median registration from 28.6
+to 19.8 ms on the same machine; its small dense products are as fast through BLAS as written out
+as loops (measured). Cheaper searches, measured on samples 1–5 of the
 Chui–Rangarajan benchmark (280 registrations; failures are errors above 0.05; the defaults, with
 those three weights: 27 failures, mean error 0.0257); none kept the accuracy and halved the time — those that saved a
 quarter or more lost accuracy, those that kept it saved a few per cent:
@@ -59,8 +62,9 @@ quarter or more lost accuracy, those that kept it saved a few per cent:
 * dropping, after 20 or 30 iterations, only the starts whose objective exceeds the second best's by
   more than 2–3 per target point: no registration's best two starts change, but it saves 1–5 % of
   the screening (starts this far behind are few);
-* the kernel's eigenvalues truncated at 1e-8 or 1e-7 of the largest instead of ``EIG_RTOL``: the
-  same fits to 1e-4 and under 5 % less time.
+* the kernel's eigenvalues truncated at 1e-8 or 1e-7 of the largest instead of 1e-10, with the
+  M-step's LU solve of then: the same fits to 1e-4 and under 5 % less time (with the Cholesky
+  M-step, 1e-8 is ``EIG_RTOL``).
 
 Scoring the final fits by another criterion instead of ``F`` did not help either: the L²
 (L2E) fit of the moved source mixture to the target at the target's σ², at its point spacing or

@@ -645,6 +645,14 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
                    reasons=[], diagnostics={})
 
 
+def _in_range(st):
+    """The fit's coefficients for :meth:`RegistrationResult.warp`: ``W`` without its part along the
+    kernel's dropped eigenvectors (:meth:`~shapelib.pointsets._coherent_em.Kernel.in_range`), so that
+    the warp reproduces the fitted points; a fit without a kernel (rigid EM) keeps its own."""
+    kernel = getattr(st, "kernel", None)
+    return st.coef if kernel is None else kernel.in_range(st.coef)
+
+
 def _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, transform, metric, s2g, kernel, n_steps, *, reasons,
             diagnostics, start=None):
     p1 = p.sum(axis=1)
@@ -658,7 +666,7 @@ def _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, transform, metric, s2
                               sigma2_metric=None if s2g is None else s2g * sy ** 2,
                               sigma2_objective=s2_eval * sy ** 2, reliable=not reasons, reasons=tuple(reasons),
                               diagnostics=diagnostics, target_correspondence=tcorr,
-                              _source=x, _target=y, _u=st.u, _coef=st.coef, _p=p, _frame=(my, sy),
+                              _source=x, _target=y, _u=st.u, _coef=_in_range(st), _p=p, _frame=(my, sy),
                               _n_steps=n_steps, _kernel=kernel, _start=start)
 
 
