@@ -189,7 +189,7 @@ def run_levels(levels, samples, methods, case_of, *, time_limit=None, dim=2, wid
 
     out = {}
     with threadpool_limits(limits=1, user_api="blas"):
-        warm_up(methods, dim=dim)
+        warm_up(methods, dim=dim, time_limit=time_limit)
         for name in levels:
             row = {m: {"samples": [], "errors": [], "times": [], "exceptions": []} for m in methods}
             if "shapelib" in row:

@@ -23,10 +23,11 @@ Some peers take tens of seconds on some of these sets (GMMTree, probreg's CPD): 
 running after ``--time-limit`` seconds (default 10, the same for every method) is stopped and
 counted as a failure (``TimeoutError``), which bounds the run: on the 2-core machine of the performance
 page sample 1 took about 6 s per level (5 minutes in all; about 1 minute on another host of the same
-size); on samples 1–5 the first six levels took about 20 s per level and sample. The limit cannot stop
-a method inside compiled code that holds the GIL (its signal is handled only when Python runs again):
-on 2026-12-07 a run of samples 1–2 stayed over 30 minutes in probreg's ``GMMTree.__init__`` on a
-sample-2 set, so the default (and ``make bench``) is sample 1, as recorded.
+size); on samples 1–5 the first six levels took about 20 s per level and sample, so the default (and
+``make bench``) is sample 1, as recorded. With a limit the peers run in a child process that is killed
+when a registration overruns (``benchmarks/_peers.py``): a signal cannot stop compiled code that holds
+the GIL, and probreg's ``GMMTree.__init__`` stayed in such a loop for over 30 minutes on a sample-2
+set, and on ``superquadric_rot_4`` of sample 1 on another host, before the child process stopped it.
 
     python benchmarks/bench_registration_3d.py [--samples 1] [--points 200] [--time-limit 10] [--levels torus,rot] [--json out.json] [--record]
 

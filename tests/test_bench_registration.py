@@ -118,6 +118,31 @@ def test_a_peer_that_raises_is_a_failure_scored_as_the_unmoved_source():
     assert info["exception"] is None and np.mean(np.linalg.norm(moved - (1.1 * x + 0.2), axis=1)) < 0.05
 
 
+def test_a_peer_over_the_time_limit_is_killed_in_its_child_process_and_the_next_one_runs():
+    """With a time limit the peers run in a child process: one still running at the limit (here pycpd on
+    800 points against a limit of a millisecond) is a TimeoutError scored as the unmoved source, its
+    process is killed, and the next registration runs in a new one."""
+    import_or_missing("probreg", "probreg (the study extra) and open3d's libusb-1.0")
+    sys.path.insert(0, str(ROOT))
+    from benchmarks import _peers as peers
+
+    rng = np.random.default_rng(1)
+    big = rng.normal(size=(800, 2))
+    try:
+        moved, seconds, info = peers.run("cpd", big, 1.1 * big, time_limit=1e-3)
+        assert info["exception"] == "TimeoutError" and np.array_equal(moved, big) and seconds == 1e-3
+        assert not peers._CHILD  # the overrunning process is gone
+        x = rng.normal(size=(40, 2))
+        moved, seconds, info = peers.run("cpd", x, 1.1 * x + 0.2, time_limit=60.0)
+        assert info["exception"] is None and 0 < seconds < 60.0
+        assert np.mean(np.linalg.norm(moved - (1.1 * x + 0.2), axis=1)) < 0.05
+        proc = peers._CHILD[0].proc
+        assert proc.is_alive()
+    finally:
+        peers._close_child()
+    assert not proc.is_alive() and not peers._CHILD
+
+
 def test_the_landmarks_benchmark_pairs_only_exact_true_points_and_counts_by_range():
     """bench_registration_landmarks: a landmark is a spread template point whose true position is a target
     point (none where the target is noisy); the summary counts failures, flags and families per range."""
