@@ -304,9 +304,9 @@ def _apply(q, qt, ev, full, coef):
 @njit(cache=True, fastmath=False)
 def _spd_solve(a, b):
     """``z`` (k, r) with ``a z = b`` for a symmetric positive definite ``a`` (k, k): the Cholesky factor
-    ``a = L Lᵀ`` (LAPACK's, through NumPy), then the two triangular solves. For the M-step's k × k
-    system (k ≈ 40) half the time of ``np.linalg.solve``'s LU, whose pivoting an SPD matrix does not
-    need."""
+    ``a = L Lᵀ`` (LAPACK's ``dpotrf`` through numba's ``np.linalg.cholesky``), then the two triangular
+    solves. For the M-step's system (k = 37, r = 2) 4.4 µs against 7.1 µs for ``np.linalg.solve``'s
+    LU, whose pivoting an SPD matrix does not need (measured in compiled loops)."""
     low = np.linalg.cholesky(a)
     k, r = b.shape
     z = np.empty((k, r))
