@@ -34,6 +34,7 @@ The child measures each registration's time as this process measures shapelib's,
 from __future__ import annotations
 
 import atexit
+import importlib
 import multiprocessing
 import signal
 import time
@@ -150,11 +151,11 @@ def _serve(conn):
     registration per message until the parent closes the pipe."""
     from threadpoolctl import threadpool_limits
 
-    import pycpd  # noqa: F401 - imported before "ready": import time is not registration time
-    try:
-        import probreg  # noqa: F401
-    except Exception:  # noqa: BLE001 - a probreg peer then raises ImportError per registration, as in-process
-        pass
+    for name in ("pycpd", "probreg"):  # imported before "ready": import time is not registration time
+        try:
+            importlib.import_module(name)
+        except Exception:  # noqa: BLE001 - its peers then raise ImportError per registration, as in-process
+            pass
     with threadpool_limits(limits=1, user_api="blas"):
         conn.send("ready")
         while True:
