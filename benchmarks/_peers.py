@@ -134,13 +134,16 @@ def _time_limit(seconds):
 CHILD_START_S = 300.0
 
 
-def _peer_call(method, xn, yn):
-    """``(moved, seconds, exception class name or None)`` of one peer on normalised inputs, timed around the call."""
+def _peer_call(method, source, target):
+    """``(moved, seconds, exception class name or None)`` of one peer: both sets normalised, the result
+    mapped back with the target's mean and scale, timed around all of it."""
     t0 = time.perf_counter()
     try:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            moved = np.asarray(_PEER_FUNCTIONS[method](xn, yn), dtype=float)
+            warnings.simplefilter("ignore")  # every method is judged by its error, not its warnings
+            xn, _, _ = normalise(source)
+            yn, my, sy = normalise(target)
+            moved = np.asarray(_PEER_FUNCTIONS[method](xn, yn), dtype=float) * sy + my
         return moved, time.perf_counter() - t0, None
     except Exception as exc:  # noqa: BLE001 - a peer's failure is a result of the benchmark
         return None, time.perf_counter() - t0, type(exc).__name__
@@ -160,10 +163,10 @@ def _serve(conn):
         conn.send("ready")
         while True:
             try:
-                method, xn, yn = conn.recv()
+                method, source, target = conn.recv()
             except (EOFError, OSError):
                 return
-            conn.send(_peer_call(method, xn, yn))
+            conn.send(_peer_call(method, source, target))
 
 
 class _Child:
@@ -175,13 +178,17 @@ class _Child:
         self.proc = ctx.Process(target=_serve, args=(theirs,), daemon=True, name="shapelib-bench-peer")
         self.proc.start()
         theirs.close()
-        if not self.conn.poll(CHILD_START_S) or self.conn.recv() != "ready":
+        try:
+            ready = self.conn.poll(CHILD_START_S) and self.conn.recv() == "ready"
+        except EOFError:  # the process ended before it was ready
+            ready = False
+        if not ready:
             self.close()
             raise RuntimeError(f"the peers' process did not start within {CHILD_START_S:.0f} s")
 
-    def call(self, method, xn, yn, seconds):
+    def call(self, method, source, target, seconds):
         """The child's ``_peer_call``, or None when it is still running after ``seconds``."""
-        self.conn.send((method, xn, yn))
+        self.conn.send((method, source, target))
         if self.conn.poll(seconds):
             return self.conn.recv()
         return None
@@ -204,12 +211,12 @@ def _close_child():
 atexit.register(_close_child)
 
 
-def _peer_in_child(method, xn, yn, seconds):
+def _peer_in_child(method, source, target, seconds):
     """A peer's ``_peer_call`` in the child process, killed (and replaced at the next call) when it
     overruns ``seconds``: then ``(None, seconds, "TimeoutError")``."""
     if not _CHILD:
         _CHILD.append(_Child())
-    out = _CHILD[0].call(method, xn, yn, seconds)
+    out = _CHILD[0].call(method, source, target, seconds)
     if out is None:
         _close_child()
         return None, float(seconds), "TimeoutError"
@@ -227,35 +234,25 @@ def run(method: str, source, target, time_limit: float | None = None):
     source = np.asarray(source, dtype=float)
     target = np.asarray(target, dtype=float)
     info = {"exception": None}
-    if time_limit and method != "shapelib":
-        xn, _, _ = normalise(source)
-        yn, my, sy = normalise(target)
-        moved, seconds, info["exception"] = _peer_in_child(method, xn, yn, time_limit)
-        if info["exception"] is None and (moved.shape != source.shape or not np.all(np.isfinite(moved))):
-            info["exception"] = "FloatingPointError"
-        return (source, seconds, info) if info["exception"] else (moved * sy + my, seconds, info)
-    t0 = time.perf_counter()
-    try:
-        with _time_limit(time_limit), warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")  # every method is judged by its error, not its warnings
-            if method == "shapelib":
+    if method != "shapelib":
+        moved, seconds, info["exception"] = (_peer_in_child(method, source, target, time_limit) if time_limit
+                                             else _peer_call(method, source, target))
+    else:
+        t0 = time.perf_counter()
+        try:
+            with _time_limit(time_limit), warnings.catch_warnings(), np.errstate(all="ignore"):
+                warnings.simplefilter("ignore")  # every method is judged by its error, not its warnings
                 res = sl.register(source, target)
-                moved = np.asarray(res.points, dtype=float)
-                rel = getattr(res, "reliable", None)
-                info["reliable"] = None if rel is None else bool(rel)
-                info["converged"] = bool(getattr(res, "converged", True))
-            else:
-                xn, _, _ = normalise(source)
-                yn, my, sy = normalise(target)
-                moved = np.asarray(_PEER_FUNCTIONS[method](xn, yn), dtype=float) * sy + my
+            moved = np.asarray(res.points, dtype=float)
+            rel = getattr(res, "reliable", None)
+            info["reliable"] = None if rel is None else bool(rel)
+            info["converged"] = bool(getattr(res, "converged", True))
+        except Exception as exc:  # noqa: BLE001 - a failure is a result of the benchmark
+            moved, info["exception"] = None, type(exc).__name__
         seconds = time.perf_counter() - t0
-        if moved.shape != source.shape or not np.all(np.isfinite(moved)):
-            raise FloatingPointError("non-finite or misshapen result")
-    except Exception as exc:  # noqa: BLE001 - a peer's failure is a result of the benchmark
-        seconds = time.perf_counter() - t0
-        info["exception"] = type(exc).__name__
-        moved = source
-    return moved, seconds, info
+    if info["exception"] is None and (moved.shape != source.shape or not np.all(np.isfinite(moved))):
+        info["exception"] = "FloatingPointError"  # a non-finite or misshapen result
+    return (source if info["exception"] else moved), seconds, info
 
 
 def warm_up(methods=METHODS, dim: int = 2, time_limit: float | None = None) -> None:
