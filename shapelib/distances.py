@@ -29,7 +29,7 @@ metrics (:func:`metric_info`, :func:`register_metric`).
 ``"registration"``
     Point sets of any sizes, no correspondence: the misfit left after the non-rigid registration
     of each set onto the other (:func:`shapelib.pointsets.registration_distance.registration_distance`;
-    registered by :mod:`shapelib.retrieval`) [``combine``, ``reflection``,
+    registered with the others here) [``combine``, ``reflection``,
     ``lam``, ``sigma2_metric``, ``max_iter``, ``tol``]; through :func:`shapelib.pairwise_distances`
     also ``shortlist=k``.
 
@@ -65,6 +65,7 @@ from .comparison.hausdorff import hausdorff_distance
 from .comparison.splines import tps_bending_energy, wendland_bending_energy
 from .geometry.bound_matrices import alpha_bound_block, fisher_rao_bound_block
 from .geometry.procrustes import procrustes_distance, procrustes_distance_unchecked
+from .pointsets.registration_distance import registration_distance
 from .solver.bracket import distance_bracket
 from .solver.geodesic import alpha_lower_bound, fisher_rao_lower_bound, geodesic
 
@@ -485,6 +486,11 @@ for _name, _fn, _kw in (
         ("wendland", wendland_bending_energy,
          dict(symmetric=False, pose_dependent=_wendland_pose,
               description="Wendland ψ3,1 spline bending energy of the map u -> v (not symmetric)")),
+        ("registration", registration_distance,
+         dict(point_sets=True,
+              description="point sets of any sizes: the EM σ² left after non-rigid registration, both sets at "
+                          "unit RMS radius, both directions (mean); shortlist=k: only each query's k nearest by "
+                          "the rigid bound")),
 ):
     register_metric(_name, _fn, **_kw)
     _BUILTIN[_name] = _fn

@@ -29,17 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .distances import register_metric
-from .pointsets.registration_distance import registration_distance
-
 __all__ = ["bullseye", "BullseyeScore", "nearest_wrong", "procrustes_outline_matrix"]
-
-# the point-set metric of the pairwise engine (``pairwise_distances(sets, metric="registration")``),
-# registered here: this module sits above both the metric registry and the point sets
-register_metric("registration", registration_distance, point_sets=True, replace=True,
-                description="point sets of any sizes: the EM σ² left after non-rigid registration, both sets at "
-                            "unit RMS radius, both directions (mean); shortlist=k: only each query's k nearest by "
-                            "the rigid bound")
 
 
 @dataclass(frozen=True)

@@ -187,3 +187,21 @@ def test_registrations_on_jax_run_in_this_process_in_blocks_that_fill_the_device
     sl.pairwise_distances(many, metric="registration", shortlist=1, store=str(store), progress=False,
                           backend="jax", max_iter=3)
     assert _Store.open(str(store)).b == 20
+
+
+def test_the_registration_metric_is_known_after_import_shapelib_alone():
+    # in a fresh interpreter, as a user's script starts: the metric is shapelib's own, whatever module
+    # was imported first (it was registered only once shapelib.retrieval had been imported)
+    import subprocess
+    import sys
+
+    code = ("import numpy as np, shapelib as sl\n"
+            "from shapelib.distances import is_builtin\n"
+            "info = sl.metric_info('registration')\n"
+            "assert info.point_sets and is_builtin(info), info\n"
+            "t = np.linspace(0, 2 * np.pi, 12, endpoint=False)\n"
+            "x = np.c_[np.cos(t), 0.6 * np.sin(t)]\n"
+            "d = sl.pairwise_distances([x, 2 * x[::-1] + 1], metric='registration', max_iter=60, progress=False)\n"
+            "assert d.shape == (2, 2) and d[0, 1] < 1e-3, d\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr

@@ -3,7 +3,7 @@
 :func:`registration_distance` registers each set onto the other with :func:`shapelib.register`
 (non-rigid) and keeps the EM σ² that the pose and the deformation leave unexplained, with both sets
 scaled to unit mean squared radius, symmetrised over the two directions. The metric
-``"registration"`` of :func:`shapelib.pairwise_distances` (registered by :mod:`shapelib.retrieval`)
+``"registration"`` of :func:`shapelib.pairwise_distances` (registered by :mod:`shapelib.distances`)
 computes it for every pair of a collection.
 """
 
