@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from shapelib.pointsets._coherent_em import (PLAIN_ITER, EMState, Kernel, _em_map, _estep, _exp_neg, _extrapolate,
-                                             initial_sigma2, objective, outlier_term, posteriors, run_em, sq_dist)
+from shapelib.pointsets._coherent_em import (PLAIN_ITER, EMState, Kernel, _column, _em_map, _estep, _exp_neg,
+                                             _extrapolate, _m_step, _sse, initial_sigma2, objective, outlier_term,
+                                             posteriors, run_em, sq_dist)
 
 #: no known correspondences (the compiled loops' empty label array)
 NO_LABELS = np.zeros(0, dtype=np.int64)
@@ -27,7 +28,7 @@ def test_the_vectorised_exponential_is_within_one_ulp_of_numpy():
     a = np.concatenate([a, np.nextafter(a, 0.0), np.nextafter(a, np.inf)])
     a = a[(a >= 0) & (a <= 700)]
     out = np.empty_like(a)
-    _exp_neg(a, out, np.empty(a.size, dtype=np.int64))
+    _exp_neg(a, out)
     ref = np.exp(-a)
     assert np.max(np.abs(out - ref) / np.spacing(ref)) <= 1.0
     assert out[a == 0.0][0] == 1.0
@@ -73,6 +74,55 @@ def test_a_point_far_from_every_mean_takes_no_posterior_without_an_outlier_term(
     p1, pt1, _, _, _ = _estep(theta, y, 1e-2, 0.0, True, NO_LABELS)
     assert pt1[0] == 0.0 and pt1[1] == pytest.approx(1.0)
     assert p1.sum() == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("n", [1, 3, 4, 5, 98])
+def test_a_column_is_the_squared_distances_and_their_exact_minimum(d, n):
+    # the minimum is taken over the bit patterns as integers: it must be the float minimum exactly,
+    # for every length (the compiled loop's vector body and its remainder), with ties and with a
+    # target point on a source point (distance +0)
+    rng = np.random.default_rng(n + d)
+    theta = rng.normal(size=(n, d))
+    theta[n // 2] = theta[-1] if n > 1 else theta[0]  # a tie
+    y = np.vstack([rng.normal(size=(6, d)), theta[n // 3]])  # the last lies on a source point
+    dist = np.empty(n)
+    for j in range(len(y)):
+        low = _column(np.ascontiguousarray(theta.T), y, j, dist)
+        np.testing.assert_allclose(dist, np.sum((theta - y[j]) ** 2, axis=1), rtol=1e-14, atol=0.0)
+        assert low == dist.min()
+    assert low == 0.0 and not np.signbit(low)
+
+
+@pytest.mark.parametrize("rank", [None, 6])
+def test_the_m_step_solves_its_linear_system_and_gives_g_w(rank):
+    # (diag(P1) G + λσ² I) W = B with G = Q diag(ev) Qᵀ (all eigenvalues, or the largest few), against
+    # numpy's dense solve; some P1 zero (source points that took no posterior); G W = Q z is the kernel
+    # applied to W; the σ² update's sum Σ P_ij |y_j − θ_i|² from P1, Pᵀ1, P y equals the dense sum
+    rng = np.random.default_rng(4)
+    n, d, m = 17, 2, 13
+    u = rng.normal(size=(n, d))
+    k = Kernel.of(np.exp(-sq_dist(u, u) / 2.0))
+    if rank is not None:
+        k = Kernel(q=np.ascontiguousarray(k.q[:, -rank:]), ev=k.ev[-rank:].copy())
+    g = k.q @ np.diag(k.ev) @ k.q.T
+    p1 = rng.uniform(0.0, 2.0, size=n)
+    p1[[2, 9]] = 0.0
+    b = rng.normal(size=(n, d))
+    lam_s2 = 0.07
+    q = np.ascontiguousarray(k.q)
+    coef, gw = _m_step(q, np.ascontiguousarray(q.T), k.ev, np.zeros((0, 0)), p1, b, lam_s2)
+    want = np.linalg.solve(p1[:, None] * g + lam_s2 * np.eye(n), b)
+    np.testing.assert_allclose(gw, g @ want, rtol=1e-10, atol=1e-12)
+    if rank is None:  # with every eigenvalue, W itself is the solution
+        np.testing.assert_allclose(coef, want, rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(p1[:, None] * gw + lam_s2 * coef, b, rtol=1e-10, atol=1e-12)
+    p = rng.uniform(size=(n, m))
+    y = rng.normal(size=(m, d))
+    theta = u + gw
+    dense = np.sum(p * np.sum((y[None] - theta[:, None]) ** 2, axis=2))
+    got = _sse(p.sum(axis=0), np.sum(y * y, axis=1), p @ y, p.sum(axis=1), u, gw)
+    assert got == pytest.approx(dense, rel=1e-12)
 
 
 @pytest.mark.parametrize("fixed", [False, True])

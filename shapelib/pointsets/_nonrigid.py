@@ -29,18 +29,23 @@ and which of its fits is the answer. Both sets come in normalised units (zero me
 **Threads.** The starts are independent of each other, and so are the final fits: :func:`fit_all`
 runs each group on ``n_threads`` threads (the compiled EM loop and the objective release the GIL)
 and keeps the results in the order of a run in one thread, so that the answer does not depend on the
-number of threads. Measured on a 2-core machine (sample 1 of the 56 Chui–Rangarajan levels), one
-thread against two: the screening 31.5 → 20.2 ms, the final fits 13.5 → 9.2 ms per registration
-(1.5–1.6×, not 2×).
+number of threads. Measured on a 2-core machine (AMD EPYC; sample 1 of the 56 Chui–Rangarajan
+levels), one thread against two: the screening 14.1 → 9.8 ms, the final fits 8.3 → 5.0 ms per
+registration (1.4–1.7×, not 2×).
 
 **Cost.** A registration of two sets of ~100 points runs about 1,000 EM iterations: the screening's
 16 × ``SCREEN_ITER`` (about 630) and the final fits' (about 370), 90 % of its time in one thread. One
-iteration took ~32 µs on a 2-core AMD EPYC (fish, 98 points, kernel rank 27): the E-step 17.5 µs
-(its exponentials vectorised, :func:`~._coherent_em._exp_neg`), the M-step the rest — the k × k
-system by Cholesky, ``G W = Q z`` carried to the next E-step (:func:`~._coherent_em._m_step`),
-which with ``EIG_RTOL`` at 1e-8 instead of 1e-10 (rank 37) took the median registration from 28.6
-to 19.8 ms on the same machine; its small dense products are as fast through BLAS as written out
-as loops (measured). Cheaper searches, measured on samples 1–5 of the
+iteration takes ~20 µs on a 2-core AMD EPYC (fish, 98 points, kernel rank 27): the E-step ~12 µs
+(its exponentials vectorised, :func:`~._coherent_em._exp_neg`, and each column's smallest distance
+taken as an integer minimum, :func:`~._coherent_em._column`), the M-step ~6 µs (the k × k system by
+Cholesky, ``G W = Q z`` carried to the next E-step: :func:`~._coherent_em._m_step`). Both are
+written out as loops that the compiler vectorises. Measured on sample 1 (two threads, same
+machine), the median registration went from 22.8 ms to 17.0 ms with the M-step's BLAS and LAPACK
+calls written out (per-call costs dominate products this small, and calls from two threads
+contend; the M-step alone 11 → 6 µs), to 16.4 ms with the σ² update's dot products too, and to
+13.1 ms with the E-step's integer minimum and rounding by a shift (17.4 → 12 µs); every error of
+samples 1–10 within 3e-10 of before. ``EIG_RTOL`` at 1e-8 instead of 1e-10 (rank 37) took the median registration
+from 28.6 to 19.8 ms before that. Cheaper searches, measured on samples 1–5 of the
 Chui–Rangarajan benchmark (280 registrations; failures are errors above 0.05; the defaults, with
 those three weights: 27 failures, mean error 0.0257); none kept the accuracy and halved the time — those that saved a
 quarter or more lost accuracy, those that kept it saved a few per cent:
