@@ -120,14 +120,43 @@ def _pair():
     return _normalised(x), _normalised(y)
 
 
-def _by_hand(xn, yn, r, w, *, lam, max_iter, tol, fixed_s2=None, s2_floor=1e-6):
+def _screening_kernel(u):
+    """The screening's kernel by hand: the eigenpairs of the full kernel's matrix whose eigenvalue is
+    above SCREEN_EIG_RTOL of the largest (numpy's eigh, not Kernel.truncated)."""
+    ev, q = np.linalg.eigh(_gauss_kernel(u))
+    keep = ev > nr.SCREEN_EIG_RTOL * ev[-1]
+    return Kernel(q=q[:, keep], ev=ev[keep])
+
+
+def _by_hand(xn, yn, r, w, *, lam, max_iter, tol, fixed_s2=None, s2_floor=1e-6, screened=False):
     """One fit of the search run by hand: the source turned by r, CPD's start σ² (the mean squared
-    distance over d, brute force), EM at the weight w for max_iter iterations in one call."""
+    distance over d, brute force), EM at the weight w for max_iter iterations in one call — or, for
+    the fit that continues the screening (``screened``), its first SCREEN_ITER iterations with the
+    screening's kernel and the rest, unless it converged, with the full kernel from the same means
+    (the coefficients projected on the screening kernel's eigenvectors)."""
     u = xn @ r.T
     s2 = fixed_s2 if fixed_s2 is not None else np.mean(np.sum((yn[None] - u[:, None]) ** 2, axis=2)) / u.shape[1]
     volume = float(np.prod(yn.max(axis=0) - yn.min(axis=0)))
-    st = EMState(u=u, kernel=Kernel.of(_gauss_kernel(u)), coef=np.zeros_like(u), s2=s2, w=w)
-    return run_em(st, yn, lam=lam, volume=volume, max_iter=max_iter, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
+    opts = dict(lam=lam, volume=volume, tol=tol, fixed_s2=fixed_s2, s2_floor=s2_floor)
+    full = Kernel.of(_gauss_kernel(u))
+    if not screened:
+        return run_em(EMState(u=u, kernel=full, coef=np.zeros_like(u), s2=s2, w=w), yn, max_iter=max_iter, **opts)
+    small = _screening_kernel(u)
+    st = run_em(EMState(u=u, kernel=small, coef=np.zeros_like(u), s2=s2, w=w), yn,
+                max_iter=min(nr.SCREEN_ITER, max_iter), **opts)
+    theta = st.theta
+    st = EMState(u=u, kernel=full, coef=small.q @ (small.q.T @ st.coef), s2=st.s2, w=w, it=st.it, ok=st.ok,
+                 why=st.why)
+    np.testing.assert_allclose(st.theta, theta, rtol=1e-10, atol=1e-12)  # the same means under the full kernel
+    if len(small.ev) == len(full.ev) and st.ok:  # nothing dropped: the screening's fixed point is the fit's
+        return st
+    st.ok, st.why = False, "max_iter"  # one with the screening's kernel goes on with the full one
+    return run_em(st, yn, max_iter=max_iter - st.it, **opts)
+
+
+def _kept(screened):
+    """The starts carried to the final fits: the N_KEEP of least objective, and the source as given (0)."""
+    return {k for _, k, _ in screened[:nr.N_KEEP]} | {0}
 
 
 def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative_log_posterior():
@@ -138,14 +167,20 @@ def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative
     volume = float(np.prod(yn.max(axis=0) - yn.min(axis=0)))
     fits, rots, screened = nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=lam, w=None,
                                       fixed_s2=None, reflection=False, max_iter=max_iter, tol=0.0, s2_floor=1e-6)
-    assert len(rots) == len(screened) == nr.N_ROT_2D and len(fits) == nr.N_KEEP * len(nr.W_GRID)
-    # the screening: every start once, SCREEN_ITER iterations each, ordered by objective
+    # the target is turned by 126°: the source as given is not among the N_KEEP best starts and joins them
+    kept = _kept(screened)
+    assert 0 not in {k for _, k, _ in screened[:nr.N_KEEP]} and len(kept) == nr.N_KEEP + 1
+    assert len(rots) == len(screened) == nr.N_ROT_2D and len(fits) == len(kept) * len(nr.W_GRID)
+    # the screening: every start once, SCREEN_ITER iterations each with the screening's kernel, ordered by
+    # objective
     assert sorted(k for _, k, _ in screened) == list(range(nr.N_ROT_2D))
     assert [f for f, _, _ in screened] == sorted(f for f, _, _ in screened)
     for f, k, st in screened:
         assert st.it == nr.SCREEN_ITER and st.w == nr.W_SCREEN
+        small = _screening_kernel(st.u)
+        assert 0 < len(st.kernel.ev) == len(small.ev) < len(Kernel.of(_gauss_kernel(st.u)).ev)
+        np.testing.assert_allclose(st.kernel.ev, small.ev, rtol=1e-12)
         assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume), rel=1e-9)
-    kept = {k for _, k, _ in screened[:nr.N_KEEP]}
     # the fits: each kept start at each weight, best first by the criterion, each the EM run by hand
     scores = [f + nr.W_COST * len(yn) * st.w for f, _, st in fits]
     assert scores == sorted(scores)
@@ -153,7 +188,8 @@ def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative
     for f, k, st in fits:
         if st.w == nr.W_SCREEN:  # (here none of these reaches the floor)
             assert st.it == max_iter and not st.ok
-        hand = _by_hand(xn, yn, rots[k], st.w, lam=lam, max_iter=max_iter, tol=0.0)
+        assert len(st.kernel.ev) == len(Kernel.of(_gauss_kernel(st.u)).ev)  # the final fits' full kernel
+        hand = _by_hand(xn, yn, rots[k], st.w, lam=lam, max_iter=max_iter, tol=0.0, screened=st.w == nr.W_SCREEN)
         np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-8, atol=1e-10)
         assert st.s2 == pytest.approx(hand.s2, rel=1e-8)
         assert (st.it, st.ok) == (hand.it, hand.ok)
@@ -176,8 +212,10 @@ def test_the_search_on_threads_is_the_search_in_one_thread_and_reports_every_ste
         assert (a[0], a[1]) == (b[0], b[1])
         np.testing.assert_array_equal(a[2].coef, b[2].coef)
         assert (a[2].s2, a[2].w, a[2].it, a[2].ok) == (b[2].s2, b[2].w, b[2].it, b[2].ok)
-    total = 2 * nr.N_ROT_2D + nr.N_KEEP * len(nr.W_GRID)
-    assert ticks == [(k, total) for k in range(1, total + 1)]
+    # the total counts the source as given among the kept starts until the screening has said
+    n_rot, n_fits = 2 * nr.N_ROT_2D, len(one[0])
+    assert ticks == ([(k, n_rot + (nr.N_KEEP + 1) * len(nr.W_GRID)) for k in range(1, n_rot + 1)]
+                     + [(n_rot + k, n_rot + n_fits) for k in range(1, n_fits + 1)])
 
 
 @pytest.mark.parametrize("n_threads", [None, 1, 2, 3])
@@ -211,40 +249,54 @@ def test_an_error_during_the_threaded_search_reaches_the_caller_and_leaves_no_th
     assert not [t for t in threading.enumerate() if t.name.startswith("shapelib-register")]
 
 
-def test_a_fit_that_converges_in_the_screening_is_kept_as_it_stopped():
-    """A loose tolerance: every screening EM meets it within SCREEN_ITER iterations; the fit at the
-    screening weight is then that fit, not run further."""
+def test_a_fit_that_converges_in_the_screening_goes_on_with_the_full_kernel():
+    """A loose tolerance: every screening EM meets it within SCREEN_ITER iterations with the screening's
+    kernel; the fit at the screening weight then goes on from the same means with the full kernel until
+    it meets the tolerance again (a fixed point of the final fits' EM); with nothing dropped by the
+    screening's kernel it is that fit, not run further."""
     xn, yn = _pair()
     fits, rots, screened = nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=0.1,
                                       fixed_s2=None, reflection=False, max_iter=150, tol=0.05, s2_floor=1e-8)
-    assert len(fits) == nr.N_KEEP and all(st.w == 0.1 for _, _, st in fits)
+    assert {k for _, k, _ in fits} == _kept(screened) and all(st.w == 0.1 for _, _, st in fits)
+    assert len(fits) == len(_kept(screened))
     best = {k: st for _, k, st in screened}
     for f, k, st in fits:
-        assert st.ok and st.why == "tolerance"
-        assert st.it == best[k].it < nr.SCREEN_ITER
+        assert st.ok and st.why == "tolerance" and best[k].ok
+        assert best[k].it < st.it and best[k].it < nr.SCREEN_ITER
+        hand = _by_hand(xn, yn, rots[k], 0.1, lam=2.0, max_iter=150, tol=0.05, screened=True)
+        assert hand.it == st.it and hand.s2 == pytest.approx(st.s2, rel=1e-10)
+        np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-9, atol=1e-11)
+    # nothing dropped (a kernel of full rank at the screening's threshold): the screening's fit as it stopped
+    few = dict(xn=xn[::4], yn=yn[::4])  # 5 points far apart: every eigenvalue of the kernel kept
+    g = _gauss_kernel(few["xn"])
+    assert np.linalg.eigvalsh(g).min() > nr.SCREEN_EIG_RTOL * np.linalg.eigvalsh(g).max()
+    fits, rots, screened = nr.fit_all(few["xn"], few["yn"], kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0,
+                                      w=0.1, fixed_s2=None, reflection=False, max_iter=150, tol=0.05, s2_floor=1e-8)
+    best = {k: st for _, k, st in screened}
+    for f, k, st in fits:
+        assert st.ok and st.it == best[k].it < nr.SCREEN_ITER
         np.testing.assert_array_equal(st.coef, best[k].coef)
         assert st.s2 == best[k].s2
-        hand = _by_hand(xn, yn, rots[k], 0.1, lam=2.0, max_iter=150, tol=0.05)
-        assert hand.it == st.it and hand.s2 == pytest.approx(st.s2, rel=1e-10)
 
 
 def test_a_given_weight_a_fixed_sigma2_and_the_floor_reach_every_fit():
     xn, yn = _pair()
     common = dict(kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, reflection=True, tol=1e-6)
     fits, rots, screened = nr.fit_all(xn, yn, w=0.3, fixed_s2=0.02, max_iter=12, s2_floor=1e-8, **common)
-    assert len(rots) == len(screened) == 2 * nr.N_ROT_2D and len(fits) == nr.N_KEEP
+    assert len(rots) == len(screened) == 2 * nr.N_ROT_2D and len(fits) == len(_kept(screened))
     for _, k, st in fits:  # the fixed σ² never moves; fixed-σ² EM runs its max_iter and counts as converged
         assert st.s2 == 0.02 and st.w == 0.3 and st.it == 12 and st.ok
-        hand = _by_hand(xn, yn, rots[k], 0.3, lam=2.0, max_iter=12, tol=1e-6, fixed_s2=0.02)
+        hand = _by_hand(xn, yn, rots[k], 0.3, lam=2.0, max_iter=12, tol=1e-6, fixed_s2=0.02, screened=True)
         np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-9, atol=1e-11)
     for _, _, st in screened:
         assert st.s2 == 0.02 and st.it == 12
     # on the grid of weights too: the fits that start afresh keep the fixed σ²
-    fits, rots, _ = nr.fit_all(xn, yn, w=None, fixed_s2=0.02, max_iter=12, s2_floor=1e-8, **common)
-    assert sorted(st.w for _, _, st in fits) == sorted(nr.W_GRID * nr.N_KEEP)
+    fits, rots, screened = nr.fit_all(xn, yn, w=None, fixed_s2=0.02, max_iter=12, s2_floor=1e-8, **common)
+    assert sorted(st.w for _, _, st in fits) == sorted(nr.W_GRID * len(_kept(screened)))
     for _, k, st in fits:
         assert st.s2 == 0.02 and st.it == 12 and st.ok
-        hand = _by_hand(xn, yn, rots[k], st.w, lam=2.0, max_iter=12, tol=1e-6, fixed_s2=0.02)
+        hand = _by_hand(xn, yn, rots[k], st.w, lam=2.0, max_iter=12, tol=1e-6, fixed_s2=0.02,
+                        screened=st.w == nr.W_SCREEN)
         np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-9, atol=1e-11)
     # a floor above every σ² EM reaches: each fit ends on it
     fits, _, _ = nr.fit_all(xn, yn, w=None, fixed_s2=None, max_iter=30, s2_floor=0.5, **common)
@@ -253,11 +305,22 @@ def test_a_given_weight_a_fixed_sigma2_and_the_floor_reach_every_fit():
 
 def test_progress_counts_every_screening_and_every_fit():
     xn, yn = _pair()
+    opts = dict(kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=0.2, fixed_s2=None, reflection=False,
+                max_iter=45, tol=1e-4, s2_floor=1e-8)
+    # the target turned by 126°: the source as given joins the N_KEEP best, the total as said at the start
     calls = []
-    nr.fit_all(xn, yn, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=2.0, w=0.2, fixed_s2=None,
-               reflection=False, max_iter=45, tol=1e-4, s2_floor=1e-8, progress=lambda *a: calls.append(a))
-    total = 16 + nr.N_KEEP
+    fits, _, screened = nr.fit_all(xn, yn, progress=lambda *a: calls.append(a), **opts)
+    assert len(fits) == nr.N_KEEP + 1
+    total = 16 + nr.N_KEEP + 1
     assert calls == [(i, total) for i in range(1, total + 1)]
+    # the target as the source is posed: the source as given is one of the N_KEEP best, and the total
+    # shrinks by its fit once the screening has said so
+    calls = []
+    fits, _, screened = nr.fit_all(xn, _normalised(xn + 0.05 * xn[:, ::-1] ** 2), progress=lambda *a: calls.append(a),
+                                   **opts)
+    assert 0 in {k for _, k, _ in screened[:nr.N_KEEP]} and len(fits) == nr.N_KEEP
+    assert calls == [(i, 16 + nr.N_KEEP + 1) for i in range(1, 17)] + [(16 + i, 16 + nr.N_KEEP)
+                                                                      for i in range(1, nr.N_KEEP + 1)]
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -468,8 +531,11 @@ def test_in_3d_the_landmarks_start_joins_the_search_without_changing_the_others(
     assert len(rots) == 25 and len(screened) == 25
     np.testing.assert_allclose(rots[24], turn, atol=1e-12)  # exact landmarks: the turn itself
     assert sorted(k for _, k, _ in fits if k == 24) == [24] * len(nr.W_GRID)
-    total = 25 + (nr.N_KEEP + 1) * len(nr.W_GRID)
-    assert ticks == [(k, total) for k in range(1, total + 1)]
+    kept = _kept([c for c in screened if c[1] < 24]) | {24}
+    assert {k for _, k, _ in fits} == kept
+    total = 25 + (nr.N_KEEP + 2) * len(nr.W_GRID)  # until the screening has said (the source as given counted)
+    n_fits = len(kept) * len(nr.W_GRID)
+    assert ticks == [(k, total) for k in range(1, 26)] + [(25 + k, 25 + n_fits) for k in range(1, n_fits + 1)]
     # a mirrored source, reflections allowed: the landmarks' start is the improper map
     mirror = np.diag([1.0, 1.0, -1.0])
     _, rots_m, _ = nr.fit_all(x @ mirror, y, **dict(opts, reflection=True, max_iter=5, w=0.2))
@@ -481,10 +547,17 @@ def test_in_3d_the_landmarks_start_joins_the_search_without_changing_the_others(
     assert len(rots2) == nr.N_ROT_2D
     monkeypatch.setattr(nr, "landmark_rotation", lambda *a: None)
     without, rots0, _ = nr.fit_all(x, y, **opts)
-    assert len(rots0) == 24 and len(without) == nr.N_KEEP * len(nr.W_GRID)
+    assert len(rots0) == 24 and len(without) == (len(kept) - 1) * len(nr.W_GRID)
     others = [c for c in fits if c[1] != 24]
     assert [(f, k) for f, k, _ in others] == [(f, k) for f, k, _ in without]
     for (_, _, a), (_, _, b) in zip(others, without):
         np.testing.assert_array_equal(a.coef, b.coef)
     # the best fit lies on the target, each point on its own
     assert np.mean(np.linalg.norm(fits[0][2].theta - y[where], axis=1)) < 0.05
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("reflection", [False, True])
+def test_the_source_as_given_is_start_zero(d, reflection):
+    # fit_all carries start 0 to the final fits as the source as given: it must be the identity
+    np.testing.assert_array_equal(nr.start_rotations(d, reflection)[0], np.eye(d))

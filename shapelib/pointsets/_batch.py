@@ -24,9 +24,12 @@ The batched path is the search of :mod:`shapelib.pointsets._nonrigid` with the e
    extrapolation and one iteration from it, kept if the objective did not increase), each pass of
    a second loop one cycle: all three iterations computed and the cycle's outcome selected, so that
    a fit stops where the compiled loop stops. Screening runs ``SCREEN_ITER`` iterations from every
-   start at ``W_SCREEN``; the ``N_KEEP`` starts of least objective (chosen on the host, stable
-   order, as :func:`~shapelib.pointsets._nonrigid.fit_all` does) are fitted at every weight of the grid: at
-   ``W_SCREEN`` by continuing the screening's EM, at the others from the start.
+   start at ``W_SCREEN`` with the kernel truncated at ``SCREEN_EIG_RTOL`` (more columns zero); the
+   ``N_KEEP`` starts of least objective (chosen on the host, stable order, as
+   :func:`~shapelib.pointsets._nonrigid.fit_all` does) and the source as given (start 0; its fits
+   dropped on the host where it is one of them) are fitted at every weight of the grid with the full
+   kernel: at ``W_SCREEN`` by continuing the screening's EM from the same means, at the others from
+   the start.
 4. **Results.** The fits go back to the host as
    :class:`~shapelib.pointsets._coherent_em.EMState` objects, and each pair's
    :class:`~shapelib.RegistrationResult` is assembled by the same numpy code as :func:`register`'s
@@ -47,7 +50,7 @@ from .._validate import check_positive, check_positive_int
 from ..geometry import _jax_kernels as jk
 from ..solver.batched import DEVICES, bucket, jax_device
 from ._coherent_em import EIG_RTOL, PLAIN_ITER, EMState, Kernel, box_volume
-from ._nonrigid import N_KEEP, SCREEN_ITER, W_GRID, W_SCREEN, ranked, start_rotations
+from ._nonrigid import N_KEEP, SCREEN_EIG_RTOL, SCREEN_ITER, W_GRID, W_SCREEN, ranked, start_rotations
 from .checks import as_point_set
 from .registration import (MAX_POINTS, SIGMA2_FLOOR, _check_w, _nonrigid_frame, _nonrigid_result, register)
 
@@ -356,21 +359,33 @@ def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device):
             q = np.where(keep[:, None, :], q, 0.0)
             ev = np.where(keep, ev, 1.0)
             common = (xs, umask, ys, ymask, nreal, vol, floor, q, ev)
+            # the screening's kernel (fit_all's SCREEN_EIG_RTOL): its dropped columns zero, their eigenvalue 1
+            keep_s = keep & (ev > SCREEN_EIG_RTOL * np.maximum(ev[:, -1:], 0.0))
+            q_s, ev_s = np.where(keep_s[:, None, :], q, 0.0), np.where(keep_s, ev, 1.0)
             scalars = (float(lam), float(tol))
             screen = np.broadcast_to(rot_arr, (bp, n_rot, d, d))
             fresh = (np.zeros((bp, n_rot), bool), np.zeros((bp, n_rot, n_pad, d)), np.ones((bp, n_rot)),
                      np.zeros((bp, n_rot), np.int32), np.zeros((bp, n_rot), bool))
-            out1 = [np.asarray(a) for a in fit(*common, screen, np.full(n_rot, w), *fresh, *scalars,
+            out1 = [np.asarray(a) for a in fit(*common[:7], q_s, ev_s, screen, np.full(n_rot, w), *fresh, *scalars,
                                                min(SCREEN_ITER, max_iter))]
             f_screen = out1[4]
-            kept = np.argsort(f_screen, axis=1, kind="stable")[:, :N_KEEP]  # fit_all's sort: stable, by objective
-            starts = np.repeat(kept, len(grid), axis=1)  # (bp, N_KEEP · len(grid)): start-major, weights inner
+            best = np.argsort(f_screen, axis=1, kind="stable")[:, :N_KEEP]  # fit_all's sort: stable, by objective
+            # the source as given (start 0) besides them; where it is one of them already, its fits here are
+            # dropped on the host
+            kept = np.concatenate([best, np.zeros((bp, 1), best.dtype)], axis=1)
+            twice = (best == 0).any(axis=1)
+            starts = np.repeat(kept, len(grid), axis=1)  # (bp, kept · len(grid)): start-major, weights inner
             weights = np.tile(np.asarray(grid, float), kept.shape[1])
-            # the fit at the screening weight continues the screening's EM, the others start afresh (fit_all)
+            # the fit at the screening weight continues the screening's EM from the same means under the full
+            # kernel (the coefficients projected on the screening kernel's eigenvectors); one that met the
+            # tolerance goes on unless the screening's kernel dropped nothing (fit_all)
             rows = np.arange(bp)[:, None]
             resume = np.broadcast_to(weights == w, starts.shape).copy()
-            carried = (resume, out1[0][rows, starts], out1[1][rows, starts], out1[2][rows, starts].astype(np.int32),
-                       out1[3][rows, starts])
+            coef0 = out1[0][rows, starts]
+            coef0 = q_s[:, None] @ (np.swapaxes(q_s, 1, 2)[:, None] @ coef0)
+            same = (keep_s == keep).all(axis=1)[:, None]
+            carried = (resume, coef0, out1[1][rows, starts], out1[2][rows, starts].astype(np.int32),
+                       out1[3][rows, starts] & same)
             out2 = [np.asarray(a) for a in fit(*common, rot_arr[starts], weights, *carried, *scalars, max_iter)]
     coef, s2, it, ok, f = out2
     fits = []
@@ -380,6 +395,8 @@ def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device):
         xn = prep[k][0][0]
         cands = []
         for j, start in enumerate(starts[k]):
+            if twice[k] and j >= N_KEEP * len(grid):  # the source as given, fitted among the best already
+                break
             st = EMState(u=xn @ rots[start].T, kernel=kern, coef=coef[k, j, :n].copy(), s2=float(s2[k, j]),
                          w=float(weights[j]), it=int(it[k, j]), ok=bool(ok[k, j]),
                          why="tolerance" if ok[k, j] else "max_iter")

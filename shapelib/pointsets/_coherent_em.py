@@ -528,6 +528,18 @@ class Kernel:
         keep = ev > EIG_RTOL * max(ev[-1], 0.0)
         return cls(q=q[:, keep], ev=ev[keep])
 
+    def truncated(self, rtol):
+        """The same kernel with the eigenvalues below ``rtol`` of the largest dropped too (a dense
+        kernel is returned as it is): its eigenvectors are a subset of this kernel's, so that
+        coefficients ``W`` of it, taken in its range (:meth:`in_range`), give the same ``G W`` under
+        this kernel. The kernel itself when none is dropped."""
+        if self.full is not None:
+            return self
+        keep = self.ev > rtol * max(self.ev.max(initial=0.0), 0.0)
+        if keep.all():
+            return self
+        return Kernel(q=np.ascontiguousarray(self.q[:, keep]), ev=self.ev[keep].copy())
+
     def apply(self, coef):
         """``G W`` as (n, d)."""
         if self.full is not None:
