@@ -192,7 +192,7 @@ def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative
         hand = _by_hand(xn, yn, rots[k], st.w, lam=lam, max_iter=max_iter, tol=0.0, screened=st.w == nr.W_SCREEN)
         np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-8, atol=1e-10)
         assert st.s2 == pytest.approx(hand.s2, rel=1e-8)
-        assert (st.it, st.ok) == (hand.it, hand.ok)
+        assert (st.it, st.ok, st.why) == (hand.it, hand.ok, hand.why)
         assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume), rel=1e-9)
     # the right pose wins: the best fit lies on the target
     assert np.mean(np.linalg.norm(fits[0][2].theta - yn, axis=1)) < 0.05
@@ -274,7 +274,7 @@ def test_a_fit_that_converges_in_the_screening_goes_on_with_the_full_kernel():
                                       w=0.1, fixed_s2=None, reflection=False, max_iter=150, tol=0.05, s2_floor=1e-8)
     best = {k: st for _, k, st in screened}
     for f, k, st in fits:
-        assert st.ok and st.it == best[k].it < nr.SCREEN_ITER
+        assert st.ok and st.why == "tolerance" and st.it == best[k].it < nr.SCREEN_ITER
         np.testing.assert_array_equal(st.coef, best[k].coef)
         assert st.s2 == best[k].s2
 
@@ -561,3 +561,30 @@ def test_in_3d_the_landmarks_start_joins_the_search_without_changing_the_others(
 def test_the_source_as_given_is_start_zero(d, reflection):
     # fit_all carries start 0 to the final fits as the source as given: it must be the identity
     np.testing.assert_array_equal(nr.start_rotations(d, reflection)[0], np.eye(d))
+
+
+def test_each_distinct_kernel_is_truncated_once_and_a_shared_one_stays_shared():
+    rng = np.random.default_rng(5)
+    a, b = (Kernel.of(_gauss_kernel(rng.normal(size=(12, 2)))) for _ in range(2))
+    out = nr._truncated_each([a, b, a, b, a], 1e-3)
+    assert out[0] is out[2] is out[4] and out[1] is out[3] and out[0] is not out[1]
+    for k, t in zip((a, b), out[:2]):  # the eigenpairs above 1e-3 of the largest, as numpy keeps them
+        keep = k.ev > 1e-3 * k.ev.max()
+        assert 0 < keep.sum() < len(k.ev)
+        np.testing.assert_array_equal(t.ev, k.ev[keep])
+        np.testing.assert_array_equal(t.q, k.q[:, keep])
+    # each distinct kernel factored once, however often it comes
+    calls = []
+
+    class Counted(Kernel):
+        def truncated(self, rtol):
+            calls.append(id(self))
+            return super().truncated(rtol)
+
+    c, e = Counted(q=a.q, ev=a.ev), Counted(q=b.q, ev=b.ev)
+    nr._truncated_each([c, e, c, c, e], 1e-3)
+    assert sorted(calls) == sorted([id(c), id(e)])
+    # nothing below the threshold, or a dense kernel: the kernel itself
+    assert nr._truncated_each([a], 0.0)[0] is a
+    dense = Kernel(full=np.eye(4))
+    assert nr._truncated_each([dense], 1e-3)[0] is dense

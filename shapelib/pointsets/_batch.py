@@ -72,8 +72,8 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
     ``backend="numpy"`` registers the pairs one by one with :func:`register` (``transform="nonrigid"``
     and the options given here): the reference. ``backend="jax"`` runs the search of
     :func:`register` — EM from every start rotation (2-D: every 22.5°, 3-D: the 24 rotations of the
-    cube, and their mirror images with ``reflection``), the best two starts fitted at each outlier
-    weight, the fit of least negative log-posterior
+    cube, and their mirror images with ``reflection``), the best two starts and the source as given
+    fitted at each outlier weight, the fit of least negative log-posterior
 
     .. math::
 

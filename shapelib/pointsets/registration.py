@@ -374,8 +374,8 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
 
     Rigid, similarity or affine: the pose minimises a density distance over every rotation, then
     EM estimates σ² (and the outlier weight). Non-rigid: EM starts from the source turned by every
-    rotation of a fixed set, the best starts are carried to convergence at each of a few outlier
-    weights, and the fit of least negative log-posterior, with a price on the outlier weight, is the
+    rotation of a fixed set, the best starts (and the source as given) are carried to convergence at
+    each of a few outlier weights, and the fit of least negative log-posterior, with a price on the outlier weight, is the
     answer (:mod:`shapelib.pointsets._nonrigid`); the source mixture's means move as ``θ = u + G W`` with
     ``G`` the α-order (or Fisher–Rao) metric of the source mixture in its weight coordinates
     (:mod:`shapelib.pointsets._coherent_em` has the equations), and the deformation is the geodesic of
