@@ -266,3 +266,25 @@ def test_the_start_sigma2_is_the_mean_squared_distance_over_the_dimension(sets):
     dense = np.mean(np.sum((y[None, :, :] - u[:, None, :]) ** 2, axis=2)) / 2
     assert initial_sigma2(u, y) == pytest.approx(dense, rel=1e-13)
     assert initial_sigma2(y, y) == pytest.approx(np.mean(np.sum((y[None] - y[:, None]) ** 2, axis=2)) / 2, rel=1e-13)
+
+
+def test_a_truncated_kernel_keeps_the_eigenpairs_above_rtol_of_the_largest():
+    rng = np.random.default_rng(6)
+    q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    top = 0.2  # below 1: the threshold is rtol times the largest eigenvalue, not rtol
+    at = 1e-3 * top  # exactly the threshold: dropped (strictly above is kept)
+    ev = np.array([1e-9, 1e-6, at, 5e-4, 0.05, top])
+    k = Kernel(q=q, ev=ev)
+    t = k.truncated(1e-3)
+    np.testing.assert_array_equal(t.ev, ev[3:])
+    np.testing.assert_array_equal(t.q, q[:, 3:])
+    assert t.q.flags.c_contiguous
+    # coefficients in its range give the same G W under the full kernel (its eigenvectors a subset)
+    coef = rng.normal(size=(6, 2))
+    np.testing.assert_allclose(k.apply(t.in_range(coef)), t.apply(coef), rtol=1e-12, atol=1e-15)
+    # nothing to drop, no eigenpair at all, or a dense kernel: the kernel itself
+    assert k.truncated(1e-12) is k
+    empty = Kernel(q=np.zeros((3, 0)), ev=np.zeros(0))
+    assert empty.truncated(1e-3) is empty
+    dense = Kernel(full=np.eye(4))
+    assert dense.truncated(1e-3) is dense
