@@ -518,21 +518,19 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
     threads = (1 if in_dask_worker() else n_cores()) if n_threads is None else check_positive_int(
         n_threads, name="n_threads")
 
-    done_parts = {"done": 0, "last": 0}  # the work of the parts already fitted, and the latest total
+    finished = [0]  # the work of the parts already fitted
 
     def fit(xs, ys, pairs_s, part=(0, 1)):
         # part (i, n): the i-th of the n fits of a large registration (run in order); progress counts all n,
         # the parts still to come as large as this one until they run, and the first warns
         i, n = part
-        if n > 1:
-            done_parts["done"] += done_parts["last"] if i > 0 else 0
-            base = done_parts["done"]
+        base = finished[0]
 
-            def tick_p(done, total):
-                done_parts["last"] = total
-                tick(base + done, base + (n - i) * total)
-        else:
-            tick_p = tick
+        def tick_p(done, total):
+            tick(base + done, base + (n - i) * total)
+            if done == total:  # the part's last step: the next part counts on from here
+                finished[0] = base + total
+
         warn_p = warn and i == 0
         if transform == "nonrigid":
             return _register_nonrigid(xs, ys, metric, fixed_s2, w0, auto_w, reflection, lam, s2g, kernel, max_iter,
