@@ -346,3 +346,18 @@ def test_every_option_reaches_register_for_a_pair_over_max_points(monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         shapelib.register_many([pair], backend="jax", max_iter=2, warn=False)
+
+
+def test_a_fit_that_converges_in_the_screening_with_nothing_truncated_is_kept_in_the_jax_batch():
+    """A narrow kernel on a few points keeps every eigenvalue at the screening's threshold, and a loose
+    tolerance lets the screening's EM converge: register keeps that fit as it stopped (fewer iterations than
+    the screening's), and so must the batch — not run it on with the full kernel."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    x = _outline(7)
+    y = _bend(_outline(7)) * 1.1
+    opts = dict(w=0.2, sigma2_metric=0.05, tol=0.05)
+    ref = _quiet(shapelib.register, x, y, **opts)
+    assert ref.converged and ref.n_iter < shapelib.pointsets._nonrigid.SCREEN_ITER
+    got = _quiet(shapelib.register_many, [(x, y)], backend="jax", device="cpu", **opts)[0]
+    assert (got.n_iter, got.converged, got.stop_reason) == (ref.n_iter, ref.converged, ref.stop_reason)
+    assert np.abs(got.points - ref.points).max() / ref._frame[1] < 1e-6
