@@ -308,6 +308,20 @@ def _apply(q, qt, ev, full, coef):
     return np.zeros_like(coef)
 
 
+@njit(cache=True, error_model="numpy", fastmath=_FAST, inline="always")
+def _row_dots(a, b):
+    """``out[x, y] = a[x] · b[y]`` (a (p, k), b (r, k), both C-ordered): ``a bᵀ`` as contiguous dot
+    products, which the compiler vectorises."""
+    out = np.empty((a.shape[0], b.shape[0]))
+    for x in range(a.shape[0]):
+        for y in range(b.shape[0]):
+            s = 0.0
+            for t in range(a.shape[1]):
+                s += a[x, t] * b[y, t]
+            out[x, y] = s
+    return out
+
+
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
 def _woodbury(q, qt, ev, p1, b, lam_s2):
     """``Q z`` (n, d) with ``z = (λσ² Λ⁻¹ + Qᵀ D Q)⁻¹ Qᵀ B`` of :func:`_m_step` (``q`` (n, k) with
@@ -334,13 +348,7 @@ def _woodbury(q, qt, ev, p1, b, lam_s2):
     for i in range(n):
         for c in range(d):
             bt[c, i] = b[i, c]
-    zt = np.empty((d, k))  # (Qᵀ B)ᵀ, then zᵀ
-    for r in range(k):
-        for c in range(d):
-            s = 0.0
-            for i in range(n):
-                s += qt[r, i] * bt[c, i]
-            zt[c, r] = s
+    zt = _row_dots(bt, qt)  # (Qᵀ B)ᵀ, then zᵀ
     for j in range(k):  # a = L Lᵀ, L over a's lower triangle
         s = a[j, j]
         for t in range(j):
@@ -364,14 +372,7 @@ def _woodbury(q, qt, ev, p1, b, lam_s2):
             for t in range(i + 1, k):
                 s -= a[t, i] * v[t]
             v[i] = s / a[i, i]
-    qz = np.empty((n, d))
-    for i in range(n):
-        for c in range(d):
-            s = 0.0
-            for r in range(k):
-                s += q[i, r] * zt[c, r]
-            qz[i, c] = s
-    return qz
+    return _row_dots(q, zt)  # Q z
 
 
 @njit(cache=True, fastmath=False)
