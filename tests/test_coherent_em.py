@@ -214,12 +214,14 @@ def test_the_extrapolation_recovers_the_limit_of_a_geometric_sequence():
     ls, le = np.log(0.3), 0.8
     for rho in (0.5, 0.9, 0.99):
         xs = [(star + rho**k * e, np.exp(ls + rho**k * le)) for k in range(3)]
-        c, s2 = _extrapolate(*xs[0], *xs[1], *xs[2], 1e-12)
+        c, s2, alpha = _extrapolate(*xs[0], *xs[1], *xs[2], 1e-12)
+        assert alpha == pytest.approx(-1 / (1 - rho), rel=1e-9)
         np.testing.assert_allclose(c, star, atol=1e-9)
         assert np.log(s2) == pytest.approx(ls, abs=1e-9)
     # a sequence that does not contract (‖r‖ ≤ ‖v‖): the step is held at α = −1, which is x2
     xs = [(star + (-1.5) ** k * e, np.exp(ls + (-1.5) ** k * le)) for k in range(3)]
-    c, s2 = _extrapolate(*xs[0], *xs[1], *xs[2], 1e-12)
+    c, s2, alpha = _extrapolate(*xs[0], *xs[1], *xs[2], 1e-12)
+    assert alpha == -1.0
     np.testing.assert_allclose(c, xs[2][0], atol=1e-12)
     assert s2 == pytest.approx(xs[2][1], rel=1e-12)
 

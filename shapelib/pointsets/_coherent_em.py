@@ -461,10 +461,11 @@ def _along(alpha, x0, x1, x2):
 def _extrapolate(c0, s0, c1, s1, c2, s2, s2_floor):
     """SQUAREM's step (scheme S3 of [2]_) from three successive EM iterates ``x0, x1 = M(x0),
     x2 = M(x1)`` of ``x = (W, log σ²)``: ``α`` of :func:`_step_length` and ``x' = x0 − 2α r + α² v``
-    (:func:`_along`). Returns ``W'`` and σ²' (at least ``s2_floor``)."""
+    (:func:`_along`). Returns ``W'``, σ²' (at least ``s2_floor``) and ``α``, with which the caller
+    extrapolates whatever is linear in ``W`` (``G W``)."""
     alpha = _step_length(c0, s0, c1, s1, c2, s2)
     lx = _along(alpha, math.log(s0), math.log(s1), math.log(s2))
-    return _along(alpha, c0, c1, c2), max(math.exp(min(lx, 30.0)), s2_floor)
+    return _along(alpha, c0, c1, c2), max(math.exp(min(lx, 30.0)), s2_floor), alpha
 
 
 @njit(cache=True, fastmath=False, nogil=True)
@@ -495,8 +496,8 @@ def _em_loop(u, q, ev, full, y, coef, s2, c_unit, lam, max_iter, tol, fixed, s2_
         it += 1
         if not fixed and abs(s2b - s1) <= tol * s1:
             return c2, s2b, it, True
-        cx, sx = _extrapolate(coef, s2, c1, s1, c2, s2b, s2_floor)
-        gx = _along(_step_length(coef, s2, c1, s1, c2, s2b), gw, g1, g2)
+        cx, sx, alpha = _extrapolate(coef, s2, c1, s1, c2, s2b, s2_floor)
+        gx = _along(alpha, gw, g1, g2)
         c3, g3, s3, fx = _em_map(u, q, qt, ev, full, y, yy, cx, gx, sx, c_unit, lam, fixed, s2_floor, log_wn, lab)
         it += 1
         if not fx <= f1:  # the extrapolation did not decrease F (or is not a number): the EM iterate
@@ -524,10 +525,10 @@ class Kernel:
 
     @classmethod
     def of(cls, g):
-        """From an (n, n) kernel matrix of the weight coordinates, factored once."""
+        """From an (n, n) kernel matrix of the weight coordinates, factored once, the eigenvalues below
+        ``EIG_RTOL`` of the largest dropped (:meth:`truncated`)."""
         ev, q = np.linalg.eigh(0.5 * (g + g.T))
-        keep = ev > EIG_RTOL * max(ev[-1], 0.0)
-        return cls(q=q[:, keep], ev=ev[keep])
+        return cls(q=q, ev=ev).truncated(EIG_RTOL)
 
     def truncated(self, rtol):
         """The same kernel with the eigenvalues below ``rtol`` of the largest dropped too (a dense

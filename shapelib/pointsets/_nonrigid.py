@@ -313,9 +313,10 @@ def fit_all(xn, yn, *, kernel_of, lam, w, fixed_s2, reflection, max_iter, tol, s
         # the landmarks' start goes on besides the N_KEEP best of the others: the fits compared are those
         # of a search without it and its own
         extra = [c for c in screened if c[1] >= n_grid]
-        kept = [c for c in screened if c[1] < n_grid][:N_KEEP]
+        best = [c for c in screened if c[1] < n_grid][:N_KEEP]
         # the source as given (rotation 0 of the grid) goes on too, when it is not among them (step 2)
-        kept += [c for c in screened if c[1] == 0 and all(c[1] != k[1] for k in kept)] + extra
+        given = [] if any(k == 0 for _, k, _ in best) else [c for c in screened if c[1] == 0]
+        kept = best + given + extra
         jobs = [(k, st0, wk) for _, k, st0 in kept for wk in grid]
         total = len(rots) + len(jobs)
         # the fits that start afresh first, the continued ones (shorter) last: the threads finish together
