@@ -12,7 +12,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["InputError", "literal", "as_shape", "as_shapes", "as_shape_pair", "as_pair_batch", "check_sigma2", "check_positive", "check_positive_int",
+__all__ = ["InputError", "literal", "as_shape", "as_shapes", "as_shape_pair", "as_pair_batch", "check_sigma2", "check_positive", "check_nonnegative", "check_positive_int",
            "check_nonnegative_int", "check_dimension", "LANDMARK_DIMS", "set_checked", "set_was_checked",
            "parse_assignment"]
 
@@ -179,14 +179,24 @@ def as_shapes(x, *, name: str = "shapes", min_shapes: int = 1, min_landmarks: in
 
 def check_positive(value, *, name: str) -> float:
     """Return ``value`` as a float if it is a finite number > 0, else raise ``ValueError``."""
+    return _check_real(value, name=name, strict=True)
+
+
+def check_nonnegative(value, *, name: str) -> float:
+    """Return ``value`` as a float if it is a finite number >= 0, else raise ``ValueError``."""
+    return _check_real(value, name=name, strict=False)
+
+
+def _check_real(value, *, name, strict):
+    kind = "a positive finite number" if strict else "a non-negative finite number"
     if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
         arr = np.asarray(value)
         if arr.ndim != 0 or not np.issubdtype(arr.dtype, np.number):
-            raise ValueError(f"{name} must be a positive finite number; got {value!r}")
+            raise ValueError(f"{name} must be {kind}; got {value!r}")
         value = arr.item()
     value = float(value)
-    if not np.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive finite number; got {value!r}")
+    if not np.isfinite(value) or value < 0 or (strict and value == 0):
+        raise ValueError(f"{name} must be {kind}; got {value!r}")
     return value
 
 

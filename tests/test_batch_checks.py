@@ -64,12 +64,13 @@ def test_the_numpy_backend_is_register_with_every_option():
     assert (timings["prep"], timings["assembly"], timings["device"]) == (0.0, 0.0, "numpy (CPU)")
     assert 0.0 < timings["search"] < 60.0
     # each option on its own changes the fit, and reaches register
-    for key, value in (("reflection", True), ("sigma2_metric", 1.0), ("tol", 0.3)):
+    for key, value in (("reflection", True), ("sigma2_metric", 1.0), ("tol", 0.3), ("pose_prior", 1.0)):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", shapelib.RegistrationWarning)
             one = shapelib.register_many([(STAR, TRIFOIL)], **{key: value})[0]
             alone = shapelib.register(STAR, TRIFOIL, **{key: value})
-        assert (one.sigma2, one.n_iter) == (alone.sigma2, alone.n_iter) != (default.sigma2, default.n_iter), key
+        assert (one.sigma2, one.n_iter, one.reliable) == (alone.sigma2, alone.n_iter, alone.reliable)
+        assert (one.sigma2, one.n_iter, one.reliable) != (default.sigma2, default.n_iter, default.reliable), key
 
 
 def test_register_many_warns_by_default_and_not_with_warn_false():

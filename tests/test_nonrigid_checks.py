@@ -154,6 +154,14 @@ def _by_hand(xn, yn, r, w, *, lam, max_iter, tol, fixed_s2=None, s2_floor=1e-6, 
     return run_em(st, yn, max_iter=max_iter - st.it, **opts)
 
 
+def _turn_2d(x, theta):
+    """1 − cos φ for the rotation φ of the 2-D similarity of least squares from ``x`` onto ``theta``, in
+    closed form: with both centred, tan φ = Σ x_i × θ_i / Σ x_i · θ_i."""
+    x, theta = x - x.mean(axis=0), theta - theta.mean(axis=0)
+    phi = np.arctan2(np.sum(x[:, 0] * theta[:, 1] - x[:, 1] * theta[:, 0]), np.sum(x * theta))
+    return 1.0 - np.cos(phi)
+
+
 def _kept(screened):
     """The starts carried to the final fits: the N_KEEP of least objective, and the source as given (0)."""
     return {k for _, k, _ in screened[:nr.N_KEEP]} | {0}
@@ -181,7 +189,8 @@ def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative
         assert 0 < len(st.kernel.ev) == len(small.ev) < len(Kernel.of(_gauss_kernel(st.u)).ev)
         np.testing.assert_allclose(st.kernel.ev, small.ev, rtol=1e-12)
         assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume), rel=1e-9)
-    # the fits: each kept start at each weight, best first by the criterion, each the EM run by hand
+    # the fits: each kept start at each weight, best first by the criterion, each the EM run by hand, its
+    # objective with the prior on its pose's rotation
     scores = [f + nr.W_COST * len(yn) * st.w for f, _, st in fits]
     assert scores == sorted(scores)
     assert sorted((k, st.w) for _, k, st in fits) == sorted(itertools.product(kept, nr.W_GRID))
@@ -193,7 +202,10 @@ def test_every_fit_of_the_search_is_em_from_its_start_and_scored_by_its_negative
         np.testing.assert_allclose(st.theta, hand.theta, rtol=1e-8, atol=1e-10)
         assert st.s2 == pytest.approx(hand.s2, rel=1e-8)
         assert (st.it, st.ok, st.why) == (hand.it, hand.ok, hand.why)
-        assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume), rel=1e-9)
+        prior = nr.POSE_PRIOR * len(xn) * _turn_2d(xn, st.theta)
+        assert f == pytest.approx(_neg_log_posterior(st, yn, lam, volume) + prior, rel=1e-9)
+    # the target is turned by 126°: the winning fit pays for a turn about as large (the deformation turns too)
+    assert np.degrees(np.arccos(1 - _turn_2d(xn, fits[0][2].theta))) == pytest.approx(126, abs=10)
     # the right pose wins: the best fit lies on the target
     assert np.mean(np.linalg.norm(fits[0][2].theta - yn, axis=1)) < 0.05
 
@@ -365,9 +377,9 @@ def test_a_larger_outlier_weight_must_pay_w_cost_per_target_point_it_gives_up():
     assert [st.w for _, _, st in nr.ranked([(0.0, 0, low), (-1.1 * price, 3, high)], m)] == [0.5, 0.05]
     same = [(2.0, 0, _fit(y, w=0.2)), (1.0, 3, _fit(y, w=0.2))]
     assert [f for f, _, _ in nr.ranked(same, m)] == [1.0, 2.0]
-    # the ambiguity gap is the criterion's: F alone 0.9 · price lower, i.e. 0.1 · price higher in score
-    reasons, _ = nr.assess([(0.0, 0, low), (-0.9 * price, 3, high)], y, spacing2=1.0)
-    gap = 0.1 * price / m
+    # the ambiguity gap is the criterion's: F alone 0.8 · price lower, i.e. 0.2 · price higher in score
+    reasons, _ = nr.assess([(0.0, 0, low), (-0.8 * price, 3, high)], y, spacing2=1.0)
+    gap = 0.2 * price / m
     assert gap < nr.AMBIGUOUS_PER_POINT
     assert re.search(rf"score {gap:.3f} per target point higher", reasons[0])
 
@@ -588,3 +600,57 @@ def test_each_distinct_kernel_is_truncated_once_and_a_shared_one_stays_shared():
     assert nr._truncated_each([a], 0.0)[0] is a
     dense = Kernel(full=np.eye(4))
     assert nr._truncated_each([dense], 1e-3)[0] is dense
+
+
+# ---------------------------------------------------------------------------------------------------
+# The price on the pose's rotation
+# ---------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.4, np.pi / 2, 2.5, np.pi])
+def test_the_turn_of_a_similarity_is_one_minus_the_cosine_of_its_angle_in_2d(phi):
+    x = _normalised(_fish(30))
+    c, s = np.cos(phi), np.sin(phi)
+    theta = 1.7 * x @ np.array([[c, -s], [s, c]]).T + [0.3, -2.0]  # scale and shift change nothing
+    assert nr.turn(x, theta, False) == pytest.approx(1 - np.cos(phi), abs=1e-12)
+    assert nr.turn(x, theta, True) == pytest.approx(1 - np.cos(phi), abs=1e-12)  # a rotation fits best anyway
+
+
+def test_the_turn_in_3d_is_one_minus_the_cosine_of_the_rotation_angle_and_a_mirror_costs_a_quarter_turn():
+    x = np.random.default_rng(3).normal(size=(40, 3))
+    r = Rotation.from_rotvec([0.3, -1.1, 0.8])
+    assert nr.turn(x, 0.5 * r.apply(x), False) == pytest.approx(1 - np.cos(r.magnitude()), abs=1e-12)
+    # a mirror image: d − tr R over 2 with tr diag(1, 1, −1) = 1, as a turn by 90°; in 2-D tr = 0, the same
+    assert nr.turn(x, x * [1.0, 1.0, -1.0], True) == pytest.approx(1.0, abs=1e-12)
+    y = _normalised(_fish(30))
+    assert nr.turn(y, y * [1.0, -1.0], True) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_the_price_on_the_pose_is_kappa_per_source_point_times_the_turn_and_zero_leaves_the_objectives():
+    x = _normalised(_fish(30))
+    c, s = np.cos(2.0), np.sin(2.0)
+    turned = _fit(x @ np.array([[c, -s], [s, c]]).T)
+    fits = [(5.0, 0, _fit(x)), (1.0, 7, turned)]
+    priced = nr.with_pose_prior(fits, x, 0.2, False)
+    assert [(f, k) for f, k, _ in priced] == [(5.0, 0), (pytest.approx(1.0 + 0.2 * 30 * (1 - np.cos(2.0))), 7)]
+    assert [st for _, _, st in priced] == [st for _, _, st in fits]
+    assert nr.with_pose_prior(fits, x, 0.0, False) == fits
+    # the turned fit explains the target better by 4 nats; 0.2 per point makes it lose, 0.01 does not
+    assert [k for _, k, _ in nr.ranked(nr.with_pose_prior(fits, x, 0.2, False), 30)] == [0, 7]
+    assert [k for _, k, _ in nr.ranked(nr.with_pose_prior(fits, x, 0.01, False), 30)] == [7, 0]
+
+
+def test_a_fit_that_explains_the_target_better_but_lost_on_its_turn_is_another_pose():
+    y = _normalised(_fish(30))
+    m = len(y)
+    c, s = np.cos(2.0), np.sin(2.0)
+    turned = _fit(y @ np.array([[c, -s], [s, c]]).T)
+    raw = [(0.0, 0, _fit(y)), (-0.5 * m, 5, turned)]  # the turned fit 0.5 per point better
+    priced = nr.ranked(nr.with_pose_prior(raw, y, 0.5, False), m)  # its price, 0.5 (1 − cos 2) per point, more
+    assert priced[0][1] == 0
+    reasons, _ = nr.assess(priced, y, spacing2=1.0, xn=y, pose_prior=0.5, reflection=False)
+    assert len(reasons) == 1 and reasons[0].startswith("another pose explains the target better")
+    assert re.search(r"score 0\.500 per target point lower", reasons[0])
+    # without its price taken back out, the gap would be the priced one: positive, and here over the threshold
+    reasons, _ = nr.assess(priced, y, spacing2=1.0)
+    assert reasons == []

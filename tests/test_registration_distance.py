@@ -28,10 +28,10 @@ def _msr(y):
 def _reference(u, v, **opts):
     """``(m_uv, m_vu, converged, n_iter)`` from two calls of :func:`shapelib.register` on the raw sets (the
     registration is a similarity plus a warp, so σ² in the target's own units over its mean squared radius
-    does not depend on where the sets are or how large)."""
+    does not depend on where the sets are or how large), with no prior on the pose's rotation."""
     kw = {**DEFAULTS, **opts}
-    a = sl.register(u, v, transform="nonrigid", w=0.0, **kw)
-    b = sl.register(v, u, transform="nonrigid", w=0.0, **kw)
+    a = sl.register(u, v, transform="nonrigid", w=0.0, pose_prior=0.0, **kw)
+    b = sl.register(v, u, transform="nonrigid", w=0.0, pose_prior=0.0, **kw)
     return a.sigma2 / _msr(v), b.sigma2 / _msr(u), a.converged and b.converged, a.n_iter + b.n_iter
 
 

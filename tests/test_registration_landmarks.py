@@ -138,8 +138,13 @@ def test_the_search_fits_and_scores_every_start_with_the_known_points_and_the_gi
     fits, rots, screened = _nonrigid.fit_all(xn, yn, kernel_of=_gauss_kernel, lam=lam, w=0.1, fixed_s2=None,
                                              reflection=False, max_iter=500, tol=1e-10, s2_floor=1e-8,
                                              volume=volume, labels=lab)
-    for f, k, st in screened + fits:
+    for f, k, st in screened:
         assert f == pytest.approx(_brute_objective(st, yn, lam, volume, lab), rel=1e-9)
+    for f, k, st in fits:  # the final fits' objectives with the prior on the pose's rotation
+        a, t = xn - xn.mean(axis=0), st.theta - st.theta.mean(axis=0)  # 2-D Procrustes: tan φ = Σ a × t / Σ a · t
+        phi = np.arctan2(np.sum(a[:, 0] * t[:, 1] - a[:, 1] * t[:, 0]), np.sum(a * t))
+        prior = _nonrigid.POSE_PRIOR * len(xn) * (1.0 - np.cos(phi))
+        assert f == pytest.approx(_brute_objective(st, yn, lam, volume, lab) + prior, rel=1e-9)
     for f, k, st in fits:
         assert st.ok
         s2_res, m_res = _labelled_em_residuals(st, yn, lam, volume, lab)

@@ -104,6 +104,41 @@ def test_a_symmetric_shape_is_flagged_as_ambiguous():
     assert "NOT RELIABLE" in res.summary()
 
 
+def _angle(res):
+    a = res.pose.matrix
+    return float(np.arctan2(a[1, 0], a[0, 0]))
+
+
+def test_of_a_symmetric_shapes_two_poses_the_one_that_turns_the_source_less_wins_and_is_flagged():
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    ellipse = np.column_stack([1.6 * np.cos(t), np.sin(t)])  # the same shape after a half turn
+    target = ellipse @ rot2(0.6).T + 0.01 * np.random.default_rng(4).normal(size=ellipse.shape)
+    res, _ = register_quietly(ellipse, target)
+    assert abs(_angle(res)) < np.pi / 2  # turned by about 0.6, not by π + 0.6
+    assert not res.reliable and any("another pose" in r for r in res.reasons)
+    # the target turned by a further half turn: now the other pose is the one that turns the source less
+    res, _ = register_quietly(ellipse, target @ rot2(np.pi).T)
+    assert abs(_angle(res)) < np.pi / 2
+    # a negative price is refused
+    with pytest.raises(ValueError, match="pose_prior must be a non-negative finite number"):
+        sl.register(ellipse, target, pose_prior=-0.1)
+
+
+def test_the_command_lines_pose_prior_is_registers(tmp_path, capsys):
+    src, dst = tmp_path / "a.npy", tmp_path / "b.npy"
+    x = fish(40)
+    np.save(src, x)
+    np.save(dst, warp(x) @ rot2(2.0).T)
+    for extra, kw in (([], {}), (["--pose-prior", "0"], {"pose_prior": 0.0}), (["--pose-prior", "3"], {"pose_prior": 3.0})):
+        assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.npy")] + extra) == 0
+        res, _ = register_quietly(x, warp(x) @ rot2(2.0).T, **kw)
+        np.testing.assert_array_equal(np.load(tmp_path / "m.npy"), res.points)
+    assert res.reliable  # a turn by 2 rad is still found at a price of 3 nats per point at a quarter turn
+    assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.npy"), "--pose-prior", "-1"]) == 1
+    assert "pose_prior must be a non-negative finite number" in capsys.readouterr().err
+    assert sl.register.__kwdefaults__["pose_prior"] == shapelib.pointsets._nonrigid.POSE_PRIOR == 0.12
+
+
 def test_a_target_of_pure_noise_is_flagged_not_reported_as_a_good_fit():
     x = fish()
     y = np.random.default_rng(0).uniform(-1.5, 1.5, size=(80, 2))

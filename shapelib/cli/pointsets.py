@@ -116,7 +116,7 @@ def cmd_register(args) -> int:
         try:
             res = register(source, target, transform=args.transform, metric=args.metric,
                            sigma2=_sigma2(args.sigma2), w=_w(args.w), reflection=args.reflection,
-                           max_iter=args.max_iter, tol=args.tol, landmarks=landmarks,
+                           max_iter=args.max_iter, tol=args.tol, landmarks=landmarks, pose_prior=args.pose_prior,
                            progress=None if bar is None else bar.update_to)
         finally:
             if bar is not None:
@@ -183,6 +183,9 @@ def register(add) -> None:
                    help="EM iterations of each fit (default 150)")
     p.add_argument("--tol", type=float, default=1e-5, metavar="TOL",
                    help="EM stops when sigma2 changes by less than TOL, relative (default 1e-5)")
+    p.add_argument("--pose-prior", type=float, default=0.12, metavar="K",
+                   help="nats per source point that a quarter turn of the source costs in the choice among the "
+                        "nonrigid fits (default 0.12); 0: no orientation is preferred")
     p.add_argument("--landmarks", metavar="CSV",
                    help="known correspondences (nonrigid): rows source,target of 0-based point indices, as "
                         "--correspondence writes them")

@@ -31,7 +31,8 @@ The batched path is the search of :mod:`shapelib.pointsets._nonrigid` with the e
    kernel: at ``W_SCREEN`` by continuing the screening's EM from the same means, at the others from
    the start.
 4. **Results.** The fits go back to the host as
-   :class:`~shapelib.pointsets._coherent_em.EMState` objects, and each pair's
+   :class:`~shapelib.pointsets._coherent_em.EMState` objects, their objectives with the price on the
+   pose's rotation added there (:func:`~shapelib.pointsets._nonrigid.with_pose_prior`), and each pair's
    :class:`~shapelib.RegistrationResult` is assembled by the same numpy code as :func:`register`'s
    (reliability, pose, correspondences, warnings).
 
@@ -46,11 +47,12 @@ import time
 
 import numpy as np
 
-from .._validate import check_positive, check_positive_int
+from .._validate import check_nonnegative, check_positive, check_positive_int
 from ..geometry import _jax_kernels as jk
 from ..solver.batched import DEVICES, bucket, jax_device
 from ._coherent_em import EIG_RTOL, PLAIN_ITER, EMState, Kernel, box_volume
-from ._nonrigid import N_KEEP, SCREEN_EIG_RTOL, SCREEN_ITER, W_GRID, W_SCREEN, ranked, start_rotations
+from ._nonrigid import (N_KEEP, POSE_PRIOR, SCREEN_EIG_RTOL, SCREEN_ITER, W_GRID, W_SCREEN, ranked, start_rotations,
+                        with_pose_prior)
 from .checks import as_point_set
 from .registration import (MAX_POINTS, SIGMA2_FLOOR, _check_w, _nonrigid_frame, _nonrigid_result, register)
 
@@ -65,7 +67,7 @@ _JAX_DEFAULTS = {"metric": "alpha", "kernel": "weights", "sigma2": "auto"}
 def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma2="auto", w="auto",
                   reflection: bool = False, lam: float = 2.0, sigma2_metric: float = 2.0, kernel: str = "weights",
                   max_iter: int = 150, tol: float = 1e-5, n_steps: int = 16, warn: bool = True, device=None,
-                  batch_size: int | None = None, timings: dict | None = None) -> list:
+                  batch_size: int | None = None, timings: dict | None = None, pose_prior: float = POSE_PRIOR) -> list:
     """Non-rigid registrations of many ``(source, target)`` pairs: :func:`register` for each, or the
     same search batched on JAX.
 
@@ -80,8 +82,8 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
         F = -\\sum_j \\log\\Big[\\frac{1 - w}{n} \\sum_i N(y_j; θ_i, σ^2 I) + \\frac{w}{V}\\Big]
             + \\frac{λ}{2} \\operatorname{tr}(W^T G W)
 
-    plus the price ``0.15 · m · w`` of its outlier weight (``m`` target points)
-    kept — for ``batch_size`` pairs × starts at once in one array program, the sets padded to the
+    plus the prices on its pose's rotation and of its outlier weight, ``0.3 · m · w`` for ``m`` target
+    points, kept — for ``batch_size`` pairs × starts at once in one array program, the sets padded to the
     batch's largest ``n`` and ``m`` with masks (a padded target point takes no posterior; a padded
     source point has ``Σ_j P_ij = 0`` and so ``W_i = 0``). Each result is then assembled by the numpy
     code of :func:`register`, so the two backends return the same fits within rounding.
@@ -98,7 +100,7 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
         As in :func:`register`. ``backend="jax"`` batches the default search only
         (``metric="alpha"``, ``kernel="weights"``, ``sigma2="auto"``) and refuses others with a
         ValueError naming the option: register those with ``backend="numpy"``.
-    w, reflection, lam, sigma2_metric, max_iter, tol, n_steps, warn
+    w, reflection, lam, sigma2_metric, max_iter, tol, n_steps, warn, pose_prior
         As in :func:`register` (``warn``: one :class:`RegistrationWarning` per pair that did not
         converge or is not ``reliable``).
     device : {None, "cpu", "gpu"}
@@ -161,7 +163,8 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
     """
     return _register_many(pairs, backend=backend, metric=metric, sigma2=sigma2, w=w, reflection=reflection,
                           lam=lam, sigma2_metric=sigma2_metric, kernel=kernel, max_iter=max_iter, tol=tol,
-                          n_steps=n_steps, warn=warn, device=device, batch_size=batch_size, timings=timings)
+                          n_steps=n_steps, warn=warn, device=device, batch_size=batch_size, timings=timings,
+                          pose_prior=pose_prior)
 
 
 def fits_many(pairs, **options) -> list:
@@ -176,12 +179,14 @@ def fits_many(pairs, **options) -> list:
 def _register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma2="auto", w="auto",
                    reflection: bool = False, lam: float = 2.0, sigma2_metric: float = 2.0, kernel: str = "weights",
                    max_iter: int = 150, tol: float = 1e-5, n_steps: int = 16, warn: bool = True, device=None,
-                   batch_size: int | None = None, timings: dict | None = None, fits_only: bool = False) -> list:
+                   batch_size: int | None = None, timings: dict | None = None, fits_only: bool = False,
+                   pose_prior: float = POSE_PRIOR) -> list:
     if backend not in REGISTER_MANY_BACKENDS:
         raise ValueError(f"backend must be one of {REGISTER_MANY_BACKENDS}; got {backend!r}")
     sets = _check_pairs(pairs)
     opts = dict(metric=metric, sigma2=sigma2, w=w, reflection=reflection, lam=lam, sigma2_metric=sigma2_metric,
-                kernel=kernel, max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn)
+                kernel=kernel, max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn,
+                pose_prior=check_nonnegative(pose_prior, name="pose_prior"))
     if backend == "numpy":
         if device is not None:
             raise ValueError(f'device={device!r} needs backend="jax"')
@@ -209,7 +214,7 @@ def _register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigm
     auto_w = _check_w(w)
     return _register_jax(sets, w=None if auto_w else float(w), reflection=bool(reflection), lam=lam, s2g=s2g,
                          max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn, device=device,
-                         batch_size=batch_size, timings=timings, fits_only=fits_only)
+                         batch_size=batch_size, timings=timings, fits_only=fits_only, pose_prior=opts["pose_prior"])
 
 
 def _fit_of(result):
@@ -265,12 +270,13 @@ def _auto_batch(n_starts, n, m, device):
 
 
 def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn, device, batch_size, timings,
-                  fits_only=False):
+                  fits_only=False, pose_prior=POSE_PRIOR):
     results = [None] * len(sets)
     big = [i for i, (x, y) in enumerate(sets) if max(len(x), len(y)) > MAX_POINTS]
     for i in big:  # farthest-point subsets, one pair at a time (module docstring of registration)
         results[i] = register(*sets[i], w="auto" if w is None else w, reflection=reflection, lam=lam,
-                              sigma2_metric=s2g, max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn)
+                              sigma2_metric=s2g, max_iter=max_iter, tol=tol, n_steps=n_steps, warn=warn,
+                              pose_prior=pose_prior)
         if fits_only:
             results[i] = _fit_of(results[i])
     todo = [i for i in range(len(sets)) if max(len(sets[i][0]), len(sets[i][1])) <= MAX_POINTS]
@@ -294,7 +300,7 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
                 prep.append(_nonrigid_frame(*sets[i], None, target_s2=_target_sigma2(y.shape, y.tobytes())))
             tp = time.perf_counter()
             fits = _search(prep, rots, w=W_SCREEN if w is None else w, grid=grid, lam=lam, s2g=s2g,
-                           max_iter=max_iter, tol=tol, device=device)
+                           max_iter=max_iter, tol=tol, device=device, reflection=reflection, pose_prior=pose_prior)
             t1 = time.perf_counter()
             for i, (frame, _, s2_eval), f in zip(idx, prep, fits):
                 if fits_only:  # the best fit's σ² in the target's units, as _result gives it
@@ -304,7 +310,7 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
                 results[i] = _nonrigid_result(*sets[i], frame, s2_eval, f, rots, metric="alpha",
                                               reflection=reflection, s2g=s2g, kernel="weights",
                                               em_opts=dict(em_opts, s2_floor=SIGMA2_FLOOR * s2_eval),
-                                              n_steps=n_steps, warn=warn, stacklevel=4)
+                                              n_steps=n_steps, warn=warn, stacklevel=4, pose_prior=pose_prior)
             t_prep += tp - t0
             t_search += t1 - tp
             t_host += time.perf_counter() - t1
@@ -329,7 +335,7 @@ def _pad_size(n):
     return int(-(-n // 8) * 8) if n <= 256 else bucket(n)
 
 
-def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device):
+def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device, reflection, pose_prior):
     """The fits of every pair of ``prep`` (``(frame, fs2, s2_eval)`` of each), as
     :func:`~shapelib.pointsets._nonrigid.fit_all` returns them: ``(objective, start, EMState)``, best first."""
     b = len(prep)
@@ -401,7 +407,7 @@ def _search(prep, rots, *, w, grid, lam, s2g, max_iter, tol, device):
                          w=float(weights[j]), it=int(it[k, j]), ok=bool(ok[k, j]),
                          why="tolerance" if ok[k, j] else "max_iter")
             cands.append((float(f[k, j]), int(start), st))
-        fits.append(ranked(cands, ms[k]))
+        fits.append(ranked(with_pose_prior(cands, xn, pose_prior, reflection), ms[k]))
     return fits
 
 

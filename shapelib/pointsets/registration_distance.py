@@ -85,9 +85,11 @@ def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.
             raise ValueError(f"pairs[{k}] must be a (u, v) pair of point sets")
         units.append((_unit(pair[0], f"pairs[{k}] u" if len(pairs) > 1 else "u"),
                       _unit(pair[1], f"pairs[{k}] v" if len(pairs) > 1 else "v")))
-    # w = 0: every target point must be explained, so that no misfit hides as "outliers"
+    # w = 0: every target point must be explained, so that no misfit hides as "outliers"; no prior on the
+    # pose's rotation: the distance does not depend on how either set is turned
     res = fits_many([p for a, b in units for p in ((a, b), (b, a))], backend=backend, reflection=reflection,
                     lam=lam, sigma2_metric=sigma2_metric, w=0.0, max_iter=max_iter, tol=tol, timings=timings,
+                    pose_prior=0.0,
                     **({} if batch_size is None else {"batch_size": batch_size}))
     return [(float(r1[0]), float(r2[0]), bool(r1[1] and r2[1]), int(r1[2] + r2[2]))
             for r1, r2 in zip(res[::2], res[1::2])]
