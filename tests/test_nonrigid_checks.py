@@ -609,7 +609,7 @@ def test_each_distinct_kernel_is_truncated_once_and_a_shared_one_stays_shared():
 
 @pytest.mark.parametrize("phi", [0.0, 0.4, np.pi / 2, 2.5, np.pi])
 def test_the_turn_of_a_similarity_is_one_minus_the_cosine_of_its_angle_in_2d(phi):
-    x = _normalised(_fish(30))
+    x = _normalised(_fish(30)) + [5.0, -3.0]  # where the source lies changes nothing either
     c, s = np.cos(phi), np.sin(phi)
     theta = 1.7 * x @ np.array([[c, -s], [s, c]]).T + [0.3, -2.0]  # scale and shift change nothing
     assert nr.turn(x, theta, False) == pytest.approx(1 - np.cos(phi), abs=1e-12)
@@ -624,6 +624,8 @@ def test_the_turn_in_3d_is_one_minus_the_cosine_of_the_rotation_angle_and_a_mirr
     assert nr.turn(x, x * [1.0, 1.0, -1.0], True) == pytest.approx(1.0, abs=1e-12)
     y = _normalised(_fish(30))
     assert nr.turn(y, y * [1.0, -1.0], True) == pytest.approx(1.0, abs=1e-12)
+    # without reflections the fish mirrored across its axis of symmetry is best matched by no turn at all
+    assert nr.turn(y, y * [1.0, -1.0], False) == pytest.approx(0.0, abs=1e-12)
 
 
 def test_the_price_on_the_pose_is_kappa_per_source_point_times_the_turn_and_zero_leaves_the_objectives():
@@ -635,6 +637,10 @@ def test_the_price_on_the_pose_is_kappa_per_source_point_times_the_turn_and_zero
     assert [(f, k) for f, k, _ in priced] == [(5.0, 0), (pytest.approx(1.0 + 0.2 * 30 * (1 - np.cos(2.0))), 7)]
     assert [st for _, _, st in priced] == [st for _, _, st in fits]
     assert nr.with_pose_prior(fits, x, 0.0, False) == fits
+    assert nr.with_pose_prior(fits, x, 1.0, False)[1][0] == pytest.approx(1.0 + 30 * (1 - np.cos(2.0)))
+    # a mirror image, with reflections searched: the price of a quarter turn (d − tr R)/2 = 1 per point
+    mirrored = [(1.0, 16, _fit(x * [1.0, -1.0]))]
+    assert nr.with_pose_prior(mirrored, x, 0.2, True)[0][0] == pytest.approx(1.0 + 0.2 * 30)
     # the turned fit explains the target better by 4 nats; 0.2 per point makes it lose, 0.01 does not
     assert [k for _, k, _ in nr.ranked(nr.with_pose_prior(fits, x, 0.2, False), 30)] == [0, 7]
     assert [k for _, k, _ in nr.ranked(nr.with_pose_prior(fits, x, 0.01, False), 30)] == [7, 0]
@@ -654,3 +660,40 @@ def test_a_fit_that_explains_the_target_better_but_lost_on_its_turn_is_another_p
     # without its price taken back out, the gap would be the priced one: positive, and here over the threshold
     reasons, _ = nr.assess(priced, y, spacing2=1.0)
     assert reasons == []
+    # a mirror image (reflections searched) 0.4 per point better, its price 0.5 per point: it loses, and is
+    # said to explain the target better (without reflections its price would be 0: no turn at all)
+    raw = [(0.0, 0, _fit(y)), (-0.4 * m, 16, _fit(y * [1.0, -1.0]))]
+    priced = nr.ranked(nr.with_pose_prior(raw, y, 0.5, True), m)
+    assert priced[0][1] == 0
+    reasons, _ = nr.assess(priced, y, spacing2=1.0, xn=y, pose_prior=0.5, reflection=True)
+    assert re.search(r"score 0\.400 per target point lower", reasons[0])
+
+
+def _turn_2d_any(x, theta):
+    """The turn with reflections allowed, in closed form: the best proper map scores |(A, B)| with
+    A = Σ x_i · θ_i and B = Σ x_i × θ_i (both centred); the best improper one scores the same for the
+    source mirrored, and its trace is 0 (turn 1)."""
+    x, theta = x - x.mean(axis=0), theta - theta.mean(axis=0)
+
+    def score(a):
+        dot, cross = np.sum(a * theta), np.sum(a[:, 0] * theta[:, 1] - a[:, 1] * theta[:, 0])
+        return np.hypot(dot, cross), dot
+
+    (proper, dot), (improper, _) = score(x), score(x * [1.0, -1.0])
+    return 1.0 if improper > proper else 1.0 - dot / proper
+
+
+def test_with_reflections_every_final_fit_pays_for_its_turn_or_its_mirror():
+    x = _fish(20)
+    y = _normalised((x + np.column_stack([0.05 * np.sin(2 * x[:, 1]), 0.1 * x[:, 0] ** 2])) * [1.0, -1.0]
+                    @ np.array([[np.cos(0.5), -np.sin(0.5)], [np.sin(0.5), np.cos(0.5)]]).T)
+    xn = _normalised(x + [0.0, 0.2] * x[:, :1] ** 2)  # no longer symmetric: its mirror image is another shape
+    lam, volume = 3.0, float(np.prod(y.max(axis=0) - y.min(axis=0)))
+    fits, rots, _ = nr.fit_all(xn, y, kernel_of=lambda u: Kernel.of(_gauss_kernel(u)), lam=lam, w=0.1,
+                               fixed_s2=None, reflection=True, max_iter=60, tol=1e-6, s2_floor=1e-6)
+    mirrors = [k for _, k, _ in fits if np.linalg.det(rots[k]) < 0]
+    assert mirrors and len(mirrors) < len(fits)  # both kinds among the final fits
+    for f, k, st in fits:
+        prior = nr.POSE_PRIOR * len(xn) * _turn_2d_any(xn, st.theta)
+        assert f == pytest.approx(_neg_log_posterior(st, y, lam, volume) + prior, rel=1e-9)
+    assert _turn_2d_any(xn, fits[0][2].theta) == 1.0  # the mirror image wins, and paid for it

@@ -4,6 +4,7 @@ any rotation — each recovered against its known truth; and a
 result that says when it probably failed (a near-symmetric shape, a target of pure noise), in the
 right units, whatever the order of the points."""
 
+import inspect
 import warnings
 
 import numpy as np
@@ -124,6 +125,16 @@ def test_of_a_symmetric_shapes_two_poses_the_one_that_turns_the_source_less_wins
         sl.register(ellipse, target, pose_prior=-0.1)
 
 
+def test_a_price_on_the_turn_the_data_cannot_pay_keeps_the_source_unturned_and_says_so():
+    x = fish(40)
+    y = warp(x) @ rot2(2.0).T
+    free, _ = register_quietly(x, y, pose_prior=0.0)
+    assert abs(_angle(free) - 2.0) < 0.3 and free.reliable
+    stiff, _ = register_quietly(x, y, pose_prior=50.0)  # 50 nats per point for a quarter turn
+    assert abs(_angle(stiff)) < 1.0 and not stiff.reliable
+    assert any("explains the target better" in r for r in stiff.reasons)
+
+
 def test_the_command_lines_pose_prior_is_registers(tmp_path, capsys):
     src, dst = tmp_path / "a.npy", tmp_path / "b.npy"
     x = fish(40)
@@ -136,7 +147,8 @@ def test_the_command_lines_pose_prior_is_registers(tmp_path, capsys):
     assert res.reliable  # a turn by 2 rad is still found at a price of 3 nats per point at a quarter turn
     assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.npy"), "--pose-prior", "-1"]) == 1
     assert "pose_prior must be a non-negative finite number" in capsys.readouterr().err
-    assert sl.register.__kwdefaults__["pose_prior"] == shapelib.pointsets._nonrigid.POSE_PRIOR == 0.12
+    default = inspect.signature(sl.register).parameters["pose_prior"].default
+    assert default == shapelib.pointsets._nonrigid.POSE_PRIOR == 0.12
 
 
 def test_a_target_of_pure_noise_is_flagged_not_reported_as_a_good_fit():

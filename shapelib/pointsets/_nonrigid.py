@@ -205,7 +205,8 @@ def turn(xn, theta, reflection):
     the similarity of least squares taking the source ``xn`` (n, d) onto the fitted points ``theta``
     (:func:`~shapelib.geometry.procrustes.optimal_rotation`): ``1 − cos φ`` for a rotation by φ in 2-D or
     about an axis in 3-D; 0 for none, 2 for a half turn."""
-    r, _ = optimal_rotation(theta - theta.mean(axis=0), xn - xn.mean(axis=0), reflection=reflection)
+    # θ needs no centring: Σ_i θ_iᵀ (x_i − x̄) = Σ_i (θ_i − θ̄)ᵀ (x_i − x̄), the source's centred rows summing to 0
+    r, _ = optimal_rotation(theta, xn - xn.mean(axis=0), reflection=reflection)
     return 0.5 * (xn.shape[1] - float(np.trace(r)))
 
 
