@@ -697,3 +697,14 @@ def test_with_reflections_every_final_fit_pays_for_its_turn_or_its_mirror():
         prior = nr.POSE_PRIOR * len(xn) * _turn_2d_any(xn, st.theta)
         assert f == pytest.approx(_neg_log_posterior(st, y, lam, volume) + prior, rel=1e-9)
     assert _turn_2d_any(xn, fits[0][2].theta) == 1.0  # the mirror image wins, and paid for it
+
+
+def test_the_prices_that_the_guide_and_the_docstrings_state_are_the_searchs():
+    from pathlib import Path
+
+    import shapelib
+
+    guide = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "pointsets.md").read_text(encoding="utf-8")
+    assert f"`{nr.W_COST:g} · m · w`" in guide and f"`{nr.POSE_PRIOR:g} · n · (1 − cos φ)`" in guide
+    assert f"``{nr.W_COST:g} · m · w``" in shapelib.register.__doc__
+    assert f"``{nr.W_COST:g} · m · w``" in shapelib.register_many.__doc__

@@ -174,6 +174,8 @@ def test_bad_pairs_are_refused_naming_the_pair(pairs, match):
     (dict(backend="jax", w="many"), "w must be"),
     (dict(backend="jax", max_iter=0), "max_iter"),
     (dict(backend="jax", lam=-1.0), "lam"),
+    (dict(backend="jax", pose_prior=-1.0), "pose_prior must be a non-negative"),
+    (dict(backend="numpy", pose_prior=float("nan")), "pose_prior must be a non-negative"),
 ])
 def test_bad_options_are_refused_naming_the_option(kw, match):
     with pytest.raises(ValueError, match=match):
@@ -250,6 +252,30 @@ def test_a_fixed_outlier_weight_and_the_em_options_reach_the_jax_batch():
     assert got.sigma2 == pytest.approx(ref.sigma2, rel=1e-6)
     assert got.sigma2_metric == pytest.approx(ref.sigma2_metric, rel=1e-12) != default.sigma2_metric
     assert len(got.path) == len(ref.path) == 6 != len(default.path)   # n_steps segments of the deformation
+
+
+def test_the_price_on_the_turn_reaches_each_fit_of_the_jax_batch(monkeypatch):
+    """A target turned by 2 rad: with a price on the turn the data cannot pay (50 nats per point at a quarter
+    turn) register keeps the source nearly unturned and flags it; the batch does the same, and fits_many
+    gives that fit, not the default's; so does a pair over MAX_POINTS, which goes to register."""
+    import_or_missing("jax", "JAX (the dev or jax extra) is not installed")
+    from shapelib.pointsets import _batch
+    from shapelib.pointsets._batch import fits_many
+
+    s = _bend(_outline(30))
+    pair = (s, _bend(_outline(30, phase=0.04)) @ _rot(2.0).T)
+    default = _quiet(shapelib.register, *pair)
+    ref = _quiet(shapelib.register, *pair, pose_prior=50.0)
+    got = _quiet(shapelib.register_many, [pair], backend="jax", device="cpu", pose_prior=50.0)[0]
+    assert np.abs(got.points - ref.points).max() / ref._frame[1] < 1e-6
+    assert (got.n_iter, got.reliable, got.reasons) == (ref.n_iter, ref.reliable, ref.reasons)
+    assert default.reliable and not ref.reliable   # the price changes the answer
+    assert np.abs(default.points - ref.points).max() / ref._frame[1] > 0.1
+    (s2, ok, it), = fits_many([pair], backend="jax", device="cpu", pose_prior=50.0)
+    assert s2 == pytest.approx(ref.sigma2, rel=1e-6) and (ok, it) == (ref.converged, ref.n_iter)
+    monkeypatch.setattr(_batch, "MAX_POINTS", 10)
+    big = _quiet(shapelib.register_many, [pair], backend="jax", device="cpu", pose_prior=50.0)[0]
+    np.testing.assert_array_equal(big.points, _quiet(shapelib.register, *pair, pose_prior=50.0).points)
 
 
 def test_the_jax_batch_warns_by_default_and_not_with_warn_false():

@@ -57,6 +57,20 @@ def test_misfits_with_the_defaults_are_sigma2_over_the_targets_mean_squared_radi
     assert REGISTRATION_COMBINE == ("mean", "max")
 
 
+def test_the_distance_puts_no_price_on_the_turn():
+    """A three-lobed outline (three near-equal poses) and a noisy copy turned by 2 rad: register's default price
+    on the turn picks another of the poses than the fit of least objective, and the misfit is the latter's."""
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    lobes = np.c_[np.cos(t), np.sin(t)] * (1 + 0.3 * np.cos(3 * t))[:, None]
+    c, s = np.cos(2.0), np.sin(2.0)
+    turned = lobes @ np.array([[c, -s], [s, c]]).T + 0.02 * np.random.default_rng(1).normal(size=lobes.shape)
+    free = _reference(lobes, turned)
+    priced = sl.register(lobes, turned, transform="nonrigid", w=0.0, **DEFAULTS).sigma2 / _msr(turned)
+    assert priced != pytest.approx(free[0], rel=1e-2)
+    _check(registration_misfits(lobes, turned), free)
+    _check(registration_misfits_many([(lobes, turned)])[0], free)
+
+
 def test_every_option_reaches_the_registration():
     # each option away from its default changes the misfits (checked here), and the misfits follow register's
     for opts in ({"reflection": False}, {"lam": 3.0}, {"sigma2_metric": 2.0}, {"tol": 1e-2}, {"max_iter": 5}):

@@ -12,7 +12,7 @@ import pytest
 
 import shapelib as sl
 import shapelib.pointsets._nonrigid
-from shapelib.cli import EXIT_UNCONVERGED, main
+from shapelib.cli import EXIT_UNCONVERGED, build_parser, main
 from test_registration import fish as _fish
 from test_registration import rot2
 
@@ -140,15 +140,20 @@ def test_the_command_lines_pose_prior_is_registers(tmp_path, capsys):
     x = fish(40)
     np.save(src, x)
     np.save(dst, warp(x) @ rot2(2.0).T)
-    for extra, kw in (([], {}), (["--pose-prior", "0"], {"pose_prior": 0.0}), (["--pose-prior", "3"], {"pose_prior": 3.0})):
-        assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.npy")] + extra) == 0
+    moved = {}
+    for extra, kw in (([], {}), (["--pose-prior", "0"], {"pose_prior": 0.0}), (["--pose-prior", "50"], {"pose_prior": 50.0})):
+        status = main(["register", str(src), str(dst), "-o", str(tmp_path / "m.npy")] + extra)
         res, _ = register_quietly(x, warp(x) @ rot2(2.0).T, **kw)
-        np.testing.assert_array_equal(np.load(tmp_path / "m.npy"), res.points)
-    assert res.reliable  # a turn by 2 rad is still found at a price of 3 nats per point at a quarter turn
+        assert status == (0 if res.reliable else EXIT_UNCONVERGED)
+        moved[kw.get("pose_prior")] = np.load(tmp_path / "m.npy")
+        np.testing.assert_array_equal(moved[kw.get("pose_prior")], res.points)
+    assert np.abs(moved[50.0] - moved[0.0]).max() > 0.1   # the value given is the one used
     assert main(["register", str(src), str(dst), "-o", str(tmp_path / "m.npy"), "--pose-prior", "-1"]) == 1
     assert "pose_prior must be a non-negative finite number" in capsys.readouterr().err
     default = inspect.signature(sl.register).parameters["pose_prior"].default
     assert default == shapelib.pointsets._nonrigid.POSE_PRIOR == 0.12
+    args = build_parser().parse_args(["register", str(src), str(dst), "-o", "m.npy"])
+    assert args.pose_prior == default   # the command line's default is register's
 
 
 def test_a_target_of_pure_noise_is_flagged_not_reported_as_a_good_fit():

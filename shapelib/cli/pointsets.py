@@ -185,7 +185,7 @@ def register(add) -> None:
                    help="EM stops when sigma2 changes by less than TOL, relative (default 1e-5)")
     p.add_argument("--pose-prior", type=float, default=0.12, metavar="K",
                    help="nats per source point that a quarter turn of the source costs in the choice among the "
-                        "nonrigid fits (default 0.12); 0: no orientation is preferred")
+                        "nonrigid fits (default 0.12); 0: no price, the fit that explains the target best")
     p.add_argument("--landmarks", metavar="CSV",
                    help="known correspondences (nonrigid): rows source,target of 0-based point indices, as "
                         "--correspondence writes them")

@@ -1,6 +1,6 @@
 """The non-rigid registration's search: starts over every rotation, a short EM from each, the best
 few carried to convergence at each candidate outlier weight, the fit of least negative log-posterior
-(with a price on the outlier weight) kept, and what the other fits say about it.
+(with prices on the outlier weight and on the pose's turn) kept, and what the other fits say about it.
 
 The equations are in :mod:`shapelib.pointsets._coherent_em`; this module decides where EM starts
 and which of its fits is the answer. Both sets come in normalised units (zero mean, unit RMS radius).
@@ -167,9 +167,9 @@ W_GRID = (0.01, 0.05, 0.2, 0.5)
 #: the part of the target the deformation has not reached, and the fit stops there (an occluded or
 #: noisy target fitted at ``w`` = 0.5 with errors two to five times those of its fit at 0.2 or 0.05).
 #: Chosen with ``POSE_PRIOR`` on samples 1–5 of the Chui–Rangarajan benchmark, by re-ranking every final
-#: fit of the search (W_COST 0.15–0.5 × κ 4–16: the fewest failures, then the least mean error, at 0.3 and
-#: 12: 11 failures, 0.0128; at 0.15 without the prior 14, 0.0175; 0.25 or 0.35 with κ = 12: 12 and 11
-#: failures, 0.0136 and 0.0128). Without the rotation prior the weight's price was flat from 0.15 to 0.6
+#: fit of the search (W_COST 0.15–0.5 × ``POSE_PRIOR`` 0.04–0.2 per source point: the fewest failures, then
+#: the least mean error, at 0.3 and 0.12: 11 failures, 0.0128; at 0.15 without the price on the turn 14,
+#: 0.0175; 0.25 or 0.35 with 0.12: 12 and 11 failures, 0.0136 and 0.0128). Without the rotation prior the weight's price was flat from 0.15 to 0.6
 #: (14 failures each); with it the larger price stops the occluded character's fits at ``w`` = 0.5
 W_COST = 0.3
 #: κ, in nats per source point, of the price on the rotation of each fit's pose (the rotation part of the
@@ -185,7 +185,8 @@ W_COST = 0.3
 #: nats per point; the failures it mends are noisy, occluded or strongly deformed targets where a fish
 #: or character turned by 90°–180° and slid along its own outline explains the target better by 3–32
 #: nats (0.03–0.6 per target point). Chosen with ``W_COST`` on samples 1–5 (``register``'s
-#: ``pose_prior``; 0 for no preferred orientation, as the registration distance needs). A total price
+#: ``pose_prior``; 0 for no price, the fits compared by how well they explain the target alone, as the
+#: registration distance needs). A total price
 #: of 12 nats, the same on the benchmark's ~100-point sets, turned a 20-point fish rotated by 126° into
 #: a failure: a fixed prior outweighs the data of a small set
 POSE_PRIOR = 0.12
@@ -383,7 +384,9 @@ DISTINCT = 0.1
 #: check flags have a distinct fit within 0.018–0.070 per target point, the good fits' nearest
 #: distinct fits are 0.043 or 0.159 and more away; every threshold from 0.071 to 0.159 catches every
 #: failure with the fewest false alarms, and the largest round one of them leans towards catching.
-#: On samples 6–10 the failures' gaps reach 0.105: 0.15 still catches all of them)
+#: On samples 6–10 the failures' gaps reach 0.105: 0.15 still catches all of them. With the price on the
+#: turn and ``W_COST`` = 0.3 the gap is measured without the price, and 0.15 catches every failure of
+#: samples 1–5 and 6–10 with 11 false alarms of 216 and 214 good fits)
 AMBIGUOUS_PER_POINT = 0.15
 #: the fit leaves the target unexplained when σ exceeds this many target point spacings
 RESIDUAL_SPACINGS = 2.0

@@ -12,7 +12,7 @@ Both sets are mixtures of eq. (5), one component per point, centred and scaled t
 2. **Non-rigid (the default).** EM of Coherent Point Drift's model with the metric as the
    deformation's kernel (the equations: :mod:`shapelib.pointsets._coherent_em`), started from every
    rotation of a fixed set, the best starts fitted at a few fixed outlier weights and the fit of
-   least negative log-posterior, with a price on the outlier weight, kept (the search:
+   least negative log-posterior, with prices on the outlier weight and on the pose's turn, kept (the search:
    :mod:`shapelib.pointsets._nonrigid`). The means
    move to ``θ = u + G W`` with ``G`` the α-order metric of the source mixture in its weight
    coordinates, ``G_ab = ⟨N_a, N_b⟩_{L²} / ⟨N_a, N_a⟩_{L²} = exp(−|u_a − u_b|²/4σ_g²)``, and the
@@ -21,8 +21,8 @@ Both sets are mixtures of eq. (5), one component per point, centred and scaled t
    points together costs little and one that tears them apart costs much. (The metric on the
    means, ``kernel="means"``, ranks them the other way — two overlapping components moving apart
    leave the density almost unchanged — and deforms from the pose the search finds.)
-   ``reliable`` is False when another start reaches a nearly equal objective with a different
-   fit, when σ is large against the target's point spacing, or when most of the source is
+   ``reliable`` is False when another start's distinct fit explains the target nearly as well or
+   better (its objective without the price on the turn), when σ is large against the target's point spacing, or when most of the source is
    unmatched. Sets of over ``MAX_POINTS`` points go through farthest-point subsets, twice (two
    subsets of each set, from different first points): ``reliable`` is also False when the two
    fits move the source points apart by more than ``SUBSET_DISAGREEMENT`` of the target's RMS
@@ -195,8 +195,9 @@ class RegistrationResult:
         right one: see ``reliable``.
     reliable : bool
         False when something says that the registration probably failed (non-rigid): another pose
-        explains the target about as well with a different fit (objectives within 0.2 per target
-        point: a near-symmetric shape, or a target that no pose explains), the fit leaves σ above
+        explains the target about as well or better with a different fit (scores within 0.15 per
+        target point, or lower, without the price on the turn: a near-symmetric shape, or a target
+        that no pose explains), the fit leaves σ above
         2 target point spacings, or more than a third of the source points match no target point
         (the warp only extrapolates them). The thresholds were chosen on samples 1–5 of the
         Chui–Rangarajan benchmark (and the last also on two samples of the 3-D benchmark's surfaces).
@@ -208,7 +209,8 @@ class RegistrationResult:
         Why ``reliable`` is False (empty when it is True).
     diagnostics : dict
         What ``reliable`` was decided from: σ in target point spacings, the share of unmatched source
-        points, and every final fit of the search as ``(objective, start, w)``, best first; for sets
+        points, and every final fit of the search as ``(objective, start, w)``, best first (the
+        objective: the negative log-posterior plus the price on the pose's turn); for sets
         of over ``MAX_POINTS`` points also ``subsets`` (their sizes) and ``subset_disagreement``.
     target_correspondence : ndarray of int, shape (m,)
         For each target point the index of its source point (largest posterior), −1 where the
@@ -442,12 +444,14 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         this process may use, one inside a Dask worker (where the engine runs one task per core).
     pose_prior : float
         κ, in nats per source point, of the price on the rotation of the non-rigid fit's pose:
-        ``κ n (1 − cos φ)`` for a turn by φ of ``n`` source points (in 3-D ``κ n (3 − tr R)/2``), added
-        to each fit's negative log-posterior. Of two fits that explain the target about equally well,
+        ``κ n (1 − cos φ)`` for a turn by φ of ``n`` source points (in general ``κ n (d − tr R)/2``
+        for the orthogonal part ``R`` of the pose; with ``reflection=True`` a mirror image costs at
+        least a quarter turn: in 2-D exactly one), added to each fit's negative log-posterior. Of two fits that explain the target about equally well,
         the one that turns the source less wins: a shape turned by 90°–180° and slid along its own
         outline no longer wins over a noisy or occluded target by a few nats, while a rotated target's
         right pose, which leads by 0.35 nats per point and more on the Chui–Rangarajan benchmark, still
-        wins. 0: no orientation is preferred (:func:`shapelib.registration_distance` registers with 0).
+        wins. 0: no price, the fits are compared by how well they explain the target alone
+        (:func:`shapelib.registration_distance` registers with 0).
 
     Returns
     -------
@@ -706,7 +710,7 @@ def _nonrigid_frame(x, y, fixed_s2, target_s2=None):
 
 
 def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, max_iter, tol, n_steps,
-                       warn, tick, pairs=None, n_threads=1, pose_prior=0.0):
+                       warn, tick, *, pose_prior, pairs=None, n_threads=1):
     """Non-rigid: the search of :mod:`shapelib.pointsets._nonrigid` over starts and outlier weights."""
     from . import _nonrigid
 

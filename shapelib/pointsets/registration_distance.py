@@ -85,8 +85,8 @@ def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.
             raise ValueError(f"pairs[{k}] must be a (u, v) pair of point sets")
         units.append((_unit(pair[0], f"pairs[{k}] u" if len(pairs) > 1 else "u"),
                       _unit(pair[1], f"pairs[{k}] v" if len(pairs) > 1 else "v")))
-    # w = 0: every target point must be explained, so that no misfit hides as "outliers"; no prior on the
-    # pose's rotation: the distance does not depend on how either set is turned
+    # w = 0: every target point must be explained, so that no misfit hides as "outliers"; no price on the
+    # pose's turn: the fit that explains the target best is kept, whichever way the sets are turned
     res = fits_many([p for a, b in units for p in ((a, b), (b, a))], backend=backend, reflection=reflection,
                     lam=lam, sigma2_metric=sigma2_metric, w=0.0, max_iter=max_iter, tol=tol, timings=timings,
                     pose_prior=0.0,
