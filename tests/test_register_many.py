@@ -231,6 +231,10 @@ def test_reflection_reaches_each_fit_of_the_jax_batch():
         assert (g.w, g.n_iter, g.reliable) == (ref.w, ref.n_iter, ref.reliable)
         np.testing.assert_allclose(g.pose.matrix, ref.pose.matrix, atol=1e-8)   # the pose: a mirror image too
         assert np.linalg.det(g.pose.matrix) < 0
+        # every final fit's objective, the price on its turn or its mirror included, as register's
+        assert [(k, w) for _, k, w in g.diagnostics["candidates"]] == [(k, w) for _, k, w in ref.diagnostics["candidates"]]
+        np.testing.assert_allclose([f for f, _, _ in g.diagnostics["candidates"]],
+                                   [f for f, _, _ in ref.diagnostics["candidates"]], rtol=1e-6, atol=1e-6)
     assert set(timings) == {"prep", "search", "assembly", "device"}
     assert timings["device"] == str(jax.devices("cpu")[0]) and timings["search"] > 0.0
     parts = [timings[k] for k in ("prep", "search", "assembly")]
