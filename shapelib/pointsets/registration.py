@@ -451,7 +451,8 @@ def register(source, target, *, transform: str = "nonrigid", metric: str = "alph
         outline no longer wins over a noisy or occluded target by a few nats, while a rotated target's
         right pose, which leads by 0.35 nats per point and more on the Chui–Rangarajan benchmark, still
         wins. 0: no price, the fits are compared by how well they explain the target alone
-        (:func:`shapelib.registration_distance` registers with 0).
+        (the registration distance, :func:`shapelib.pointsets.registration_distance.registration_distance`,
+        registers with 0).
 
     Returns
     -------
