@@ -183,16 +183,20 @@ def test_bad_options_are_refused_naming_the_option(kw, match):
 
 
 def test_fits_many_gives_what_the_results_say(both):
-    """``fits_many`` skips the results' assembly: its (σ², converged, n_iter) are the results' own, on both
-    backends, in the order of the pairs."""
+    """``fits_many`` skips the results' assembly: its (σ², converged, n_iter, deformation energy) are the
+    results' own, on both backends, in the order of the pairs."""
     from shapelib.pointsets._batch import fits_many
 
     one_by_one, batched = both
     for backend, results, kw in (("numpy", one_by_one, {}), ("jax", batched, {"device": "cpu"})):
         fits = fits_many(PAIRS, backend=backend, **kw)
         assert len(fits) == len(PAIRS)
-        for (s2, ok, it), r in zip(fits, results):
+        for (s2, ok, it, energy), r in zip(fits, results):
             assert s2 == pytest.approx(r.sigma2, rel=1e-12) and ok == r.converged and it == r.n_iter
+            assert energy == pytest.approx(r.deformation_energy, rel=1e-12) and energy > 0
+        # the two backends' energies agree as their fits do
+        for (_, _, _, e1), (_, _, _, e2) in zip(fits_many(PAIRS), fits):
+            assert e2 == pytest.approx(e1, rel=1e-4)
 
 
 def test_the_targets_sigma2_does_not_depend_on_the_source():
@@ -275,8 +279,9 @@ def test_the_price_on_the_turn_reaches_each_fit_of_the_jax_batch(monkeypatch):
     assert (got.n_iter, got.reliable, got.reasons) == (ref.n_iter, ref.reliable, ref.reasons)
     assert default.reliable and not ref.reliable   # the price changes the answer
     assert np.abs(default.points - ref.points).max() / ref._frame[1] > 0.1
-    (s2, ok, it), = fits_many([pair], backend="jax", device="cpu", pose_prior=50.0)
+    (s2, ok, it, energy), = fits_many([pair], backend="jax", device="cpu", pose_prior=50.0)
     assert s2 == pytest.approx(ref.sigma2, rel=1e-6) and (ok, it) == (ref.converged, ref.n_iter)
+    assert energy == pytest.approx(ref.deformation_energy, rel=1e-5)
     monkeypatch.setattr(_batch, "MAX_POINTS", 10)
     big = _quiet(shapelib.register_many, [pair], backend="jax", device="cpu", pose_prior=50.0)[0]
     np.testing.assert_array_equal(big.points, _quiet(shapelib.register, *pair, pose_prior=50.0).points)
@@ -370,7 +375,8 @@ def test_every_option_reaches_register_for_a_pair_over_max_points(monkeypatch):
         assert len(got.path) == len(ref.path) and got.sigma2_metric == ref.sigma2_metric, key
         assert (got.n_iter, len(got.path), got.sigma2_metric, got.w, np.linalg.det(got._start[0])) != \
             (default.n_iter, len(default.path), default.sigma2_metric, default.w, np.linalg.det(default._start[0])), key
-        assert fits_many([pair], backend="jax", **{key: value}) == [(ref.sigma2, ref.converged, ref.n_iter)], key
+        assert fits_many([pair], backend="jax", **{key: value}) == [(ref.sigma2, ref.converged, ref.n_iter,
+                                                                     ref.deformation_energy)], key
     with pytest.warns(shapelib.RegistrationWarning):
         shapelib.register_many([pair], backend="jax", max_iter=2)
     with warnings.catch_warnings():

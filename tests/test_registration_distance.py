@@ -1,13 +1,16 @@
 """The registration distance against its definition computed independently: each directed misfit is
 the σ² that :func:`shapelib.register` (non-rigid, ``w = 0``) leaves when it registers the raw sets,
-divided by the target's mean squared radius; the options, the defaults, the combinations and the
-refusals of bad input. Small sets (12 points): each registration takes a few hundredths of a second."""
+divided by the target's mean squared radius, times ``exp(κ E / m)`` for the fit's deformation energy
+``E`` (itself checked as the objective less the data's negative log-likelihood); the options, the
+defaults, the combinations and the refusals of bad input. Small sets (12 points): each registration takes a few hundredths of a second."""
 
 import numpy as np
 import pytest
 
 import shapelib as sl
-from shapelib.pointsets.registration_distance import (REGISTRATION_COMBINE, registration_distance,
+from scipy.special import logsumexp
+
+from shapelib.pointsets.registration_distance import (ENERGY_WEIGHT, REGISTRATION_COMBINE, registration_distance,
                                                       registration_misfits, registration_misfits_many)
 
 T = np.linspace(0, 2 * np.pi, 12, endpoint=False)
@@ -25,14 +28,17 @@ def _msr(y):
     return float(np.mean(np.sum((y - y.mean(axis=0)) ** 2, axis=1)))
 
 
-def _reference(u, v, **opts):
+def _reference(u, v, energy_weight=ENERGY_WEIGHT, **opts):
     """``(m_uv, m_vu, converged, n_iter)`` from two calls of :func:`shapelib.register` on the raw sets (the
     registration is a similarity plus a warp, so σ² in the target's own units over its mean squared radius
-    does not depend on where the sets are or how large), with no prior on the pose's rotation."""
+    does not depend on where the sets are or how large, nor does the energy in nats), with no prior on the
+    pose's rotation."""
     kw = {**DEFAULTS, **opts}
     a = sl.register(u, v, transform="nonrigid", w=0.0, pose_prior=0.0, **kw)
     b = sl.register(v, u, transform="nonrigid", w=0.0, pose_prior=0.0, **kw)
-    return a.sigma2 / _msr(v), b.sigma2 / _msr(u), a.converged and b.converged, a.n_iter + b.n_iter
+    return (a.sigma2 / _msr(v) * np.exp(energy_weight * a.deformation_energy / len(v)),
+            b.sigma2 / _msr(u) * np.exp(energy_weight * b.deformation_energy / len(u)),
+            a.converged and b.converged, a.n_iter + b.n_iter)
 
 
 U = 3.0 * STAR + np.array([1.0, -2.0])   # moved and scaled: the misfit must not see it
@@ -57,6 +63,40 @@ def test_misfits_with_the_defaults_are_sigma2_over_the_targets_mean_squared_radi
     assert REGISTRATION_COMBINE == ("mean", "max")
 
 
+def test_the_energy_weight_prices_the_deformation():
+    """κ = 0 leaves σ² alone; the default κ multiplies it by exp(κ E / m) with the fit's energy E > 0 (the
+    star and the trefoil differ by more than a similarity); a negative κ is refused."""
+    plain = _reference(U, V, energy_weight=0.0)
+    _check(registration_misfits(U, V, energy_weight=0.0), plain)
+    a = sl.register(U, V, transform="nonrigid", w=0.0, pose_prior=0.0, **DEFAULTS)
+    assert plain[0] == pytest.approx(a.sigma2 / _msr(V), rel=1e-8) and a.deformation_energy > 0
+    priced = registration_misfits(U, V)
+    assert priced[0] / plain[0] == pytest.approx(np.exp(ENERGY_WEIGHT * a.deformation_energy / len(V)), rel=1e-8)
+    assert priced[0] > plain[0] and priced[1] > plain[1]
+    assert registration_distance(U, V, energy_weight=1.0) == pytest.approx(
+        0.5 * sum(_reference(U, V, energy_weight=1.0)[:2]), rel=1e-8)
+    with pytest.raises(ValueError, match="energy_weight"):
+        registration_distance(U, V, energy_weight=-1.0)
+
+
+def test_the_deformation_energy_is_the_objective_less_the_datas_negative_log_likelihood():
+    """``deformation_energy`` = F − (−Σ_j log Σ_i N(y_j; θ_i, σ²)/n) at w = 0 and no price on the turn: the
+    objective's other term, computed here from the moved points and σ² in the search's units (the target
+    centred at unit RMS radius); 0 for a pose alone."""
+    y = V
+    r = sl.register(U, y, transform="nonrigid", w=0.0, pose_prior=0.0, **DEFAULTS)
+    scale = np.sqrt(_msr(y))
+    theta = (r.points - y.mean(axis=0)) / scale
+    yn = (y - y.mean(axis=0)) / scale
+    s2 = r.sigma2 / scale ** 2
+    n, d = theta.shape
+    d2 = np.sum((theta[:, None, :] - yn[None]) ** 2, axis=-1)
+    nll = -np.sum(logsumexp(-d2 / (2 * s2), axis=0) - np.log(n) - 0.5 * d * np.log(2 * np.pi * s2))
+    assert r.deformation_energy == pytest.approx(r.diagnostics["objective"] - nll, rel=1e-6, abs=1e-9)
+    assert r.deformation_energy > 0
+    assert sl.register(U, y, transform="similarity").deformation_energy == 0.0
+
+
 def test_the_distance_puts_no_price_on_the_turn():
     """A three-lobed outline (three near-equal poses) and a noisy copy turned by 2 rad: register's default price
     on the turn picks another of the poses than the fit of least objective, and the misfit is the latter's."""
@@ -66,7 +106,7 @@ def test_the_distance_puts_no_price_on_the_turn():
     turned = lobes @ np.array([[c, -s], [s, c]]).T + 0.02 * np.random.default_rng(1).normal(size=lobes.shape)
     free = _reference(lobes, turned)
     priced = sl.register(lobes, turned, transform="nonrigid", w=0.0, **DEFAULTS).sigma2 / _msr(turned)
-    assert priced != pytest.approx(free[0], rel=1e-2)
+    assert priced != pytest.approx(_reference(lobes, turned, energy_weight=0.0)[0], rel=1e-2)
     _check(registration_misfits(lobes, turned), free)
     _check(registration_misfits_many([(lobes, turned)])[0], free)
 

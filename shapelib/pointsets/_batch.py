@@ -54,7 +54,8 @@ from ._coherent_em import EIG_RTOL, PLAIN_ITER, EMState, Kernel, box_volume
 from ._nonrigid import (N_KEEP, POSE_PRIOR, SCREEN_EIG_RTOL, SCREEN_ITER, W_GRID, W_SCREEN, ranked, start_rotations,
                         with_pose_prior)
 from .checks import as_point_set
-from .registration import (MAX_POINTS, SIGMA2_FLOOR, _check_w, _nonrigid_frame, _nonrigid_result, register)
+from .registration import (MAX_POINTS, SIGMA2_FLOOR, _check_w, _nonrigid_frame, _nonrigid_result, deformation_energy,
+                           register)
 
 __all__ = ["register_many", "REGISTER_MANY_BACKENDS"]
 
@@ -169,8 +170,8 @@ def register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigma
 
 def fits_many(pairs, **options) -> list:
     """What :func:`register_many` finds, without building each :class:`~shapelib.RegistrationResult`:
-    ``(sigma2, converged, n_iter)`` of each pair's registration, equal to the result's ``sigma2``,
-    ``converged`` and ``n_iter`` (the registration distance needs no more; with ``backend="jax"`` the
+    ``(sigma2, converged, n_iter, deformation_energy)`` of each pair's registration, equal to the result's
+    ``sigma2``, ``converged``, ``n_iter`` and ``deformation_energy`` (the registration distance needs no more; with ``backend="jax"`` the
     results' assembly on the host is most of the time of a batch on a GPU). Options as
     :func:`register_many`'s; ``warn`` is not taken (nothing is assessed)."""
     return _register_many(pairs, warn=False, fits_only=True, **options)
@@ -218,8 +219,9 @@ def _register_many(pairs, *, backend: str = "numpy", metric: str = "alpha", sigm
 
 
 def _fit_of(result):
-    """``(sigma2, converged, n_iter)`` of a :class:`~shapelib.RegistrationResult` (:func:`fits_many`)."""
-    return float(result.sigma2), bool(result.converged), int(result.n_iter)
+    """``(sigma2, converged, n_iter, deformation_energy)`` of a :class:`~shapelib.RegistrationResult`
+    (:func:`fits_many`)."""
+    return float(result.sigma2), bool(result.converged), int(result.n_iter), float(result.deformation_energy)
 
 
 def _check_pairs(pairs):
@@ -303,9 +305,9 @@ def _register_jax(sets, *, w, reflection, lam, s2g, max_iter, tol, n_steps, warn
                            max_iter=max_iter, tol=tol, device=device, reflection=reflection, pose_prior=pose_prior)
             t1 = time.perf_counter()
             for i, (frame, _, s2_eval), f in zip(idx, prep, fits):
-                if fits_only:  # the best fit's σ² in the target's units, as _result gives it
+                if fits_only:  # the best fit's σ² in the target's units and its energy, as _result gives them
                     st = f[0][2]
-                    results[i] = (st.s2 * frame[5] ** 2, st.ok, st.it)
+                    results[i] = (st.s2 * frame[5] ** 2, st.ok, st.it, deformation_energy(st, lam))
                     continue
                 results[i] = _nonrigid_result(*sets[i], frame, s2_eval, f, rots, metric="alpha",
                                               reflection=reflection, s2g=s2g, kernel="weights",

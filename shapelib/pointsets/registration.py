@@ -189,6 +189,11 @@ class RegistrationResult:
         (:func:`shapelib.fit_mixture`).
     sigma2 : float
         The final σ² of the EM (in the target's units); ``w``: the final outlier weight.
+    deformation_energy : float
+        The deformation's share of the fit's negative log-posterior, ``(λ/2) tr(Wᵀ G W)`` in nats
+        (non-rigid, both sets in the normalised units of the search; 0 for the other transforms):
+        what the warp cost. With ``sigma2`` it makes the registration distance
+        (:func:`shapelib.pointsets.registration_distance.registration_distance`).
     converged, stop_reason, n_iter
         EM: ``"tolerance"`` (converged), ``"max_iter"`` (not), and the EM iterations of the fit
         kept. Convergence says that EM stopped at a fixed point, not that the fixed point is the
@@ -262,6 +267,7 @@ class RegistrationResult:
     metric: str
     sigma2_metric: float | None
     sigma2_objective: float = None
+    deformation_energy: float = 0.0
     reliable: bool = True
     reasons: tuple = ()
     diagnostics: dict = field(repr=False, default_factory=dict)
@@ -671,6 +677,12 @@ def _register(x, y, transform, metric, fixed_s2, w, auto_w, reflection, lam, s2g
                    reasons=[], diagnostics={})
 
 
+def deformation_energy(st, lam):
+    """``(λ/2) tr(Wᵀ G W)`` of a non-rigid fit ``st`` (:class:`~shapelib.pointsets._coherent_em.EMState`):
+    the deformation's term of the negative log-posterior ``F`` (:mod:`~shapelib.pointsets._coherent_em`)."""
+    return 0.5 * lam * st.kernel.energy(st.coef)
+
+
 def _in_range(st):
     """The fit's coefficients for :meth:`RegistrationResult.warp`: ``W`` without its part along the
     kernel's dropped eigenvectors (:meth:`~shapelib.pointsets._coherent_em.Kernel.in_range`), so that
@@ -680,7 +692,7 @@ def _in_range(st):
 
 
 def _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, transform, metric, s2g, kernel, n_steps, *, reasons,
-            diagnostics, start=None):
+            diagnostics, start=None, energy=0.0):
     p1 = p.sum(axis=1)
     corr = np.where(p1 >= 0.5, np.argmax(p, axis=1), -1)
     outlier = 1.0 - p.sum(axis=0)
@@ -690,7 +702,8 @@ def _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, transform, metric, s2
                               sigma2=st.s2 * sy ** 2, w=float(st.w), converged=st.ok, stop_reason=st.why,
                               n_iter=st.it, transform=transform, metric=metric,
                               sigma2_metric=None if s2g is None else s2g * sy ** 2,
-                              sigma2_objective=s2_eval * sy ** 2, reliable=not reasons, reasons=tuple(reasons),
+                              sigma2_objective=s2_eval * sy ** 2, deformation_energy=float(energy),
+                              reliable=not reasons, reasons=tuple(reasons),
                               diagnostics=diagnostics, target_correspondence=tcorr,
                               _source=x, _target=y, _u=st.u, _coef=_in_range(st), _p=p, _frame=(my, sy),
                               _n_steps=n_steps, _kernel=kernel, _start=start)
@@ -771,7 +784,8 @@ def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2
     if warn and reasons:
         warnings.warn(PROBABLY_WRONG + "; ".join(reasons), RegistrationWarning, stacklevel=stacklevel)
     return _result(x, y, theta, p, pose, yn, my, sy, s2_eval, st, "nonrigid", metric, s2g, kernel, n_steps,
-                   reasons=reasons, diagnostics=diagnostics, start=(*start, mx, sx))
+                   reasons=reasons, diagnostics=diagnostics, start=(*start, mx, sx),
+                   energy=deformation_energy(st, em_opts["lam"]))
 
 
 #: source points warped at a time in a large registration (bounds the kernel block's memory)
