@@ -30,7 +30,7 @@ metrics (:func:`metric_info`, :func:`register_metric`).
     Point sets of any sizes, no correspondence: the misfit left after the non-rigid registration
     of each set onto the other (:func:`shapelib.pointsets.registration_distance.registration_distance`;
     registered with the others here) [``combine``, ``reflection``,
-    ``lam``, ``sigma2_metric``, ``max_iter``, ``tol``]; through :func:`shapelib.pairwise_distances`
+    ``lam``, ``sigma2_metric``, ``max_iter``, ``tol``, ``energy_weight``]; through :func:`shapelib.pairwise_distances`
     also ``shortlist=k``.
 
 Each metric is one :class:`MetricInfo` record (its function, whether it is symmetric, a path
@@ -489,8 +489,8 @@ for _name, _fn, _kw in (
         ("registration", registration_distance,
          dict(point_sets=True,
               description="point sets of any sizes: the EM σ² left after non-rigid registration, both sets at "
-                          "unit RMS radius, both directions (mean); shortlist=k: only each query's k nearest by "
-                          "the rigid bound")),
+                          "unit RMS radius, times exp(κ E/m) for the deformation's energy E, both directions "
+                          "(mean); shortlist=k: only each query's k nearest by the rigid bound")),
 ):
     register_metric(_name, _fn, **_kw)
     _BUILTIN[_name] = _fn

@@ -80,6 +80,18 @@ def test_engine_in_process_equals_the_direct_loop(direct):
     assert np.argsort(r.matrix[0])[1] == 1 and np.argsort(r.matrix[2])[1] == 3
 
 
+def test_the_energy_weight_reaches_the_engine(direct):
+    """``energy_weight=0`` (σ² alone) through the engine equals the direct loop with it, and is below the
+    default's matrix off the diagonal (the default multiplies each misfit by exp(κ E/m) > 1)."""
+    sets = SETS[2:]
+    r = sl.pairwise_distances(sets, metric="registration", n_jobs=1, progress=False, energy_weight=0.0, **OPTS)
+    for i in range(len(sets)):
+        for j in range(i + 1, len(sets)):
+            assert r[i, j] == pytest.approx(registration_distance(sets[i], sets[j], energy_weight=0.0, **OPTS),
+                                            rel=1e-12)
+            assert r[i, j] < direct[2 + i, 2 + j]
+
+
 def test_store_resumes_and_checks_its_options(tmp_path, direct):
     store = tmp_path / "reg.zarr"
     calls = []

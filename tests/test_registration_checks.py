@@ -17,6 +17,8 @@ from scipy.spatial.distance import cdist
 from scipy.spatial.transform import Rotation
 from scipy.stats import multivariate_normal
 
+from scipy.special import logsumexp
+
 import shapelib as sl
 from shapelib.pointsets import registration as reg
 
@@ -529,3 +531,25 @@ def test_warp_checks_its_points_and_method():
     with pytest.raises(ValueError, match="^" + re.escape(message) + "$"):
         res3.warp(x3, method="extrinsic")
     assert Path(reg.__file__).name == "registration.py"
+
+
+def test_the_deformation_energy_is_the_objective_less_the_datas_negative_log_likelihood():
+    """``deformation_energy`` = F − (−Σ_j log Σ_i N(y_j; θ_i, σ²)/n) at w = 0 and no price on the turn: the
+    objective's other term, computed here from the moved points and σ² in the search's units (the target
+    centred at unit RMS radius), at two stiffnesses; 0 for a pose alone."""
+    x, y = 2.0 * fish(24) + 1.0, 0.7 * (fish(20) + [0.0, 0.3] * fish(20)[:, :1] ** 2) @ rot2(0.4).T - 3.0
+    scale = np.sqrt(np.mean(np.sum((y - y.mean(axis=0)) ** 2, axis=1)))
+    yn = (y - y.mean(axis=0)) / scale
+    energies = []
+    for lam in (2.0, 6.0):
+        r = sl.register(x, y, w=0.0, pose_prior=0.0, lam=lam)
+        theta = (r.points - y.mean(axis=0)) / scale
+        s2 = r.sigma2 / scale ** 2
+        n, d = theta.shape
+        d2 = np.sum((theta[:, None, :] - yn[None]) ** 2, axis=-1)
+        nll = -np.sum(logsumexp(-d2 / (2 * s2), axis=0) - np.log(n) - 0.5 * d * np.log(2 * np.pi * s2))
+        assert r.deformation_energy == pytest.approx(r.diagnostics["objective"] - nll, rel=1e-6, abs=1e-9), lam
+        assert type(r.deformation_energy) is float and r.deformation_energy > 0
+        energies.append(r.deformation_energy)
+    assert energies[0] != pytest.approx(energies[1], rel=1e-2)
+    assert sl.register(x, y, transform="similarity").deformation_energy == 0.0

@@ -623,9 +623,28 @@ def _retrieval_registration(r: dict) -> list[Table]:
                  ["pairs", "on", "per registration", "EM iterations per pair", "full test (core-hours)",
                   "shortlist (core-hours, at most)"], rows, note, key="rate")]
     if "bullseye" in r:
-        rows = [[name, *[f"{100 * v:.2f} %" for v in row.values()]] for name, row in r["bullseye"]["table"].items()]
-        header = ["distance", *next(iter(r["bullseye"]["table"].values())).keys()]
-        out.append(Table(f"Bull's-eye, {r['classes']} classes", header, rows, r["matrix"]["summary"], key="bullseye"))
+        b = r["bullseye"]
+        rows = [[name, *[f"{100 * v:.2f} %" for v in row.values()]] for name, row in b["table"].items()]
+        header = ["distance", *next(iter(b["table"].values())).keys()]
+        note = (f"{r['matrix']['summary']} ({_seconds(r['matrix']['wall'])} wall). Re-ranking: k = {b['rerank']['k']}, "
+                f"μ = {b['rerank']['mu']}.")
+        if "energy_weight" in b:
+            note += (f" Registration distance with the deformation's price κ = {b['energy_weight']} "
+                     "(chosen on ten classes among 1–35).")
+        out.append(Table(f"Bull's-eye, {r['classes']} classes", header, rows, note, key="bullseye"))
+        if b.get("halves"):
+            rows = [[half, *[f"{100 * v:.2f} %" for v in row.values()]] for half, row in b["halves"].items()]
+            out.append(Table("Registration distance, each half of the classes as its own collection",
+                             ["classes", *next(iter(b["halves"].values())).keys()], rows,
+                             "Classes 36–70 were not used to choose the distance's price on the deformation.",
+                             key="halves"))
+        if b.get("per_class"):
+            raw, lcdp = b["per_class"]["raw"], b["per_class"].get("lcdp", {})
+            worst = sorted(raw, key=raw.get)[:10]
+            rows = [[c, f"{100 * raw[c]:.2f} %", _num(100 * lcdp[c] if c in lcdp else None, "{:.2f} %")]
+                    for c in worst]
+            out.append(Table("Registration distance: the ten worst classes (raw)", ["class", "raw", "re-ranked lcdp"],
+                             rows, "Per-class bull's-eye of the whole matrix.", key="worst"))
     return out
 
 

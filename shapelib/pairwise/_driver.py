@@ -268,7 +268,7 @@ def pairwise_distances(shapes, *, metric: str, n_jobs: int | None = None, client
     With ``metric="registration"``, ``shapes`` is a list of point sets of any sizes and each pair's
     value the misfit left after registering the sets onto each other
     (:func:`shapelib.pointsets.registration_distance.registration_distance`; options ``combine``, ``reflection``, ``lam``,
-    ``sigma2_metric``, ``max_iter``, ``tol``); ``lower`` and ``upper`` of the result hold the two
+    ``sigma2_metric``, ``max_iter``, ``tol``, ``energy_weight``); ``lower`` and ``upper`` of the result hold the two
     directed misfits. ``shortlist=k`` registers only the pairs where one set is among the other's
     ``k`` nearest by the rigid bound ``shortlist_metric`` (default ``"fisher_rao_bound"``) modulo
     similarity at ``shortlist_sigma2`` (default 0.01; computed first, in ``store + ".shortlist"``

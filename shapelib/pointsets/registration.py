@@ -47,6 +47,7 @@ from .._validate import check_nonnegative, check_nonnegative_int, check_positive
 from ..geometry.metrics import alpha_metric, fisher_rao_metric
 from ..solver.linalg import one_blas_thread
 from ._coherent_em import box_volume, label_array, point_spacing, posteriors, sq_dist
+from . import _nonrigid
 from ._nonrigid import POSE_PRIOR
 from .checks import as_point_set, check_same_dimension
 from .density import DENSITY_METRICS
@@ -726,8 +727,6 @@ def _nonrigid_frame(x, y, fixed_s2, target_s2=None):
 def _register_nonrigid(x, y, metric, fixed_s2, w, auto_w, reflection, lam, s2g, kernel, max_iter, tol, n_steps,
                        warn, tick, *, pose_prior, pairs=None, n_threads=1):
     """Non-rigid: the search of :mod:`shapelib.pointsets._nonrigid` over starts and outlier weights."""
-    from . import _nonrigid
-
     frame, fs2, s2_eval = _nonrigid_frame(x, y, fixed_s2)
     xn, yn = frame[:2]
     # the search runs with the α-order metric's weight kernel (a smooth Gaussian kernel that carries a
@@ -750,8 +749,6 @@ def _nonrigid_result(x, y, frame, s2_eval, fits, rots, *, metric, reflection, s2
     :func:`shapelib.pointsets._nonrigid.fit_all` gives them): the reliability reasons, the pose (the
     fit's similarity part), the refit with another metric or kernel, the warnings. :func:`register` and
     :func:`shapelib.register_many` (``backend="jax"``) both build their results here."""
-    from . import _nonrigid
-
     xn, yn, mx, sx, my, sy = frame
     max_iter = em_opts["max_iter"]
     spacing2 = _spacing2(yn)
