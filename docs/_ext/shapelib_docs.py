@@ -656,8 +656,15 @@ def _retrieval_registration(r: dict) -> list[Table]:
         b = r["bullseye"]
         rows = [[name, *[f"{100 * v:.2f} %" for v in row.values()]] for name, row in b["table"].items()]
         header = ["distance", *next(iter(b["table"].values())).keys()]
-        note = (f"{r['matrix']['summary']} ({_seconds(r['matrix']['wall'])} wall). Re-ranking: k = {b['rerank']['k']}, "
-                f"μ = {b['rerank']['mu']}.")
+        rr = b["rerank"]
+        per = rr if "k" not in rr else {m: rr for m in ("tpg", "lcdp")}  # older records: one k and μ for both
+        note = (f"{r['matrix']['summary']}"
+                + (f" Registrations: {r['matrix']['pair_seconds']:,.0f} s of worker time, summed over the pairs."
+                   if "pair_seconds" in r["matrix"] else f" ({_seconds(r['matrix']['wall'])} wall).")
+                + " Re-ranking: " + "; ".join(f"{m.upper()} k = {p['k']}, μ = {p['mu']}"
+                                              + (f", {p['n_iter']} steps" if "n_iter" in p else "")
+                                              for m, p in per.items())
+                + (f" (chosen on {b['rerank_chosen_on']})." if "rerank_chosen_on" in b else "."))
         if "energy_weight" in b:
             note += (f" Registration distance with the deformation's price κ = {b['energy_weight']} "
                      "(chosen on ten classes among 1–35).")
@@ -676,6 +683,24 @@ def _retrieval_registration(r: dict) -> list[Table]:
             out.append(Table("Registration distance: the ten worst classes (raw)", ["class", "raw", "re-ranked lcdp"],
                              rows, "Per-class bull's-eye of the whole matrix.", key="worst"))
     return out
+
+
+def _energy_weight(r: dict) -> list[Table]:
+    """``bench_energy_weight.py``: the registration distance's price on the deformation, chosen on some
+    MPEG-7 classes and checked on others, and how much the misfit moves when the target is turned."""
+    weights = [str(w) for w in r["weights"]]
+    rows = [[f"{name} ({c['shapes']} outlines: {', '.join(c['classes'])})",
+             *[f"{100 * c['bullseye'][w]:.2f} %" for w in weights], _seconds(c["wall"])]
+            for name, c in r["collections"].items()]
+    t = r["turns"]
+    note = (f"Raw bull's-eye of each collection (class-mates among each query's 40 nearest) with the registration "
+            f"distance at each κ, from one registration of every ordered pair; chosen on the tuning collection: "
+            f"κ = {r['chosen']} (the library's ENERGY_WEIGHT: {r['energy_weight']}). Turned targets ({t['pairs']} pairs "
+            f"of the tuning collection, the target turned by {', '.join(f'{d:g}°' for d in t['degrees'])}): the misfit "
+            f"moves by at most {100 * t['spread_priced']:.2f} % (σ² alone: {100 * t['spread_sigma2']:.2f} %), the energy "
+            f"by at most {t['energy_spread_per_point']:.4f} nats per point.")
+    return [Table("The registration distance's price on the deformation, chosen and checked",
+                  ["collection", *[f"κ = {w}" for w in weights], "registrations (wall)"], rows, note, key="weights")]
 
 
 def _registration_batch(r: dict) -> list[Table]:
@@ -840,7 +865,7 @@ RENDERERS = {"bench_registration": _registration, "bench_registration_landmarks"
              "bench_retrieval": _retrieval, "bench_retrieval_full": _retrieval_full,
              "bench_retrieval_registration": _retrieval_registration, "mutation": _mutation,
              "bench_registration_batch": _registration_batch, "bench_retrieval_device": _retrieval_device,
-             "bench_articulation": _articulation}
+             "bench_articulation": _articulation, "bench_energy_weight": _energy_weight}
 #: records that may be absent (measured on hardware that is not always at hand): the page says so
 OPTIONAL = {"bench_gpu": "Pending a measurement on a GPU: run ``python benchmarks/bench_gpu.py`` on a machine "
                          "with an NVIDIA GPU and ``pip install \"shapelib[gpu]\"``, which writes the record this "
