@@ -77,6 +77,19 @@ def test_the_energy_weight_prices_the_deformation():
         registration_distance(U, V, energy_weight=-1.0)
 
 
+def test_a_large_target_shares_the_energy_among_its_subsets_points(monkeypatch):
+    """Over ``MAX_POINTS`` points register fits farthest-point subsets of ``MAX_POINTS``: the energy is that
+    fit's, and the misfit divides it by the subset's size, not the whole target's."""
+    from shapelib.pointsets import _batch, registration
+
+    monkeypatch.setattr(registration, "MAX_POINTS", 8)
+    monkeypatch.setattr(_batch, "MAX_POINTS", 8)
+    a = sl.register(U, V, transform="nonrigid", w=0.0, pose_prior=0.0, **DEFAULTS)
+    assert len(V) > 8 and a.deformation_energy > 0
+    got = registration_misfits(U, V)
+    assert got[0] == pytest.approx(a.sigma2 / _msr(V) * np.exp(ENERGY_WEIGHT * a.deformation_energy / 8), rel=1e-8)
+
+
 def test_the_distance_puts_no_price_on_the_turn():
     """A three-lobed outline (three near-equal poses) and a noisy copy turned by 2 rad: register's default price
     on the turn picks another of the poses than the fit of least objective, and the misfit is the latter's."""

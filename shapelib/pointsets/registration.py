@@ -193,7 +193,8 @@ class RegistrationResult:
     deformation_energy : float
         The deformation's share of the fit's negative log-posterior, ``(λ/2) tr(Wᵀ G W)`` in nats
         (non-rigid, both sets in the normalised units of the search; 0 for the other transforms):
-        what the warp cost. With ``sigma2`` it makes the registration distance
+        what the warp cost (for sets over ``MAX_POINTS`` points, of the fit on the subsets). With
+        ``sigma2`` it makes the registration distance
         (:func:`shapelib.pointsets.registration_distance.registration_distance`).
     converged, stop_reason, n_iter
         EM: ``"tolerance"`` (converged), ``"max_iter"`` (not), and the EM iterations of the fit

@@ -111,8 +111,11 @@ def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.
 
 def _misfit(fit, m, energy_weight):
     """The directed misfit ``σ² exp(κ E / m)`` of a fit ``(σ², converged, n_iter, E)`` onto ``m`` target
-    points at unit mean squared radius."""
-    return float(fit[0] * np.exp(energy_weight * fit[3] / m))
+    points at unit mean squared radius; a target of over ``MAX_POINTS`` points is fitted through a subset of
+    ``MAX_POINTS``, whose points the energy is shared among."""
+    from . import registration
+
+    return float(fit[0] * np.exp(energy_weight * fit[3] / min(m, registration.MAX_POINTS)))
 
 
 def registration_distance(u, v, *, combine: str = "mean", reflection: bool = True, lam: float = 2.0,
