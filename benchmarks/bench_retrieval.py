@@ -176,6 +176,21 @@ def main(argv=None) -> int:
 FULL_RERANK = {"tpg": {"k": 8, "mu": 1.2, "n_iter": 20}, "lcdp": {"k": 10, "mu": 0.8, "n_iter": 10}}
 
 
+def class_halves(labels, classes) -> dict:
+    """Each half of ``classes`` (in their order), to be scored as its own collection:
+    ``{"classes 1–35": indices of its shapes in labels, "classes 36–70": ...}``."""
+    labels, half = np.asarray(labels), len(classes) // 2
+    return {f"classes 1–{half}": np.flatnonzero(np.isin(labels, classes[:half])),
+            f"classes {half + 1}–{len(classes)}": np.flatnonzero(np.isin(labels, classes[half:]))}
+
+
+def bullseye_scores(D, labels, rerank=FULL_RERANK, prefix: str = "") -> dict:
+    """The bull's-eye of ``D``, raw and re-ranked by each method of ``rerank`` (``{method: parameters}``),
+    the re-ranked ones keyed ``prefix + method``."""
+    return {"raw": sl.bullseye(D, labels).value,
+            **{prefix + m: sl.bullseye(sl.rerank(D, method=m, **kw), labels).value for m, kw in rerank.items()}}
+
+
 #: σ² of the sweep (of each outline's RMS radius²); the re-ranked ones; the 200-point ones
 FULL_SIGMA2 = (0.0025, 0.005, 0.01, 0.02, 0.04)
 FULL_RERANKED = (0.005, 0.01)
@@ -207,11 +222,9 @@ def full_scores(classes, *, points: int = 100, per_class: int | None = None, par
         data = load_mpeg7(classes=classes, n_points=points, per_class=per_class)
     outlines, labels = list(data.shapes), np.asarray(data.labels)
     n = len(outlines)
-    half = len(classes) // 2
-    halves = {f"classes 1–{half}": np.flatnonzero(np.isin(labels, classes[:half])),
-              f"classes {half + 1}–{len(classes)}": np.flatnonzero(np.isin(labels, classes[half:]))}
+    halves = class_halves(labels, classes)
     res.update(n_shapes=n, pairs=n * (n - 1) // 2, trace={"wall": c.wall, "cpu": c.cpu}, rerank=FULL_RERANK,
-               rerank_chosen_on=f"classes 1–{half}", halves=list(halves))
+               rerank_chosen_on=next(iter(halves)), halves=list(halves))
     print(f"{n} outlines ({len(classes)} classes) traced in {c.wall:.1f} s wall, {c.cpu:.1f} s CPU", flush=True)
 
     def save():
@@ -245,12 +258,7 @@ def full_scores(classes, *, points: int = 100, per_class: int | None = None, par
                     with Clock() as c, one_blas_thread():
                         R = sl.rerank(D, method=method, **kw)
                     row["reranked"][method] = {"all": sl.bullseye(R, labels).value, "wall": c.wall, "cpu": c.cpu}
-                row["halves"] = {}
-                for name, idx in halves.items():
-                    sub, lab = D[np.ix_(idx, idx)], labels[idx]
-                    row["halves"][name] = {"raw": sl.bullseye(sub, lab).value,
-                                           **{method: sl.bullseye(sl.rerank(sub, method=method, **kw), lab).value
-                                              for method, kw in FULL_RERANK.items()}}
+                row["halves"] = {name: bullseye_scores(D[np.ix_(idx, idx)], labels[idx]) for name, idx in halves.items()}
                 print(f"  re-ranked: {row['reranked']}; halves: {row['halves']}", flush=True)
             sweep.append(row)
             save()
@@ -269,6 +277,7 @@ def full_scores(classes, *, points: int = 100, per_class: int | None = None, par
 
 def registration(args) -> int:
     """``--registration``: the rate of the registrations, the projections, the shortlisted matrix."""
+    from shapelib.pairwise._pointsets import fill_off_shortlist
     from shapelib.pointsets.registration_distance import ENERGY_WEIGHT, registration_misfits_many
     from shapelib.rerank import RERANK_METHODS
     from shapelib.solver.linalg import one_blas_thread
@@ -338,28 +347,18 @@ def registration(args) -> int:
         table = {}
         # the product of the two on the registered pairs (chosen on classes 1–35 among eight combinations of the GPU
         # run's matrix, DEVICE_COMBINE), the pairs off the shortlist after them in the rigid bound's order
-        from shapelib.pairwise._pointsets import fill_off_shortlist
-
         off = ~np.isfinite(r.upper)
         product = fill_off_shortlist(np.where(off, np.inf, r.matrix * rigid), rigid)[0]
         for name, d in (("rigid fisher_rao_bound", rigid), ("registration", r.matrix),
                         ("registration × rigid bound", product)):
-            table[name] = {"raw": sl.bullseye(d, labels).value,
-                           **{f"re-ranked {m}": sl.bullseye(sl.rerank(d, method=m, **kws[m]), labels).value
-                              for m in RERANK_METHODS}}
+            table[name] = bullseye_scores(d, labels, kws, "re-ranked ")
         # per class (raw and LCDP), and each half of the classes scored as its own collection (the registration
         # distance's energy weight was chosen on ten classes among 1–35: 36–70 is the held-out half)
         per_class = {"raw": sl.bullseye(r.matrix, labels).per_class,
                      "lcdp": sl.bullseye(sl.rerank(r.matrix, method="lcdp", **kws["lcdp"]), labels).per_class}
         lab = np.asarray(labels)
-        halves = {}
-        for half, names in (("classes 1–35", classes[:35]), ("classes 36–70", classes[35:])):
-            idx = np.flatnonzero(np.isin(lab, names))
-            if len(idx):
-                sub = r.matrix[np.ix_(idx, idx)]
-                halves[half] = {"raw": sl.bullseye(sub, lab[idx]).value,
-                                **{f"re-ranked {m}": sl.bullseye(sl.rerank(sub, method=m, **kws[m]), lab[idx]).value
-                                   for m in RERANK_METHODS}}
+        halves = {name: bullseye_scores(r.matrix[np.ix_(idx, idx)], lab[idx], kws, "re-ranked ")
+                  for name, idx in class_halves(lab, classes).items()}
         res["bullseye"] = {"table": table, "rerank": kws, "per_class": per_class, "halves": halves,
                            "energy_weight": ENERGY_WEIGHT,
                            **({"rerank_chosen_on": "the rigid bound, classes 1–35"} if kws is FULL_RERANK else {})}
@@ -467,21 +466,13 @@ def from_device(args) -> int:
            "registrations_per_second": rate, "full_matrix_seconds": 2 * len(pairs) / rate,
            "rerank": FULL_RERANK, "rerank_chosen_on": "the rigid bound, classes 1–35",
            "reported_shortlist": DEVICE_SHORTLIST}
-    half = len(np.unique(labels)) // 2
-    every = mpeg7_classes()
-    halves = {f"classes 1–{half}": np.flatnonzero(np.isin(labels, every[:half])),
-              f"classes {half + 1}–{len(every)}": np.flatnonzero(np.isin(labels, every[half:]))}
-
-    def score(D, lab):
-        """The bull's-eye of ``D``, raw and re-ranked by each method."""
-        return {"raw": sl.bullseye(D, lab).value,
-                **{m: sl.bullseye(sl.rerank(D, method=m, **kw), lab).value for m, kw in FULL_RERANK.items()}}
+    halves = class_halves(labels, mpeg7_classes())
 
     def on_halves(D):
-        return {name: score(D[np.ix_(i, i)], labels[i]) for name, i in halves.items()}
+        return {name: bullseye_scores(D[np.ix_(i, i)], labels[i]) for name, i in halves.items()}
 
     def scored(D):
-        return {**score(D, labels), "halves": on_halves(D)}
+        return {**bullseye_scores(D, labels), "halves": on_halves(D)}
 
     res["rigid"] = scored(rigid)
 
@@ -514,7 +505,7 @@ def from_device(args) -> int:
     res["chosen"] = {}
     for column in ("raw", "lcdp"):
         best = max(combos, key=lambda c: c["halves"][first][column])
-        full = score(matrix(best["k"], DEVICE_COMBINE[best["combine"]])[0], labels)
+        full = bullseye_scores(matrix(best["k"], DEVICE_COMBINE[best["combine"]])[0], labels)
         res["chosen"][column] = {"by": f"the largest {column} bull's-eye on {first}", "k": best["k"],
                                  "combine": best["combine"], "chosen_on": best["halves"][first],
                                  "reported_on": best["halves"][second], "all": full}

@@ -656,14 +656,10 @@ def _retrieval_registration(r: dict) -> list[Table]:
         b = r["bullseye"]
         rows = [[name, *[f"{100 * v:.2f} %" for v in row.values()]] for name, row in b["table"].items()]
         header = ["distance", *next(iter(b["table"].values())).keys()]
-        rr = b["rerank"]
-        per = rr if "k" not in rr else {m: rr for m in ("tpg", "lcdp")}  # older records: one k and μ for both
-        note = (f"{r['matrix']['summary']}"
-                + (f" Registrations: {r['matrix']['pair_seconds']:,.0f} s of worker time, summed over the pairs."
-                   if "pair_seconds" in r["matrix"] else f" ({_seconds(r['matrix']['wall'])} wall).")
-                + " Re-ranking: " + "; ".join(f"{m.upper()} k = {p['k']}, μ = {p['mu']}"
-                                              + (f", {p['n_iter']} steps" if "n_iter" in p else "")
-                                              for m, p in per.items())
+        note = (f"{r['matrix']['summary']} Registrations: {r['matrix']['pair_seconds']:,.0f} s of worker time, "
+                "summed over the pairs. Re-ranking: "
+                + "; ".join(f"{m.upper()} k = {p['k']}, μ = {p['mu']}" + (f", {p['n_iter']} steps" if "n_iter" in p else "")
+                            for m, p in b["rerank"].items())
                 + (f" (chosen on {b['rerank_chosen_on']})." if "rerank_chosen_on" in b else "."))
         if "energy_weight" in b:
             note += (f" Registration distance with the deformation's price κ = {b['energy_weight']} "
