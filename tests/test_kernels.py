@@ -95,3 +95,43 @@ def test_fisher_rao_compiled_match_numpy(rng, d):
     *g2, h2 = fr_qform_grad_hessian_compiled(theta, vel, s2, grid)
     for got, ref in zip(list(g2) + list(h2), list(grad) + list(hess)):
         assert _rel(got, ref) < tol
+
+
+def test_fisher_rao_compiled_forms_take_one_layout(rng):
+    """The compiled Fisher–Rao forms convert their inputs once at the door: positions and velocities
+    given in single precision, Fortran order and read-only give the values of the same numbers given as
+    C-ordered float64, and every specialisation the compiled kernels hold is of C-ordered, writable
+    float64 arrays (a transposed, read-only or float32 array would compile, and cache, another)."""
+    from numba.core import types
+
+    from shapelib.geometry import _kernels
+    from shapelib.geometry.metrics import (fr_qform_compiled, fr_qform_grad_compiled, fr_qform_grad_hessian_compiled,
+                                           fr_qform_hessian_compiled)
+    from shapelib.geometry.quadrature import make_grid
+
+    theta, vel = rng.normal(size=(2, 2, 4, 2)).astype(np.float32)
+    exact = [a.astype(np.float64) for a in (theta, vel)]
+    fortran32 = [np.asfortranarray(a) for a in (theta, vel)]
+    read_only = [a.copy() for a in exact]
+    for a in fortran32 + read_only:
+        a.flags.writeable = False
+    assert not fortran32[0].flags.c_contiguous and fortran32[0].dtype == np.float32
+    assert read_only[0].flags.c_contiguous and not read_only[0].flags.writeable
+    s2 = 0.4
+    grid = make_grid(exact[0], sigma2=s2, grid_margin=6)
+    for form in (fr_qform_compiled, fr_qform_grad_compiled, fr_qform_hessian_compiled,
+                 fr_qform_grad_hessian_compiled):
+        ref = _arrays(form(*exact, s2, grid))
+        for odd in (fortran32, read_only):
+            got = _arrays(form(*odd, s2, grid))
+            assert len(got) == len(ref) > 0
+            assert all(g.dtype == np.float64 and np.array_equal(g, r) for g, r in zip(got, ref))
+    for kernel in (_kernels.fr_psidot, _kernels.fr_qform_grad, _kernels.fr_hessian_parts):
+        arrays = [t for sig in kernel.signatures for t in sig if isinstance(t, types.Array)]
+        assert arrays, kernel
+        assert all(t.dtype == types.float64 and t.layout == "C" and t.mutable for t in arrays), kernel.signatures
+
+
+def _arrays(out):
+    """The arrays of a result, nested tuples flattened."""
+    return [a for part in out for a in _arrays(part)] if isinstance(out, tuple) else [np.asarray(out)]
