@@ -365,7 +365,7 @@ lines = [
     f"{reg_record['machine']['date'][:10]}), shortlist {shortlist['shortlist']}: "
     + ", ".join(f"{row['distance']} {row['raw (%)']:.2f} % raw, {row['LCDP (%)']:.2f} % LCDP"
                 for _, row in reg_table.iterrows())
-    + " (IDSC+DP: 85.40 % raw; IDSC re-ranked: 93.3 % by LCDP, 93.4 % by mutual kNN). Classes 36–70 alone: "
+    + " (IDSC+DP: 85.40 % raw; IDSC re-ranked: 93.3 % by LCDP, 93.40 % by mutual kNN). Classes 36–70 alone: "
     f"{halves['raw (%)'].iloc[1]:.2f} % raw, {halves['LCDP (%)'].iloc[1]:.2f} % LCDP. Worst classes: "
     f"{', '.join(worst_reg)}.",
     "",
