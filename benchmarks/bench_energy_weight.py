@@ -41,7 +41,7 @@ from benchmarks._machine import loadavg, record  # noqa: E402
 
 import shapelib as sl  # noqa: E402
 from shapelib.datasets import load_mpeg7, mpeg7_classes  # noqa: E402
-from shapelib.pointsets.registration_distance import ENERGY_WEIGHT, _unit  # noqa: E402
+from shapelib.pointsets.registration_distance import ENERGY_WEIGHT, _misfit, _unit  # noqa: E402
 
 #: (name, first class, last class + 1, seed) of the two collections
 COLLECTIONS = (("tuning", 0, 35, 1), ("held-out", 35, 70, 2))
@@ -85,7 +85,7 @@ def scores(s2, energy, m, labels, weights):
     """The raw bull's-eye of the registration distance at each ``κ`` (mean of the two directions)."""
     out = {}
     for k in weights:
-        misfit = s2 * np.exp(k * energy / m)
+        misfit = _misfit(s2, energy, m, k)
         d = 0.5 * (misfit + misfit.T)
         np.fill_diagonal(d, 0.0)
         out[str(k)] = sl.bullseye(d, labels).value
@@ -134,7 +134,7 @@ def main(argv=None) -> int:
             pairs.append((tuning_sets[i], tuning_sets[j] @ rot.T))
     out = np.array(_fits(pairs)).reshape(len(picks), len(TURNS), 2)
     plain = out[:, :, 0]
-    priced = plain * np.exp(ENERGY_WEIGHT * out[:, :, 1] / 100)
+    priced = _misfit(plain, out[:, :, 1], 100, ENERGY_WEIGHT)
     res["turns"] = {"degrees": list(TURNS), "pairs": len(picks),
                     "spread_priced": float(np.max(priced.max(axis=1) / priced.min(axis=1) - 1)),
                     "spread_sigma2": float(np.max(plain.max(axis=1) / plain.min(axis=1) - 1)),

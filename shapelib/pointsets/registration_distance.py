@@ -105,17 +105,18 @@ def registration_misfits_many(pairs, *, reflection: bool = True, lam: float = 2.
                     pose_prior=0.0,
                     **({} if batch_size is None else {"batch_size": batch_size}))
     # the sets at unit mean squared radius: σ² is the misfit's first factor as it stands
-    return [(_misfit(r1, len(b), energy_weight), _misfit(r2, len(a), energy_weight), bool(r1[1] and r2[1]),
+    return [(float(_misfit(r1[0], r1[3], len(b), energy_weight)), float(_misfit(r2[0], r2[3], len(a), energy_weight)),
+             bool(r1[1] and r2[1]),
              int(r1[2] + r2[2])) for (a, b), r1, r2 in zip(units, res[::2], res[1::2])]
 
 
-def _misfit(fit, m, energy_weight):
-    """The directed misfit ``σ² exp(κ E / m)`` of a fit ``(σ², converged, n_iter, E)`` onto ``m`` target
-    points at unit mean squared radius; a target of over ``MAX_POINTS`` points is fitted through a subset of
-    ``MAX_POINTS``, whose points the energy is shared among."""
+def _misfit(sigma2, energy, m, energy_weight):
+    """The directed misfit ``σ² exp(κ E / m)`` of fits of EM variance ``sigma2`` and deformation energy ``energy``
+    (numbers or arrays) onto ``m`` target points at unit mean squared radius; a target of over ``MAX_POINTS``
+    points is fitted through a subset of ``MAX_POINTS``, whose points the energy is shared among."""
     from . import registration
 
-    return float(fit[0] * np.exp(energy_weight * fit[3] / min(m, registration.MAX_POINTS)))
+    return sigma2 * np.exp(energy_weight * energy / min(m, registration.MAX_POINTS))
 
 
 def registration_distance(u, v, *, combine: str = "mean", reflection: bool = True, lam: float = 2.0,
