@@ -184,11 +184,22 @@ def class_halves(labels, classes) -> dict:
             f"classes {half + 1}–{len(classes)}": np.flatnonzero(np.isin(labels, classes[half:]))}
 
 
+def bullseye_results(D, labels, rerank=FULL_RERANK) -> dict:
+    """The bull's-eye results (value and per class) of ``D``, raw and re-ranked by each method of ``rerank``
+    (``{method: parameters}``): ``{"raw": result, method: result, ...}``, each re-ranking computed once."""
+    return {"raw": sl.bullseye(D, labels),
+            **{m: sl.bullseye(sl.rerank(D, method=m, **kw), labels) for m, kw in rerank.items()}}
+
+
+def values_of(results: dict, prefix: str = "") -> dict:
+    """The values of :func:`bullseye_results`, the re-ranked ones keyed ``prefix + method``."""
+    return {("" if m == "raw" else prefix) + m: r.value for m, r in results.items()}
+
+
 def bullseye_scores(D, labels, rerank=FULL_RERANK, prefix: str = "") -> dict:
     """The bull's-eye of ``D``, raw and re-ranked by each method of ``rerank`` (``{method: parameters}``),
     the re-ranked ones keyed ``prefix + method``."""
-    return {"raw": sl.bullseye(D, labels).value,
-            **{prefix + m: sl.bullseye(sl.rerank(D, method=m, **kw), labels).value for m, kw in rerank.items()}}
+    return values_of(bullseye_results(D, labels, rerank), prefix)
 
 
 #: σ² of the sweep (of each outline's RMS radius²); the re-ranked ones; the 200-point ones
@@ -344,18 +355,19 @@ def registration(args) -> int:
             kws = FULL_RERANK
         else:
             kws = {m: {"k": args.rerank_k or 10, "mu": args.rerank_mu or 0.8} for m in RERANK_METHODS}
-        table = {}
         # the product of the two on the registered pairs (chosen on classes 1–35 among eight combinations of the GPU
         # run's matrix, DEVICE_COMBINE), the pairs off the shortlist after them in the rigid bound's order
         off = ~np.isfinite(r.upper)
         product = fill_off_shortlist(np.where(off, np.inf, r.matrix * rigid), rigid)[0]
-        for name, d in (("rigid fisher_rao_bound", rigid), ("registration", r.matrix),
-                        ("registration × rigid bound", product)):
-            table[name] = bullseye_scores(d, labels, kws, "re-ranked ")
-        # per class (raw and LCDP), and each half of the classes scored as its own collection (the registration
-        # distance's energy weight was chosen on ten classes among 1–35: 36–70 is the held-out half)
-        per_class = {"raw": sl.bullseye(r.matrix, labels).per_class,
-                     "lcdp": sl.bullseye(sl.rerank(r.matrix, method="lcdp", **kws["lcdp"]), labels).per_class}
+        results = {name: bullseye_results(d, labels, kws)
+                   for name, d in (("rigid fisher_rao_bound", rigid), ("registration", r.matrix),
+                                   ("registration × rigid bound", product))}
+        table = {name: values_of(res_, "re-ranked ") for name, res_ in results.items()}
+        # per class (raw and LCDP; the same re-ranked matrix as the table's), and each half of the classes scored as
+        # its own collection (the registration distance's energy weight was chosen on ten classes among 1–35:
+        # 36–70 is the held-out half)
+        per_class = {"raw": results["registration"]["raw"].per_class,
+                     "lcdp": results["registration"]["lcdp"].per_class}
         lab = np.asarray(labels)
         halves = {name: bullseye_scores(r.matrix[np.ix_(idx, idx)], lab[idx], kws, "re-ranked ")
                   for name, idx in class_halves(lab, classes).items()}
@@ -471,10 +483,11 @@ def from_device(args) -> int:
     def on_halves(D):
         return {name: bullseye_scores(D[np.ix_(i, i)], labels[i]) for name, i in halves.items()}
 
-    def scored(D):
-        return {**bullseye_scores(D, labels), "halves": on_halves(D)}
+    def scored(D, results=None):
+        return {**values_of(bullseye_results(D, labels) if results is None else results), "halves": on_halves(D)}
 
-    res["rigid"] = scored(rigid)
+    rigid_results = bullseye_results(rigid, labels)
+    res["rigid"] = scored(rigid, rigid_results)
 
     def matrix(k, combine):
         sel = rank[:done] < k
@@ -487,11 +500,11 @@ def from_device(args) -> int:
     res["shortlists"] = []
     for k in sorted({40, DEVICE_SHORTLIST, 160, complete}):
         D, count = matrix(k, DEVICE_COMBINE["misfit"])
-        row = {"k": k, "pairs": count, **scored(D)}
+        results = bullseye_results(D, labels)
+        row = {"k": k, "pairs": count, **scored(D, results)}
         if k == DEVICE_SHORTLIST:
-            per = sl.bullseye(D, labels).per_class
-            lc = sl.bullseye(sl.rerank(D, method="lcdp", **FULL_RERANK["lcdp"]), labels).per_class
-            rig = sl.bullseye(rigid, labels).per_class
+            per, lc = results["raw"].per_class, results["lcdp"].per_class
+            rig = rigid_results["raw"].per_class
             res["per_class"] = {str(c): {"raw": per[c], "lcdp": lc[c], "rigid": rig[c]} for c in per}
         res["shortlists"].append(row)
         print(f"shortlist {k} ({row['pairs']:,} pairs): bull's-eye raw {100 * row['raw']:.2f} %, "
