@@ -9,7 +9,7 @@ PY     := $(VENV)/bin/python
 JOBS   ?=
 ARGS   ?=
 
-.PHONY: setup results quick test test-all docs lab bench mutate clean
+.PHONY: setup results quick test test-processes test-all docs lab bench mutate clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -30,14 +30,22 @@ results: setup
 quick: setup
 	$(PY) run_all.py --quick $(ARGS)
 
-# the suite on every core (pytest-xdist; idle workers take queued tests from busy ones); `$(PY) -m pytest tests/test_x.py` runs part of it in one process
+# the suite on every core (pytest-xdist; idle workers take queued tests from busy ones); `$(PY) -m pytest tests/test_x.py` runs part of it in one process.
+# Python may write its bytecode (and pytest its rewritten test modules) even where the environment says
+# not to (PYTHONDONTWRITEBYTECODE): otherwise every worker, CLI child and notebook kernel compiles them again
+PYTEST := PYTHONDONTWRITEBYTECODE= $(PY) -m pytest -n logical --dist worksteal
 test: setup
-	$(PY) -m pytest -n logical --dist worksteal
+	$(PYTEST)
+
+# the tests that start real processes and stop, kill or signal them, or run study notebooks in kernels
+# (pytest marker `processes`; about two minutes on two cores; CI runs them before `make test`)
+test-processes: setup
+	$(PYTEST) -m processes
 
 # every test, the slow ones too (the JAX backend's batched and engine paths, the GPU benchmark's CPU check,
-# the study notebooks' quick runs)
+# the study notebooks' quick runs) and the processes ones
 test-all: setup
-	$(PY) -m pytest -n logical --dist worksteal -m ""
+	$(PYTEST) -m ""
 
 # nitpicky, warnings are errors; the examples of docs/examples are executed (sphinx-gallery; unchanged
 # ones are not re-run), and the study notebooks (run_all.py: the paper's figures with their full

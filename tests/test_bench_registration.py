@@ -118,6 +118,7 @@ def test_a_peer_that_raises_is_a_failure_scored_as_the_unmoved_source():
     assert info["exception"] is None and np.mean(np.linalg.norm(moved - (1.1 * x + 0.2), axis=1)) < 0.05
 
 
+@pytest.mark.processes
 def test_a_peer_over_the_time_limit_is_killed_in_its_child_process_and_the_next_one_runs():
     """With a time limit the peers run in a child process: one still running at the limit (here pycpd on
     800 points against a limit of a millisecond) is a TimeoutError scored as the unmoved source, its

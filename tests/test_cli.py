@@ -382,6 +382,7 @@ def _aligned_file(files, n):
     return path, 20 * x
 
 
+@pytest.mark.processes
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_distances_resume_after_interrupt_through_the_store(files, jobs):
     """Fault injection with the real CLI: Ctrl-C mid-run, rerun with the same store, same matrix.

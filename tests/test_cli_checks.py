@@ -217,6 +217,7 @@ if __name__ == "__main__":
 '''
 
 
+@pytest.mark.processes
 @pytest.mark.parametrize("presses", ["once", "twice"])
 def test_ctrl_c_leaves_one_line_and_no_warning_noise(raw, presses):
     import subprocess

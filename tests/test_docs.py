@@ -186,6 +186,7 @@ def test_the_full_retrieval_scores_are_the_library_s_and_render_as_tables(docs_e
     assert len(tables["times"].rows) == 3
 
 
+@pytest.mark.processes
 @requires_data
 def test_an_executed_notebook_becomes_a_page_with_its_parameters_and_no_build_paths(docs_ext, tmp_path):
     name = "fig04_line_bending"

@@ -8,7 +8,7 @@ tests/test_solver_pieces.py."""
 import numpy as np
 import pytest
 import sklearn.cluster  # noqa: F401  its k-means extension loads the OpenMP runtime before any test runs
-from threadpoolctl import threadpool_info
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from shapelib.solver.linalg import block_cholesky, block_solve, block_tridiagonal_dense, hess_vec, one_blas_thread
 
@@ -88,12 +88,15 @@ def _pools():
 def test_one_blas_thread_limits_the_blas_pools_to_one_thread_and_leaves_openmp_alone():
     """Inside the context every BLAS library reports one thread (threadpoolctl's own inspection, not
     the controller's), the OpenMP runtime loaded by scikit-learn keeps its threads, and on exit
-    every pool is as before."""
-    before = _pools()
-    assert any(api == "blas" for api, _, _ in before)
-    with one_blas_thread():
-        inside = _pools()
-        np.linalg.solve(np.eye(3), np.ones(3))
+    every pool is as before. Every pool starts at two threads, so that there is something to limit and
+    to restore whatever the suite's own setting (one per xdist worker)."""
+    with threadpool_limits(2):
+        before = _pools()
+        assert any(api == "blas" for api, _, _ in before) and all(n == 2 for _, _, n in before)
+        with one_blas_thread():
+            inside = _pools()
+            np.linalg.solve(np.eye(3), np.ones(3))
+        after = _pools()
     assert [n for api, _, n in inside if api == "blas"] == [1] * sum(api == "blas" for api, _, _ in before)
     assert [p for p in inside if p[0] != "blas"] == [p for p in before if p[0] != "blas"]
-    assert _pools() == before
+    assert after == before

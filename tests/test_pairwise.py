@@ -197,6 +197,7 @@ def test_damaged_metadata_and_done_mask_are_named(shapes, tmp_path):
         open_store(path)
 
 
+@pytest.mark.processes
 def test_local_cluster_equals_serial_stops_on_the_callback_and_leaves_no_process(rng, tmp_path):
     import psutil
 

@@ -75,6 +75,7 @@ def values(results, name="toy"):
     return json.loads((results / name / "values.json").read_text())["values"]
 
 
+@pytest.mark.processes
 def test_runs_skips_unchanged_and_reruns_on_change(toy):
     nbdir, results = toy
     assert run_all.run_one("toy", quick=False, force=False, results_dir=results)[1] == "ok"
@@ -90,6 +91,7 @@ def test_runs_skips_unchanged_and_reruns_on_change(toy):
     assert run_all.run_one("toy", quick=True, force=False, results_dir=results)[1] == "ok"
 
 
+@pytest.mark.processes
 def test_failure_names_the_cell_and_keeps_previous_results(toy):
     nbdir, results = toy
     run_all.run_one("toy", quick=False, force=False, results_dir=results)
@@ -102,6 +104,7 @@ def test_failure_names_the_cell_and_keeps_previous_results(toy):
     assert not list(results.glob(".tmp-*"))
 
 
+@pytest.mark.processes
 def test_a_run_without_the_values_or_figures_it_must_record_fails_and_keeps_previous_results(toy, monkeypatch):
     nbdir, results = toy
     assert run_all.run_one("toy", quick=True, force=False, results_dir=results)[1] == "ok"
@@ -179,6 +182,7 @@ STORED = textwrap.dedent('''\
 ''')
 
 
+@pytest.mark.processes
 def test_store_outlives_a_failed_run_is_resumed_and_removed_once_done(toy, monkeypatch):
     nbdir, results = toy
     (nbdir / "toy.py").write_text(STORED)
@@ -234,6 +238,7 @@ MARKED = textwrap.dedent('''\
 ''')
 
 
+@pytest.mark.processes
 def test_whole_machine_notebooks_run_alone_the_others_side_by_side(toy, monkeypatch):
     """No clock: the two small notebooks each wait until the other has started (run one after
     the other, the first would wait forever), and the whole-machine ones record that nothing else
@@ -262,6 +267,7 @@ def test_unknown_parameter_is_an_error(toy, tmp_path):
         run_all.execute_notebook("toy", {"bogus": 1}, tmp_path / "out")
 
 
+@pytest.mark.processes
 def test_run_all_exit_code_and_report(toy, monkeypatch):
     nbdir, results = toy
     assert run_all.run_all(["toy"], quick=False, force=False, jobs=1, results_dir=results) == 0
@@ -274,6 +280,7 @@ def test_run_all_exit_code_and_report(toy, monkeypatch):
     assert "cell 2" in row and "RuntimeError: boom" in row  # cell 1 is papermill's injected parameters
 
 
+@pytest.mark.processes
 def test_a_kernel_that_dies_before_its_first_cell_is_started_once_more(toy, monkeypatch):
     """The port race of a kernel start (another process binds a port between jupyter_client's pick and
     the kernel's bind): the fault lands on the first start, the second start runs the notebook; a
@@ -336,6 +343,7 @@ def _kill_tree(proc):
     psutil.wait_procs(tree, timeout=10)
 
 
+@pytest.mark.processes
 def test_killed_run_leaves_previous_results_intact(toy):
     nbdir, results = toy
     run_all.run_one("toy", quick=False, force=False, results_dir=results)
@@ -376,6 +384,7 @@ def _running(proc):
         return False
 
 
+@pytest.mark.processes
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig):
     """A real run_all.py process, a notebook busy in two worker processes, a real signal: Ctrl-C as a
@@ -423,6 +432,7 @@ def test_signal_stops_kernel_and_workers_removes_tmp_and_keeps_results(toy, sig)
     assert values(results) == {"toy/value": 2.0}
 
 
+@pytest.mark.processes
 def test_parameters_are_typed_validated_recorded_and_key_the_cache(toy):
     nbdir, results = toy
     declared = run_all.declared_parameters("toy")
