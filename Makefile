@@ -37,8 +37,9 @@ PYTEST := PYTHONDONTWRITEBYTECODE= $(PY) -m pytest -n logical --dist worksteal
 test: setup
 	$(PYTEST)
 
-# the tests that start real processes and stop, kill or signal them, or run study notebooks in kernels
-# (pytest marker `processes`; about two minutes on two cores; CI runs them before `make test`)
+# the tests that start real processes (Dask clusters, the command line in a child, notebook kernels), most
+# of them to stop, kill or signal them mid-run (pytest marker `processes`; about three minutes on two
+# cores; CI runs them before `make test`)
 test-processes: setup
 	$(PYTEST) -m processes
 

@@ -126,8 +126,14 @@ def test_every_page_with_code_is_executed_and_skips_are_counted():
     assert marked == SKIPPED
 
 
+#: the pages whose code starts a Dask cluster: run by `make test-processes` (CI) and `make test-all`
+STARTS_PROCESSES = {"guide/intrinsic.md", "guide/long-runs.md", "guide/population.md"}
+
+
 @requires_data
-@pytest.mark.parametrize("page", [p for p in PAGES if code_blocks(p.read_text())],
+@pytest.mark.parametrize("page", [pytest.param(p, marks=[pytest.mark.processes]
+                                               if str(p.relative_to(DOCS)) in STARTS_PROCESSES else [])
+                                  for p in PAGES if code_blocks(p.read_text())],
                          ids=lambda p: str(p.relative_to(DOCS)))
 def test_every_code_block_of_the_page_runs(page, tmp_path, monkeypatch):
     import matplotlib.pyplot as plt

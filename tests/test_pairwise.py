@@ -1,7 +1,8 @@
 """The pairwise engine (shapelib.pairwise): block layout, the zarr store, resume, mismatch and corruption.
 
-Everything here runs in this process except one LocalCluster test; the fault-injection tests with
-separate processes are in test_pairwise_faults.py.
+Everything here runs in this process except the LocalCluster tests; the fault-injection tests with
+separate processes are in test_pairwise_faults.py (and, like the LocalCluster test that stops a run
+by its callback, in `make test-processes`).
 """
 
 import json

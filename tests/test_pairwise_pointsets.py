@@ -54,6 +54,7 @@ def test_store_resumes_after_a_stop_and_checks_its_inputs(tmp_path):
                               modulo="similarity", sigma2=0.02, store=store, progress=False)
 
 
+@pytest.mark.processes
 def test_local_cluster_gives_the_same_matrix():
     D = sl.pairwise_distances(SETS, metric="alpha_bound", modulo="similarity", sigma2=0.02, n_jobs=2,
                               block_size=4, progress=False)

@@ -107,6 +107,7 @@ def test_store_resumes_and_checks_its_options(tmp_path, direct):
         sl.pairwise_distances(SETS, metric="registration", n_jobs=1, store=store, progress=False, max_iter=61)
 
 
+@pytest.mark.processes
 def test_local_cluster_equals_the_direct_loop(direct):
     D = sl.pairwise_distances(SETS, metric="registration", n_jobs=2, block_size=2, progress=False, **OPTS)
     np.testing.assert_allclose(D, direct, rtol=1e-12, atol=1e-15)

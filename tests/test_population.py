@@ -34,6 +34,7 @@ def client():
         yield c
 
 
+@pytest.mark.processes
 def test_frechet_mean_on_a_local_cluster_started_by_n_jobs(shapes, reference):
     res = shapelib.frechet_mean(shapes, sigma2=1.0, tol=1e-4, n_jobs=2)
     assert res.log[-1]["mode"] == "LocalCluster(2 processes)"
@@ -41,6 +42,7 @@ def test_frechet_mean_on_a_local_cluster_started_by_n_jobs(shapes, reference):
     assert res.n_iter == reference.n_iter
 
 
+@pytest.mark.processes
 def test_frechet_mean_on_a_given_client(shapes, reference, client):
     res = shapelib.frechet_mean(shapes, sigma2=1.0, tol=1e-4, client=client)
     assert res.log[-1]["mode"] == "cluster" and res.log[-1]["n_workers"] == 2
