@@ -6,14 +6,14 @@ from pathlib import Path
 # Under pytest-xdist the workers already fill the cores: each gets its share of them for BLAS and
 # OpenMP (one thread each with ``-n logical``) instead of every worker starting a thread per core
 # (OpenBLAS's idle threads spin on the other worker's core; the JAX and metric test files on two
-# workers and two cores: 60–63 s against 63–67 s). Set before NumPy loads OpenBLAS, and inherited by
-# the processes the tests start (CLI runs, notebook kernels); an explicit setting wins. A
-# single-process run keeps every core.
+# workers and two cores: 60–63 s against 63–67 s). The environment variables reach the processes the
+# tests start (CLI runs, notebook kernels; an explicit setting wins); this process's pools are limited in
+# place, NumPy being loaded already (zarr's pytest plugin imports it). A single-process run keeps every core.
 if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
     _THREADS = str(max(1, (os.cpu_count() or 1) // int(os.environ["PYTEST_XDIST_WORKER_COUNT"])))
     for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(_var, _THREADS)
-    if "numpy" in sys.modules:  # loaded already by a plugin: its pools are limited in place
+    if "numpy" in sys.modules:  # else OpenBLAS reads the variables above when NumPy loads it
         from threadpoolctl import threadpool_limits
 
         threadpool_limits(int(_THREADS))
